@@ -1,0 +1,18 @@
+// The `linecloud` command line: one small file per subcommand, each only
+// parsing options and calling the library.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace linecloud {
+
+void RegisterDemoCommand(CLI::App& app);
+void RegisterLiftCommand(CLI::App& app);
+void RegisterInfoCommand(CLI::App& app);
+void RegisterExportCommand(CLI::App& app);
+
+// Runs the CLI; returns the process exit code. Errors are printed to stderr
+// as one line `error: ...`.
+int RunLinecloud(int argc, const char* const* argv);
+
+}  // namespace linecloud

@@ -1,0 +1,75 @@
+#include <filesystem>
+#include <iostream>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "linecloud/apps/commands.h"
+#include "linecloud/io/lcm_format.h"
+#include "linecloud/io/ply.h"
+#include "linecloud/lifting/key.h"
+#include "linecloud/util/file.h"
+
+namespace linecloud {
+namespace {
+
+struct InfoArgs {
+  std::string map;
+  bool json = false;
+};
+
+void RunInfo(const InfoArgs& args) {
+  const std::string data = ReadFileToString(args.map);
+  const LineCloud cloud = ParseLineCloud(data, args.map);
+  Eigen::Vector3d min, max;
+  AnchorBoundingBox(cloud, &min, &max);
+  nlohmann::json j;
+  j["file"] = args.map;
+  j["file_bytes"] = data.size();
+  j["format_version"] = kLcmVersion;
+  j["num_lines"] = cloud.size();
+  j["encoding"] = std::string(LineEncodingName(cloud.encoding));
+  j["bytes_per_line"] = cloud.size() ? static_cast<double>(data.size()) / cloud.size() : 0.0;
+  j["has_descriptors"] = cloud.has_descriptors();
+  if (cloud.has_descriptors()) {
+    j["descriptors"] = {{"dim", cloud.descriptor_dim},
+                        {"type", cloud.descriptor_type},
+                        {"aggregation", cloud.descriptor_aggregation}};
+  }
+  j["key_fingerprint"] = ToHex(cloud.key_fingerprint);
+  j["anchor_bbox"] = {{"min", {min.x(), min.y(), min.z()}},
+                      {"max", {max.x(), max.y(), max.z()}}};
+  if (args.json) {
+    std::cout << j.dump(2) << "\n";
+    return;
+  }
+  std::cout << fmt::format(
+      "{}\n"
+      "  format            linecloud map, version {}\n"
+      "  lines             {}\n"
+      "  encoding          {}\n"
+      "  descriptors       {}\n"
+      "  key fingerprint   {}\n"
+      "  anchor bbox min   ({:.4f}, {:.4f}, {:.4f})\n"
+      "  anchor bbox max   ({:.4f}, {:.4f}, {:.4f})\n"
+      "  file size         {} bytes ({:.1f} bytes per line)\n",
+      args.map, kLcmVersion, cloud.size(), LineEncodingName(cloud.encoding),
+      cloud.has_descriptors()
+          ? fmt::format("yes: {}-D {} ({})", cloud.descriptor_dim,
+                        cloud.descriptor_type, cloud.descriptor_aggregation)
+          : std::string("no"),
+      ToHex(cloud.key_fingerprint), min.x(), min.y(), min.z(), max.x(),
+      max.y(), max.z(), data.size(), j["bytes_per_line"].get<double>());
+}
+
+}  // namespace
+
+void RegisterInfoCommand(CLI::App& app) {
+  auto args = std::make_shared<InfoArgs>();
+  CLI::App* cmd = app.add_subcommand("info", "Describe a line-cloud map (.lcm)");
+  cmd->add_option("map", args->map, "Line-cloud map (.lcm)")->required();
+  cmd->add_flag("--json", args->json, "Print JSON instead of text");
+  cmd->callback([args] { RunInfo(*args); });
+}
+
+}  // namespace linecloud

@@ -1,0 +1,40 @@
+#include <iostream>
+
+#include "linecloud/apps/commands.h"
+#include "linecloud/util/error.h"
+
+namespace linecloud {
+
+int RunLinecloud(int argc, const char* const* argv) {
+  CLI::App app{
+      "linecloud: privacy-preserving image-based localization with line "
+      "clouds (Speciale et al., CVPR 2019)",
+      "linecloud"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "linecloud 0.1.0");
+  RegisterDemoCommand(app);
+  RegisterLiftCommand(app);
+  RegisterInfoCommand(app);
+  RegisterExportCommand(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    std::cerr << "error: " << e.what() << " (run with --help for usage)\n";
+    return 2;
+  } catch (const Error& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 1;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "error: out of memory\n";
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace linecloud

@@ -1,0 +1,126 @@
+#include "linecloud/lifting/key.h"
+
+#include <fcntl.h>
+#include <sodium.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <iostream>
+#include <string_view>
+
+#include "linecloud/util/error.h"
+#include "linecloud/util/file.h"
+#include "linecloud/util/text_parser.h"
+
+namespace linecloud {
+
+void EnsureSodiumInitialized() {
+  static const int rc = sodium_init();
+  if (rc < 0) Fail("libsodium failed to initialise");
+}
+
+LiftingKey LiftingKey::Generate() {
+  EnsureSodiumInitialized();
+  Bytes bytes;
+  randombytes_buf(bytes.data(), bytes.size());
+  return LiftingKey(bytes);
+}
+
+LiftingKey::Id LiftingKey::Fingerprint() const {
+  EnsureSodiumInitialized();
+  static constexpr std::string_view kContext = "linecloud/key-fingerprint/v1";
+  Id id;
+  crypto_generichash(id.data(), id.size(),
+                     reinterpret_cast<const unsigned char*>(kContext.data()),
+                     kContext.size(), bytes_.data(), bytes_.size());
+  return id;
+}
+
+LiftingKey::Bytes LiftingKey::DeriveSubkey(const std::string& purpose) const {
+  EnsureSodiumInitialized();
+  Bytes subkey;
+  crypto_generichash(subkey.data(), subkey.size(),
+                     reinterpret_cast<const unsigned char*>(purpose.data()),
+                     purpose.size(), bytes_.data(), bytes_.size());
+  return subkey;
+}
+
+std::string ToHex(const uint8_t* data, size_t size) {
+  static constexpr char kDigits[] = "0123456789abcdef";
+  std::string hex(2 * size, '0');
+  for (size_t i = 0; i < size; ++i) {
+    hex[2 * i] = kDigits[data[i] >> 4];
+    hex[2 * i + 1] = kDigits[data[i] & 15];
+  }
+  return hex;
+}
+
+bool ParseHex(std::string_view hex, uint8_t* out, size_t size) {
+  if (hex.size() != 2 * size) return false;
+  const auto digit = [](char c) -> int {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+  };
+  for (size_t i = 0; i < size; ++i) {
+    const int hi = digit(hex[2 * i]);
+    const int lo = digit(hex[2 * i + 1]);
+    if (hi < 0 || lo < 0) return false;
+    out[i] = static_cast<uint8_t>(hi * 16 + lo);
+  }
+  return true;
+}
+
+LiftingKey ReadKeyFile(const std::string& path) {
+  const std::string text = ReadFileToString(path);
+  TextLines lines(text, path);
+  std::string_view line;
+  if (!lines.Next(&line)) {
+    Fail("{}: key file is empty (expected 64 hex digits)", path);
+  }
+  const auto tokens = SplitWhitespace(line);
+  if (tokens.size() != 1 || tokens[0].size() != 2 * LiftingKey::kBytes) {
+    Fail("{}: malformed key file (expected one line of 64 hex digits)", path);
+  }
+  LiftingKey::Bytes bytes;
+  if (!ParseHex(tokens[0], bytes.data(), bytes.size())) {
+    Fail("{}: malformed key file (expected 64 hex digits)", path);
+  }
+  if (lines.Next(&line)) {
+    Fail("{}: malformed key file (unexpected content after the key)", path);
+  }
+  struct stat st;
+  if (::stat(path.c_str(), &st) == 0 && (st.st_mode & 077) != 0) {
+    std::cerr << "warning: " << path
+              << " is readable by other users; run chmod 600 on it\n";
+  }
+  return LiftingKey(bytes);
+}
+
+void WriteKeyFile(const std::string& path, const LiftingKey& key) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0600);
+  if (fd < 0) {
+    if (errno == EEXIST) {
+      Fail("{}: key file already exists; pass it with --key-file to reuse it",
+           path);
+    }
+    Fail("{}: cannot create key file ({})", path, std::strerror(errno));
+  }
+  ::fchmod(fd, 0600);
+  const std::string text =
+      "# linecloud lifting key: keep it secret, and reuse it for every lifting "
+      "of this map\n" +
+      ToHex(key.bytes()) + "\n";
+  const ssize_t written = ::write(fd, text.data(), text.size());
+  const bool ok = written == static_cast<ssize_t>(text.size()) && ::fsync(fd) == 0;
+  ::close(fd);
+  if (!ok) {
+    ::unlink(path.c_str());
+    Fail("{}: cannot write key file", path);
+  }
+}
+
+}  // namespace linecloud
