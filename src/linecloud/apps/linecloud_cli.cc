@@ -16,6 +16,20 @@ int RunLinecloud(int argc, const char* const* argv) {
   RegisterLiftCommand(app);
   RegisterInfoCommand(app);
   RegisterExportCommand(app);
+  if (argc >= 2 && argv[1][0] != '-') {
+    const std::string name = argv[1];
+    bool known = false;
+    std::string names;
+    for (const CLI::App* sub : app.get_subcommands({})) {
+      known |= sub->get_name() == name;
+      names += (names.empty() ? "" : ", ") + sub->get_name();
+    }
+    if (!known) {
+      std::cerr << "error: unknown command '" << name << "' (commands: " << names
+                << ")\n";
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -26,7 +26,7 @@ Rigid3d ReadPose(ByteReader& r, std::string_view what) {
     Fail("{}: '{}' has a zero quaternion at byte {}", r.Source(), what,
          r.Position() - 4 * sizeof(double));
   }
-  pose.rotation.normalize();
+  if (std::abs(norm - 1.0) > 1e-12) pose.rotation.normalize();
   for (int i = 0; i < 3; ++i) pose.translation[i] = r.ReadFiniteDouble(what);
   return pose;
 }
@@ -73,8 +73,11 @@ Eigen::Quaterniond ParseQuaternion(const std::vector<std::string_view>& tok,
                        ParseNumber<double>(tok[i + 1], lines, "QX"),
                        ParseNumber<double>(tok[i + 2], lines, "QY"),
                        ParseNumber<double>(tok[i + 3], lines, "QZ"));
-  if (!(q.norm() > 1e-6)) lines.FailHere("zero quaternion");
-  return q.normalized();
+  const double norm = q.norm();
+  if (!(norm > 1e-6)) lines.FailHere("zero quaternion");
+  // Normalise only when needed, so that bin <-> txt round trips are exact.
+  if (std::abs(norm - 1.0) > 1e-12) q.normalize();
+  return q;
 }
 
 }  // namespace

@@ -1,0 +1,212 @@
+// End-to-end tests of the `linecloud` command line, run in-process.
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "linecloud/apps/commands.h"
+#include "linecloud/io/colmap_model.h"
+#include "linecloud/io/lcm_format.h"
+#include "linecloud/lifting/key.h"
+#include "linecloud/testing/test_util.h"
+#include "linecloud/util/file.h"
+
+namespace linecloud {
+namespace {
+
+using testing::SharedDataPath;
+using testing::TempDir;
+
+struct CliResult {
+  int code;
+  std::string out, err;
+};
+
+CliResult RunCli(std::vector<std::string> args) {
+  args.insert(args.begin(), "linecloud");
+  std::vector<const char*> argv;
+  for (const std::string& a : args) argv.push_back(a.c_str());
+  ::testing::internal::CaptureStdout();
+  ::testing::internal::CaptureStderr();
+  const int code = RunLinecloud(static_cast<int>(argv.size()), argv.data());
+  CliResult r{code, ::testing::internal::GetCapturedStdout(),
+              ::testing::internal::GetCapturedStderr()};
+  return r;
+}
+
+// A failing command: non-zero, exactly one `error: ...` line mentioning `needle`.
+void ExpectError(const CliResult& r, const std::string& needle) {
+  EXPECT_NE(r.code, 0);
+  EXPECT_EQ(r.err.rfind("error: ", 0), 0u) << r.err;
+  EXPECT_EQ(std::count(r.err.begin(), r.err.end(), '\n'), 1) << r.err;
+  EXPECT_NE(r.err.find(needle), std::string::npos) << r.err;
+}
+
+const std::string kMaupertuis = "colmap-maupertuis/reconstruction";
+
+TEST(Cli, LiftIsPermanentPerKeyAndUnrelatedAcrossKeys) {
+  LINECLOUD_REQUIRE_DATA(kMaupertuis);
+  TempDir tmp;
+  const std::string model = SharedDataPath(kMaupertuis);
+  CliResult r = RunCli({"lift", "--model", model, "--out", tmp.Path("a.lcm")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("Keep it secret"), std::string::npos);
+  ASSERT_TRUE(FileExists(tmp.Path("a.lcm.key")));
+  EXPECT_EQ(std::filesystem::status(tmp.Path("a.lcm.key")).permissions() &
+                std::filesystem::perms::all,
+            std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  r = RunCli({"lift", "--model", model, "--out", tmp.Path("b.lcm"), "--key-file",
+           tmp.Path("a.lcm.key")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(ReadFileToString(tmp.Path("a.lcm")), ReadFileToString(tmp.Path("b.lcm")));
+
+  r = RunCli({"lift", "--model", model, "--out", tmp.Path("c.lcm")});  // new key
+  ASSERT_EQ(r.code, 0) << r.err;
+  const LineCloud a = ReadLineCloud(tmp.Path("a.lcm"));
+  const LineCloud c = ReadLineCloud(tmp.Path("c.lcm"));
+  ASSERT_EQ(a.size(), 1039u);
+  ASSERT_EQ(a.ids, c.ids);
+  const Reconstruction rec = ReadColmapModel(model);
+  for (size_t i = 0; i < a.size(); ++i) {
+    ASSERT_NE(a.lines[i].v, c.lines[i].v);
+    ASSERT_NE(a.lines[i].v, -c.lines[i].v);
+    const Eigen::Vector3d& x = rec.points3D.at(a.ids[i]).xyz;
+    ASSERT_LT(a.lines[i].DistanceTo(x) / x.norm(), 1e-9);
+  }
+  // No coordinate of the model in the file's bytes, as float64 or float32.
+  std::vector<Eigen::Vector3d> xyz;
+  for (const auto& [id, p] : rec.points3D) xyz.push_back(p.xyz);
+  testing::ExpectNoCoordinates(ReadFileToString(tmp.Path("a.lcm")), xyz);
+}
+
+TEST(Cli, LiftRefusesToReplaceAMapLiftedWithAnotherKey) {
+  LINECLOUD_REQUIRE_DATA(kMaupertuis);
+  TempDir tmp;
+  const std::string model = SharedDataPath(kMaupertuis);
+  ASSERT_EQ(RunCli({"lift", "--model", model, "--out", tmp.Path("m.lcm")}).code, 0);
+  const std::string before = ReadFileToString(tmp.Path("m.lcm"));
+  WriteKeyFile(tmp.Path("other.key"), LiftingKey::Generate());
+  ExpectError(RunCli({"lift", "--model", model, "--out", tmp.Path("m.lcm"), "--key-file",
+                   tmp.Path("other.key")}),
+              "another key");
+  EXPECT_EQ(ReadFileToString(tmp.Path("m.lcm")), before);
+  // Re-lifting without --key-file reuses the key next to the map.
+  ASSERT_EQ(RunCli({"lift", "--model", model, "--out", tmp.Path("m.lcm")}).code, 0);
+  EXPECT_EQ(ReadFileToString(tmp.Path("m.lcm")), before);
+}
+
+TEST(Cli, LiftWithDescriptorsCompactInfoAndExport) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
+  TempDir tmp;
+  const std::string model = SharedDataPath(kMaupertuis);
+  CliResult r = RunCli({"lift", "--model", model, "--out", tmp.Path("d.lcm"), "--database",
+                     SharedDataPath("colmap-maupertuis/colmap.db"), "--compact"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const LineCloud cloud = ReadLineCloud(tmp.Path("d.lcm"));
+  EXPECT_EQ(cloud.encoding, LineEncoding::kCompact);
+  EXPECT_EQ(cloud.descriptor_dim, 128);
+  EXPECT_EQ(cloud.descriptor_aggregation, "medoid");
+  const Reconstruction rec = ReadColmapModel(model);
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const Eigen::Vector3d& x = rec.points3D.at(cloud.ids[i]).xyz;
+    ASSERT_LT(cloud.lines[i].DistanceTo(x) / x.norm(), 1e-6);
+  }
+  r = RunCli({"info", tmp.Path("d.lcm")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("1039"), std::string::npos);
+  EXPECT_NE(r.out.find("compact-256-f32"), std::string::npos);
+  EXPECT_NE(r.out.find("128-D"), std::string::npos);
+  r = RunCli({"info", tmp.Path("d.lcm"), "--json"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("\"num_lines\": 1039"), std::string::npos);
+
+  r = RunCli({"export", "--map", tmp.Path("d.lcm"), "--ply", tmp.Path("lines.ply")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string ply = ReadFileToString(tmp.Path("lines.ply"));
+  EXPECT_EQ(ply.rfind("ply\nformat binary_little_endian 1.0\n", 0), 0u);
+  EXPECT_NE(ply.find("element vertex 2078\n"), std::string::npos);
+  EXPECT_NE(ply.find("element edge 1039\n"), std::string::npos);
+  const size_t header_end = ply.find("end_header\n") + 11;
+  EXPECT_EQ(ply.size() - header_end, 2078 * 12 + 1039 * 8);
+  r = RunCli({"export", "--model", model, "--ply", tmp.Path("points.ply")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string pts = ReadFileToString(tmp.Path("points.ply"));
+  EXPECT_EQ(pts.size() - (pts.find("end_header\n") + 11), 1039u * 15);
+}
+
+TEST(Cli, BadInputGivesOneErrorLineAndNoOutput) {
+  TempDir tmp;
+  ExpectError(RunCli({"lift", "--model", tmp.Path("nowhere"), "--out", tmp.Path("x.lcm")}),
+              "nowhere");
+  EXPECT_FALSE(FileExists(tmp.Path("x.lcm")));
+  EXPECT_FALSE(FileExists(tmp.Path("x.lcm.key")));  // no key left behind
+
+  // Unknown camera model.
+  std::filesystem::create_directories(tmp.Path("m"));
+  std::ofstream(tmp.Path("m/cameras.txt")) << "1 THIN_PRISM_FISHEYE 10 10 1 2 3\n";
+  std::ofstream(tmp.Path("m/images.txt")) << "";
+  std::ofstream(tmp.Path("m/points3D.txt")) << "";
+  ExpectError(RunCli({"lift", "--model", tmp.Path("m"), "--out", tmp.Path("x.lcm")}),
+              "THIN_PRISM_FISHEYE");
+  // NaN coordinates.
+  std::ofstream(tmp.Path("m/cameras.txt")) << "1 PINHOLE 10 10 5 5 5 5\n";
+  std::ofstream(tmp.Path("m/points3D.txt")) << "1 1 nan 3 0 0 0 0\n";
+  ExpectError(RunCli({"lift", "--model", tmp.Path("m"), "--out", tmp.Path("x.lcm")}),
+              "points3D.txt:1");
+  // Truncated binary model.
+  std::ofstream(tmp.Path("m/points3D.txt")) << "1 1 2 3 0 0 0 0\n";
+  ASSERT_EQ(RunCli({"lift", "--model", tmp.Path("m"), "--out", tmp.Path("ok.lcm")}).code, 0);
+  const Reconstruction rec = ReadColmapModel(tmp.Path("m"));
+  WriteColmapModel(rec, tmp.Path("b"), ModelFormat::kBinary);
+  const std::string pts = ReadFileToString(tmp.Path("b/points3D.bin"));
+  std::ofstream(tmp.Path("b/points3D.bin"), std::ios::binary).write(pts.data(), pts.size() - 3);
+  ExpectError(RunCli({"lift", "--model", tmp.Path("b"), "--out", tmp.Path("x.lcm")}),
+              "truncated");
+  EXPECT_FALSE(FileExists(tmp.Path("x.lcm")));
+  // Malformed key.
+  std::ofstream(tmp.Path("bad.key")) << "not a key\n";
+  ExpectError(RunCli({"lift", "--model", tmp.Path("m"), "--out", tmp.Path("x.lcm"),
+                   "--key-file", tmp.Path("bad.key")}),
+              "bad.key");
+  EXPECT_FALSE(FileExists(tmp.Path("x.lcm")));
+  // Corrupt and truncated maps.
+  std::string map = ReadFileToString(tmp.Path("ok.lcm"));
+  std::ofstream(tmp.Path("cut.lcm"), std::ios::binary).write(map.data(), map.size() - 40);
+  ExpectError(RunCli({"info", tmp.Path("cut.lcm")}), "cut.lcm");
+  map[map.size() / 2] ^= 0x40;
+  std::ofstream(tmp.Path("flip.lcm"), std::ios::binary).write(map.data(), map.size());
+  ExpectError(RunCli({"export", "--map", tmp.Path("flip.lcm"), "--ply", tmp.Path("o.ply")}),
+              "checksum");
+  EXPECT_FALSE(FileExists(tmp.Path("o.ply")));
+  ExpectError(RunCli({"info", tmp.Path("missing.lcm")}), "missing.lcm");
+  // Database that is not one.
+  std::ofstream(tmp.Path("fake.db")) << "hello";
+  ExpectError(RunCli({"lift", "--model", tmp.Path("m"), "--out", tmp.Path("x.lcm"),
+                   "--database", tmp.Path("fake.db")}),
+              "fake.db");
+  // Usage errors.
+  ExpectError(RunCli({"lift", "--out", tmp.Path("x.lcm")}), "--model");
+  ExpectError(RunCli({"export", "--ply", tmp.Path("o.ply")}), "--map or --model");
+  ExpectError(RunCli({"frobnicate"}), "frobnicate");
+  EXPECT_EQ(RunCli({"lift", "--help"}).code, 0);
+}
+
+TEST(Cli, DemoRunsAndReusesItsKey) {
+  TempDir tmp;
+  CliResult r = RunCli({"demo", "--out", tmp.Path("demo"), "--points", "800", "--images", "8",
+                     "--queries", "2"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("(new)"), std::string::npos);
+  const std::string first = ReadFileToString(tmp.Path("demo/map.lcm"));
+  r = RunCli({"demo", "--out", tmp.Path("demo"), "--points", "800", "--images", "8",
+           "--queries", "2"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("(reused)"), std::string::npos);
+  EXPECT_EQ(ReadFileToString(tmp.Path("demo/map.lcm")), first);
+  EXPECT_TRUE(FileExists(tmp.Path("demo/queries/query_001.json")));
+  const Reconstruction rec = ReadColmapModel(tmp.Path("demo/model"));
+  EXPECT_GT(rec.points3D.size(), 100u);
+}
+
+}  // namespace
+}  // namespace linecloud

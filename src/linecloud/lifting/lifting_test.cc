@@ -1,0 +1,202 @@
+#include "linecloud/lifting/lifting.h"
+
+#include <sys/stat.h>
+
+#include <algorithm>
+#include <numeric>
+#include <fstream>
+#include <random>
+#include <set>
+
+#include <gtest/gtest.h>
+
+#include "linecloud/io/lcm_format.h"
+#include "linecloud/testing/test_util.h"
+#include "linecloud/util/error.h"
+
+namespace linecloud {
+namespace {
+
+using testing::TempDir;
+
+LiftingKey KeyFromSeed(uint8_t seed) {
+  LiftingKey::Bytes b;
+  for (size_t i = 0; i < b.size(); ++i) b[i] = static_cast<uint8_t>(seed * 31 + i);
+  return LiftingKey(b);
+}
+
+void RandomPoints(size_t n, uint64_t seed, std::vector<uint64_t>* ids,
+                  std::vector<Eigen::Vector3d>* points) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> g(0.0, 20.0);
+  ids->clear();
+  points->clear();
+  for (size_t i = 0; i < n; ++i) {
+    ids->push_back(1 + i + (i / 100) * 7);  // runs of consecutive ids with gaps
+    points->emplace_back(g(rng), g(rng), g(rng) + 50.0);
+  }
+}
+
+TEST(Lifting, LinesPassThroughTheirPoints) {
+  std::vector<uint64_t> ids;
+  std::vector<Eigen::Vector3d> points;
+  RandomPoints(5000, 1, &ids, &points);
+  const LiftingKey key = KeyFromSeed(1);
+  const LineCloud full = LiftPoints(ids, points, key, {LineEncoding::kPlucker});
+  const LineCloud compact = LiftPoints(ids, points, key, {LineEncoding::kCompact});
+  ASSERT_EQ(full.size(), ids.size());
+  double worst_full = 0, worst_compact = 0;
+  for (size_t i = 0; i < ids.size(); ++i) {
+    const double scale = points[i].norm();
+    worst_full = std::max(worst_full, full.lines[i].DistanceTo(points[i]) / scale);
+    worst_compact = std::max(worst_compact, compact.lines[i].DistanceTo(points[i]) / scale);
+    EXPECT_TRUE(full.lines[i].IsValid(1e-12));
+    // Compact directions are one of the 256 fixed ones.
+    EXPECT_EQ(compact.lines[i].v, CompactDirections()[compact.compact[i].direction_index]);
+  }
+  EXPECT_LT(worst_full, 1e-9);
+  EXPECT_LT(worst_compact, 1e-6);
+}
+
+TEST(Lifting, DeterministicPerKeyAndIdIndependentOfOrder) {
+  std::vector<uint64_t> ids;
+  std::vector<Eigen::Vector3d> points;
+  RandomPoints(3000, 2, &ids, &points);
+  const LiftingKey key = KeyFromSeed(2);
+  std::vector<Eigen::Vector3d> a(ids.size()), b(ids.size());
+  KeyedDirections(key, ids, a.data(), nullptr);
+  // Same ids shuffled: each id still gets its own direction.
+  std::vector<size_t> order(ids.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::shuffle(order.begin(), order.end(), std::mt19937_64(3));
+  std::vector<uint64_t> shuffled;
+  for (size_t i : order) shuffled.push_back(ids[i]);
+  KeyedDirections(key, shuffled, b.data(), nullptr);
+  for (size_t k = 0; k < order.size(); ++k) ASSERT_EQ(b[k], a[order[k]]);
+  // And one at a time.
+  for (size_t i = 0; i < 50; ++i) {
+    Eigen::Vector3d single;
+    KeyedDirections(key, std::span<const uint64_t>(&ids[i], 1), &single, nullptr);
+    ASSERT_EQ(single, a[i]);
+  }
+}
+
+TEST(Lifting, AnotherKeyGivesUnrelatedDirections) {
+  std::vector<uint64_t> ids;
+  std::vector<Eigen::Vector3d> points;
+  RandomPoints(20000, 4, &ids, &points);
+  std::vector<Eigen::Vector3d> a(ids.size()), b(ids.size());
+  KeyedDirections(KeyFromSeed(4), ids, a.data(), nullptr);
+  KeyedDirections(KeyFromSeed(5), ids, b.data(), nullptr);
+  std::set<std::tuple<double, double, double>> seen;
+  for (const auto& v : a) seen.insert({v.x(), v.y(), v.z()});
+  double mean_abs_cos = 0;
+  for (size_t i = 0; i < ids.size(); ++i) {
+    ASSERT_FALSE(seen.count({b[i].x(), b[i].y(), b[i].z()})) << "direction repeated";
+    mean_abs_cos += std::abs(a[i].dot(b[i]));
+  }
+  // Independent uniform directions: E|cos| = 1/2.
+  EXPECT_NEAR(mean_abs_cos / ids.size(), 0.5, 0.01);
+}
+
+TEST(Lifting, DirectionsAreUniformOnTheSphere) {
+  const size_t n = 200000;
+  std::vector<uint64_t> ids(n);
+  std::iota(ids.begin(), ids.end(), 1);
+  std::vector<Eigen::Vector3d> v(n);
+  std::vector<uint8_t> idx(n);
+  KeyedDirections(KeyFromSeed(6), ids, v.data(), idx.data());
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
+  std::vector<int> z_bins(20, 0), idx_bins(256, 0);
+  for (size_t i = 0; i < n; ++i) {
+    ASSERT_NEAR(v[i].norm(), 1.0, 1e-14);
+    mean += v[i];
+    second += v[i] * v[i].transpose();
+    ++z_bins[std::min(19, static_cast<int>((v[i].z() + 1.0) * 10.0))];
+    ++idx_bins[idx[i]];
+  }
+  mean /= n;
+  second /= n;
+  // Uniform on S²: E[v] = 0, E[v vᵀ] = I/3; z uniform on [−1, 1].
+  EXPECT_LT(mean.norm(), 0.01);
+  EXPECT_LT((second - Eigen::Matrix3d::Identity() / 3.0).norm(), 0.01);
+  const auto chi2 = [](const std::vector<int>& bins, double expected) {
+    double c = 0;
+    for (int b : bins) c += (b - expected) * (b - expected) / expected;
+    return c;
+  };
+  // 99.99% quantiles: chi²(19) < 50, chi²(255) < 350.
+  EXPECT_LT(chi2(z_bins, n / 20.0), 50.0);
+  EXPECT_LT(chi2(idx_bins, n / 256.0), 350.0);
+}
+
+TEST(Lifting, CompactDirectionsAreWellSpread) {
+  const auto& d = CompactDirections();
+  double min_angle = 10;
+  for (int i = 0; i < 256; ++i) {
+    EXPECT_NEAR(d[i].norm(), 1.0, 1e-15);
+    EXPECT_GT(d[i].z(), 0.0);
+    Eigen::Vector3d e1, e2;
+    CompactBasis(static_cast<uint8_t>(i), &e1, &e2);
+    EXPECT_LT(std::abs(e1.dot(d[i])) + std::abs(e2.dot(d[i])) + std::abs(e1.dot(e2)), 1e-14);
+    for (int j = 0; j < i; ++j) {
+      // Lines are unoriented: compare up to sign.
+      min_angle = std::min(min_angle, std::acos(std::min(1.0, std::abs(d[i].dot(d[j])))));
+    }
+  }
+  // 256 points on a hemisphere (2π sr): ~0.157 rad spacing for a perfect packing.
+  EXPECT_GT(min_angle, 0.08);
+}
+
+TEST(Lifting, RejectsBadInput) {
+  const LiftingKey key = KeyFromSeed(7);
+  std::vector<uint64_t> ids = {1, 2};
+  std::vector<Eigen::Vector3d> points = {{0, 0, 1}, {std::nan(""), 0, 1}};
+  EXPECT_THROW(LiftPoints(ids, points, key, {}), Error);
+  points[1] = {1, 2, 3};
+  ids[1] = 1;
+  EXPECT_THROW(LiftPoints(ids, points, key, {}), Error);  // repeated id
+  ids.pop_back();
+  EXPECT_THROW(LiftPoints(ids, points, key, {}), Error);  // size mismatch
+}
+
+TEST(LiftingKey, FileRoundTripPermissionsAndErrors) {
+  TempDir tmp;
+  const LiftingKey key = LiftingKey::Generate();
+  EXPECT_NE(key.bytes(), LiftingKey::Generate().bytes());
+  WriteKeyFile(tmp.Path("k"), key);
+  struct stat st;
+  ASSERT_EQ(stat(tmp.Path("k").c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  EXPECT_EQ(ReadKeyFile(tmp.Path("k")).bytes(), key.bytes());
+  EXPECT_THROW(WriteKeyFile(tmp.Path("k"), key), Error);  // never overwritten
+  EXPECT_EQ(key.Fingerprint(), ReadKeyFile(tmp.Path("k")).Fingerprint());
+  EXPECT_NE(key.Fingerprint(), KeyFromSeed(1).Fingerprint());
+  const std::vector<std::string> bad_keys = {
+      "", "abc\n", std::string(64, 'g') + "\n", std::string(64, 'a') + "\nextra\n"};
+  for (const std::string& bad : bad_keys) {
+    std::ofstream(tmp.Path("bad")) << bad;
+    try {
+      ReadKeyFile(tmp.Path("bad"));
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(tmp.Path("bad")), std::string::npos);
+    }
+  }
+  EXPECT_THROW(ReadKeyFile(tmp.Path("missing")), Error);
+}
+
+TEST(Lifting, NoPointCoordinateInTheFile) {
+  std::vector<uint64_t> ids;
+  std::vector<Eigen::Vector3d> points;
+  RandomPoints(2000, 8, &ids, &points);
+  const LiftingKey key = KeyFromSeed(8);
+  for (const LineEncoding encoding : {LineEncoding::kPlucker, LineEncoding::kCompact}) {
+    testing::ExpectNoCoordinates(
+        SerializeLineCloud(LiftPoints(ids, points, key, {encoding})), points);
+  }
+}
+
+}  // namespace
+}  // namespace linecloud

@@ -1,0 +1,75 @@
+// Helpers shared by the tests: where the real data lives, temporary folders.
+#pragma once
+
+#include <cstdlib>
+#include <filesystem>
+#include <random>
+#include <string>
+
+#include <gtest/gtest.h>
+
+namespace linecloud::testing {
+
+// ../shared next to the checkout, or $LINECLOUD_SHARED.
+inline std::string SharedDir() {
+  if (const char* env = std::getenv("LINECLOUD_SHARED")) return env;
+  return LINECLOUD_SHARED_DIR;
+}
+
+inline std::string SharedDataPath(const std::string& relative) {
+  return (std::filesystem::path(SharedDir()) / "data" / relative).string();
+}
+
+// Skips the test, saying why, when a real data set is not present.
+#define LINECLOUD_REQUIRE_DATA(relative)                                      \
+  do {                                                                        \
+    if (!std::filesystem::exists(::linecloud::testing::SharedDataPath(relative))) { \
+      GTEST_SKIP() << "real data absent: "                                    \
+                   << ::linecloud::testing::SharedDataPath(relative)          \
+                   << " (set LINECLOUD_SHARED to the shared/ folder)";       \
+    }                                                                         \
+  } while (0)
+
+// A fresh empty folder under the system temp dir, removed at destruction.
+class TempDir {
+ public:
+  TempDir() {
+    std::random_device rd;
+    path_ = std::filesystem::temp_directory_path() /
+            ("linecloud_test_" + std::to_string(rd()) + std::to_string(rd()));
+    std::filesystem::create_directories(path_);
+  }
+  ~TempDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path_, ec);
+  }
+  std::string Path(const std::string& name = "") const {
+    return name.empty() ? path_.string() : (path_ / name).string();
+  }
+
+ private:
+  std::filesystem::path path_;
+};
+
+// Asserts that no coordinate of `points` appears in `bytes`: each coordinate
+// as a float64, and each adjacent pair (x, y), (y, z) as two float32 (single
+// float32 values are too short: 4 random bytes match somewhere in a large
+// file by chance).
+template <typename Points>
+void ExpectNoCoordinates(const std::string& bytes, const Points& points) {
+  const auto contains = [&](const void* p, size_t n) {
+    return bytes.find(std::string(static_cast<const char*>(p), n)) != std::string::npos;
+  };
+  for (const auto& x : points) {
+    for (int k = 0; k < 3; ++k) {
+      const double d = x[k];
+      ASSERT_FALSE(contains(&d, 8)) << "coordinate " << d << " found as float64";
+    }
+    for (int k = 0; k < 2; ++k) {
+      const float pair[2] = {static_cast<float>(x[k]), static_cast<float>(x[k + 1])};
+      ASSERT_FALSE(contains(pair, 8)) << "coordinates found as float32";
+    }
+  }
+}
+
+}  // namespace linecloud::testing
