@@ -2,7 +2,7 @@
 
 #include <cmath>
 #include <numbers>
-#include <unordered_set>
+#include <algorithm>
 
 #include "linecloud/util/error.h"
 
@@ -82,12 +82,17 @@ void LineCloud::Check(std::string_view source) const {
     Fail("{}: descriptor block has {} bytes, expected {} x {}", source,
          descriptors.size(), ids.size(), descriptor_dim);
   }
-  std::unordered_set<uint64_t> seen;
-  seen.reserve(ids.size());
+  // Repeated ids: a linear scan when sorted (the usual case), else a sort.
+  if (!std::is_sorted(ids.begin(), ids.end())) {
+    std::vector<uint64_t> sorted = ids;
+    std::sort(sorted.begin(), sorted.end());
+    const auto dup = std::adjacent_find(sorted.begin(), sorted.end());
+    if (dup != sorted.end()) Fail("{}: line id {} appears twice", source, *dup);
+  } else {
+    const auto dup = std::adjacent_find(ids.begin(), ids.end());
+    if (dup != ids.end()) Fail("{}: line id {} appears twice", source, *dup);
+  }
   for (size_t i = 0; i < ids.size(); ++i) {
-    if (!seen.insert(ids[i]).second) {
-      Fail("{}: line id {} appears twice", source, ids[i]);
-    }
     if (!lines[i].IsValid(1e-6)) {
       Fail("{}: line {} (id {}) is not a valid Plücker line (non-finite, "
            "non-unit direction, or moment not orthogonal to it)",

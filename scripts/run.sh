@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# One entry point for a fresh Debian 12 machine: installs the dependencies,
+# builds (Release) and runs one job.
+#   scripts/run.sh demo    the built-in synthetic demo (no data download)
+#   scripts/run.sh test    every unit and end-to-end test (CTest + GoogleTest)
+#   scripts/run.sh bench   the benchmarks (Google Benchmark)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+job="${1:-demo}"
+bash scripts/install_deps.sh
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
+cmake --build build -j2
+case "$job" in
+  demo) ./build/linecloud demo ;;
+  test) ctest --test-dir build --output-on-failure -j2 ;;
+  bench) ./build/linecloud_bench ;;
+  *) echo "error: unknown job '$job' (demo, test, bench)" >&2; exit 2 ;;
+esac
