@@ -1,0 +1,64 @@
+// The 16 pose problems of Speciale et al., CVPR 2019 (Table 1), as data: one
+// minimal sample type for all of them, a dispatcher to each method's minimal
+// solver, and the residual of each method's constraint. Names, sample sizes
+// and conventions: ../shared/METHODS.md.
+#pragma once
+
+#include <span>
+#include <string_view>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "linecloud/geometry/plucker.h"
+#include "linecloud/geometry/rigid3.h"
+
+namespace linecloud {
+
+struct MethodInfo {
+  std::string_view name;
+  int sample_size;
+  bool lines;         // map of lines (privacy-preserving) vs points
+  bool multi;         // several cameras (rig / generalized camera)
+  bool local_points;  // query supplies 3D points X̃ (+λ)
+  bool known_scale;   // +s (only meaningful with local_points)
+  bool gravity;       // +u: rotation about y
+  bool implemented;   // a minimal solver exists in this build
+
+  bool similarity() const { return local_points && !known_scale; }
+};
+
+// The 16 methods in the paper's order.
+std::span<const MethodInfo> AllMethods();
+// Throws Error listing the valid names when `name` is unknown.
+const MethodInfo& FindMethod(std::string_view name);
+
+// One minimal sample; fields a method does not use stay empty.
+struct MinimalSample {
+  std::vector<Eigen::Vector3d> bearings;      // unit, camera frame
+  std::vector<int> camera_index;              // m- methods with bearings
+  std::vector<Rigid3d> cam_from_rig;          // m- methods with bearings
+  std::vector<Eigen::Vector3d> points_local;  // +l: X̃ in the query frame
+  std::vector<Eigen::Vector3d> points;        // point map
+  std::vector<PluckerLine> lines;             // line map
+};
+
+// Throws Error naming `source` and the field when the sample does not fit
+// the method (missing field, wrong count, bad camera index, non-finite value).
+void CheckSample(const MethodInfo& method, const MinimalSample& sample,
+                 std::string_view source);
+
+// Runs the method's minimal solver on a checked sample: every real solution
+// as query_from_world (cam_from_world, rig_from_world or local_from_world),
+// scale 1 for rigid methods. Throws Error when the method has no solver yet.
+int SolveMinimal(const MethodInfo& method, const MinimalSample& sample,
+                 std::vector<Sim3d>* solutions);
+
+// Largest residual of the method's constraint over the sample, dimensionless:
+// sine of the angle between bearing and point, or between bearing and the
+// plane through the camera centre and the line; for local points, the
+// point-to-point or point-to-line distance over max(1, |X̃|).
+double MaxResidual(const MethodInfo& method, const MinimalSample& sample,
+                   const Sim3d& query_from_world);
+
+}  // namespace linecloud

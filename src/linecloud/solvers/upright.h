@@ -1,0 +1,56 @@
+// Helpers for the known-gravity (+u) solvers: after pre-alignment gravity
+// points along −y in both frames, so the unknown rotation is about y:
+//   R_y(θ) = [ c 0 s ; 0 1 0 ; −s 0 c ],  c = cos θ, s = sin θ.
+// For a vector X, R_y X = c·A(X) + s·B(X) + D(X) with
+//   A(X) = (X_x, 0, X_z),  B(X) = (X_z, 0, −X_x),  D(X) = (0, X_y, 0),
+// which makes every +u constraint linear in (c, s).
+#pragma once
+
+#include <cmath>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace linecloud::upright {
+
+inline Eigen::Vector3d A(const Eigen::Vector3d& x) { return {x.x(), 0.0, x.z()}; }
+inline Eigen::Vector3d B(const Eigen::Vector3d& x) { return {x.z(), 0.0, -x.x()}; }
+inline Eigen::Vector3d D(const Eigen::Vector3d& x) { return {0.0, x.y(), 0.0}; }
+
+inline Eigen::Quaterniond RotationY(double c, double s) {
+  // Half-angle quaternion of the rotation with cos θ = c, sin θ = s.
+  const double norm = std::hypot(c, s);
+  c /= norm;
+  s /= norm;
+  // cos(θ/2), sin(θ/2) stably from (c, s).
+  const double half_cos = std::sqrt(std::max(0.0, 0.5 * (1.0 + c)));
+  const double half_sin = std::sqrt(std::max(0.0, 0.5 * (1.0 - c)));
+  return Eigen::Quaterniond(half_cos, 0.0, s >= 0 ? half_sin : -half_sin, 0.0);
+}
+
+// Orthonormal u1, u2 spanning the plane orthogonal to a non-zero d.
+inline void OrthogonalBasis(const Eigen::Vector3d& d, Eigen::Vector3d* u1,
+                            Eigen::Vector3d* u2) {
+  Eigen::Index axis;
+  d.cwiseAbs().minCoeff(&axis);
+  *u1 = d.cross(Eigen::Vector3d::Unit(axis)).normalized();
+  *u2 = d.cross(*u1).normalized();
+}
+
+// Real (c, s) on the unit circle with α c + β s + γ = 0; returns how many (0–2).
+inline int IntersectLineUnitCircle(double alpha, double beta, double gamma,
+                                   double cs[2][2]) {
+  const double r2 = alpha * alpha + beta * beta;
+  if (!(r2 > 1e-300) || !std::isfinite(r2) || !std::isfinite(gamma)) return 0;
+  const double disc = r2 - gamma * gamma;
+  if (disc < 0) return 0;
+  const double c0 = -gamma * alpha / r2, s0 = -gamma * beta / r2;
+  const double h = std::sqrt(disc) / r2;
+  cs[0][0] = c0 - h * beta;
+  cs[0][1] = s0 + h * alpha;
+  cs[1][0] = c0 + h * beta;
+  cs[1][1] = s0 - h * alpha;
+  return disc == 0 ? 1 : 2;
+}
+
+}  // namespace linecloud::upright

@@ -1,0 +1,27 @@
+// Seeded random instances of the 16 minimal problems with their true pose,
+// for the solver tests and `linecloud bench solvers`: random rotations (about
+// y for +u), translations, scales in [0.1, 10] (log-uniform) for Sim3
+// methods, random rig layouts for m- methods, random line signs.
+#pragma once
+
+#include <random>
+
+#include "linecloud/solvers/minimal_problem.h"
+
+namespace linecloud {
+
+struct MinimalInstance {
+  MinimalSample sample;
+  Sim3d truth;  // query_from_world
+};
+
+MinimalInstance RandomMinimalInstance(const MethodInfo& method, std::mt19937_64& rng);
+
+struct PoseError {
+  double rotation_rad = 0;
+  double translation_rel = 0;  // |t − t_true| / max(1, |t_true|)
+  double scale_rel = 0;
+};
+PoseError ComparePoses(const Sim3d& estimate, const Sim3d& truth);
+
+}  // namespace linecloud
