@@ -8,6 +8,9 @@
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/lifting/key.h"
+#include "linecloud/io/json_util.h"
+#include "linecloud/synthetic/minimal_instances.h"
+#include <nlohmann/json.hpp>
 #include "linecloud/testing/test_util.h"
 #include "linecloud/util/file.h"
 
@@ -206,6 +209,58 @@ TEST(Cli, DemoRunsAndReusesItsKey) {
   EXPECT_TRUE(FileExists(tmp.Path("demo/queries/query_001.json")));
   const Reconstruction rec = ReadColmapModel(tmp.Path("demo/model"));
   EXPECT_GT(rec.points3D.size(), 100u);
+}
+
+TEST(Cli, SolveReturnsTheTruePoseForEveryImplementedMethod) {
+  TempDir tmp;
+  std::mt19937_64 rng(77);
+  for (const MethodInfo& m : AllMethods()) {
+    if (!m.implemented) continue;
+    const MinimalInstance inst = RandomMinimalInstance(m, rng);
+    nlohmann::json j;
+    j["method"] = std::string(m.name);
+    const auto list = [](const std::vector<Eigen::Vector3d>& v) {
+      nlohmann::json a = nlohmann::json::array();
+      for (const auto& x : v) a.push_back({x.x(), x.y(), x.z()});
+      return a;
+    };
+    if (!inst.sample.bearings.empty()) j["bearings"] = list(inst.sample.bearings);
+    if (!inst.sample.points.empty()) j["points"] = list(inst.sample.points);
+    if (!inst.sample.points_local.empty()) j["points_local"] = list(inst.sample.points_local);
+    if (!inst.sample.lines.empty()) {
+      j["lines"] = nlohmann::json::array();
+      for (const auto& l : inst.sample.lines) {
+        j["lines"].push_back({l.v.x(), l.v.y(), l.v.z(), l.w.x(), l.w.y(), l.w.z()});
+      }
+    }
+    if (!inst.sample.camera_index.empty()) {
+      j["camera_index"] = inst.sample.camera_index;
+      j["cam_from_rig"] = nlohmann::json::array();
+      for (const auto& p : inst.sample.cam_from_rig) {
+        j["cam_from_rig"].push_back(PoseToJson(p.rotation, p.translation));
+      }
+    }
+    std::ofstream(tmp.Path("p.json")) << j.dump();
+    const CliResult r = RunCli({"solve", tmp.Path("p.json")});
+    ASSERT_EQ(r.code, 0) << m.name << ": " << r.err;
+    const nlohmann::json out = nlohmann::json::parse(r.out);
+    EXPECT_EQ(out["method"], std::string(m.name));
+    bool found = false;
+    for (const auto& s : out["solutions"]) {
+      const Rigid3d pose = JsonPose(s, "solution");
+      const Sim3d sim(s["scale"].get<double>(), pose.rotation, pose.translation);
+      const PoseError e = ComparePoses(sim, inst.truth);
+      found |= e.rotation_rad < 1e-6 && e.translation_rel < 1e-6 && e.scale_rel < 1e-6;
+    }
+    EXPECT_TRUE(found) << m.name << ": " << r.out;
+  }
+  std::ofstream(tmp.Path("bad.json")) << R"({"method": "m-p2P+u", "bearings": [[0,0,1],[0,1,1]],
+      "points": [[1,2,3],[3,2,1]], "camera_index": [0, 3], "cam_from_rig": [{"q":[1,0,0,0],"t":[0,0,0]}]})";
+  ExpectError(RunCli({"solve", tmp.Path("bad.json")}), "camera_index");
+  std::ofstream(tmp.Path("broken.json")) << "{\"method\": ";
+  ExpectError(RunCli({"solve", tmp.Path("broken.json")}), "invalid JSON");
+  std::ofstream(tmp.Path("unknown.json")) << R"({"method": "p5P"})";
+  ExpectError(RunCli({"solve", tmp.Path("unknown.json")}), "unknown method 'p5P'");
 }
 
 }  // namespace

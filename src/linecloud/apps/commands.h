@@ -10,6 +10,7 @@ void RegisterDemoCommand(CLI::App& app);
 void RegisterLiftCommand(CLI::App& app);
 void RegisterInfoCommand(CLI::App& app);
 void RegisterExportCommand(CLI::App& app);
+void RegisterSolveCommand(CLI::App& app);
 
 // Runs the CLI; returns the process exit code. Errors are printed to stderr
 // as one line `error: ...`.

@@ -6,6 +6,7 @@
 
 #include "linecloud/apps/commands.h"
 #include "linecloud/io/colmap_model.h"
+#include "linecloud/io/json_util.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/io/ply.h"
 #include "linecloud/lifting/lifting.h"
@@ -20,12 +21,6 @@ struct DemoArgs {
   std::string out = "linecloud_demo";
   SyntheticSceneOptions scene;
 };
-
-nlohmann::json PoseJson(const Rigid3d& pose) {
-  const auto& q = pose.rotation;
-  const auto& t = pose.translation;
-  return {{"q", {q.w(), q.x(), q.y(), q.z()}}, {"t", {t.x(), t.y(), t.z()}}};
-}
 
 // A query file in the format of `linecloud localize` (SPEC.md), plus the
 // ground truth under "ground_truth" for evaluation.
@@ -42,7 +37,8 @@ nlohmann::json QueryJson(const SyntheticQuery& q, const Eigen::Vector3d& gravity
   }
   j["gravity_query"] = {q.gravity_in_cam.x(), q.gravity_in_cam.y(), q.gravity_in_cam.z()};
   j["gravity_map"] = {gravity_world.x(), gravity_world.y(), gravity_world.z()};
-  j["ground_truth"] = {{"cam_from_world", PoseJson(q.cam_from_world)}};
+  j["ground_truth"] = {
+      {"cam_from_world", PoseToJson(q.cam_from_world.rotation, q.cam_from_world.translation)}};
   return j;
 }
 

@@ -16,6 +16,7 @@ int RunLinecloud(int argc, const char* const* argv) {
   RegisterLiftCommand(app);
   RegisterInfoCommand(app);
   RegisterExportCommand(app);
+  RegisterSolveCommand(app);
   if (argc >= 2 && argv[1][0] != '-') {
     const std::string name = argv[1];
     bool known = false;

@@ -1,0 +1,75 @@
+#include "linecloud/io/json_util.h"
+
+#include <cmath>
+
+#include "linecloud/util/error.h"
+#include "linecloud/util/file.h"
+
+namespace linecloud {
+namespace {
+
+std::vector<double> Numbers(const nlohmann::json& j, size_t n, const std::string& where) {
+  if (!j.is_array() || j.size() != n) {
+    Fail("{}: expected an array of {} numbers", where, n);
+  }
+  std::vector<double> v(n);
+  for (size_t i = 0; i < n; ++i) {
+    if (!j[i].is_number()) Fail("{}: element {} is not a number", where, i);
+    v[i] = j[i].get<double>();
+    if (!std::isfinite(v[i])) Fail("{}: element {} is not finite", where, i);
+  }
+  return v;
+}
+
+}  // namespace
+
+nlohmann::json ReadJsonFile(const std::string& path) {
+  const std::string text = ReadFileToString(path);
+  try {
+    return nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    Fail("{}: invalid JSON at byte {}", path, e.byte);
+  }
+}
+
+Eigen::Vector3d JsonVector3(const nlohmann::json& j, const std::string& where) {
+  const std::vector<double> v = Numbers(j, 3, where);
+  return {v[0], v[1], v[2]};
+}
+
+std::vector<Eigen::Vector3d> JsonVector3List(const nlohmann::json& j,
+                                             const std::string& where) {
+  if (!j.is_array()) Fail("{}: expected an array of [x, y, z]", where);
+  std::vector<Eigen::Vector3d> out;
+  for (size_t i = 0; i < j.size(); ++i) {
+    out.push_back(JsonVector3(j[i], where + "[" + std::to_string(i) + "]"));
+  }
+  return out;
+}
+
+std::vector<PluckerLine> JsonLineList(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_array()) Fail("{}: expected an array of [vx, vy, vz, wx, wy, wz]", where);
+  std::vector<PluckerLine> out;
+  for (size_t i = 0; i < j.size(); ++i) {
+    const std::vector<double> v = Numbers(j[i], 6, where + "[" + std::to_string(i) + "]");
+    out.emplace_back(Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5]));
+  }
+  return out;
+}
+
+Rigid3d JsonPose(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_object() || !j.contains("q") || !j.contains("t")) {
+    Fail("{}: expected {{\"q\": [w, x, y, z], \"t\": [x, y, z]}}", where);
+  }
+  const std::vector<double> q = Numbers(j["q"], 4, where + ".q");
+  Eigen::Quaterniond quat(q[0], q[1], q[2], q[3]);
+  if (!(quat.norm() > 1e-9)) Fail("{}.q: zero quaternion", where);
+  quat.normalize();
+  return Rigid3d(quat, JsonVector3(j["t"], where + ".t"));
+}
+
+nlohmann::json PoseToJson(const Eigen::Quaterniond& q, const Eigen::Vector3d& t) {
+  return {{"q", {q.w(), q.x(), q.y(), q.z()}}, {"t", {t.x(), t.y(), t.z()}}};
+}
+
+}  // namespace linecloud
