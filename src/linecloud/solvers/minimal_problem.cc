@@ -7,7 +7,9 @@
 #include "linecloud/solvers/m_p2p_lu.h"
 #include "linecloud/solvers/m_p2p_lus.h"
 #include "linecloud/solvers/m_p2p_u.h"
+#include "linecloud/solvers/m_p3l_ls.h"
 #include "linecloud/solvers/m_p3l_lu.h"
+#include "linecloud/solvers/m_p3p.h"
 #include "linecloud/solvers/m_p3p_l.h"
 #include "linecloud/solvers/m_p3p_ls.h"
 #include "linecloud/solvers/p2p_u.h"
@@ -20,7 +22,7 @@ namespace {
 constexpr std::array<MethodInfo, 16> kMethods = {{
     {"p3P",          3, false, false, false, false, false, false},
     {"p2P+u",        2, false, false, false, false, true,  true},
-    {"m-p3P",        3, false, true,  false, false, false, false},
+    {"m-p3P",        3, false, true,  false, false, false, true},
     {"m-p2P+u",      2, false, true,  false, false, true,  true},
     {"m-P3P+l",      3, false, true,  true,  false, false, true},
     {"m-P2P+l+u",    2, false, true,  true,  false, true,  true},
@@ -32,7 +34,7 @@ constexpr std::array<MethodInfo, 16> kMethods = {{
     {"m-p4L+u",      4, true,  true,  false, false, true,  false},
     {"m-P4L+l",      4, true,  true,  true,  false, false, false},
     {"m-P3L+l+u",    3, true,  true,  true,  false, true,  true},
-    {"m-P3L+l+s",    3, true,  true,  true,  true,  false, false},
+    {"m-P3L+l+s",    3, true,  true,  true,  true,  false, true},
     {"m-P2L+l+u+s",  2, true,  true,  true,  true,  true,  true},
 }};
 
@@ -131,6 +133,15 @@ int SolveMinimal(const MethodInfo& m, const MinimalSample& s, std::vector<Sim3d>
   if (name == "m-p2P+u") {
     RigRays(s, &origins, &directions);
     m_p2p_u(origins, directions, s.points, &rigid);
+    return Collect(rigid, out);
+  }
+  if (name == "m-p3P") {
+    RigRays(s, &origins, &directions);
+    m_p3p(origins, directions, s.points, &rigid);
+    return Collect(rigid, out);
+  }
+  if (name == "m-P3L+l+s") {
+    m_p3l_ls(s.lines, s.points_local, &rigid);
     return Collect(rigid, out);
   }
   if (name == "m-P3P+l") {

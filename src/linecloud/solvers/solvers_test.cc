@@ -2,6 +2,7 @@
 // line signs, rotations about y for +u, scales in [0.1, 10] for Sim3, random
 // rig layouts for m-): the true pose must be among the solutions in >= 99.9%
 // of them, and every returned solution must satisfy the method's equations.
+#include <iostream>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -42,6 +43,9 @@ TEST_P(MinimalSolverTest, RecoversTheTruePoseAndSatisfiesItsEquations) {
     }
     found += has_truth;
   }
+  std::cout << "[ " << method.name << " ] true pose in " << found << " / " << kInstances
+            << ", mean solutions " << double(total_solutions) / kInstances
+            << ", worst residual " << worst_residual << "\n";
   EXPECT_GE(found, kInstances * 999 / 1000)
       << method.name << ": true pose found in " << found << " of " << kInstances;
   EXPECT_LT(worst_residual, 1e-8) << method.name;
