@@ -87,7 +87,8 @@ int Quadratic(double b, double c, double roots[2]) {
 
 int m_p3p(std::span<const Eigen::Vector3d> origins,
           std::span<const Eigen::Vector3d> directions,
-          std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out) {
+          std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out,
+          bool positive_depths) {
   out->clear();
   // Normalise: centre both sides and scale by the map triangle's size.
   const Eigen::Vector3d cx = (points[0] + points[1] + points[2]) / 3.0;
@@ -174,6 +175,7 @@ int m_p3p(std::span<const Eigen::Vector3d> origins,
                                 std::abs(e13.Eval(lam[0], lam[2])) +
                                 std::abs(e23.Eval(lam[1], lam[2]));
         if (!(residual < 1e-6) || !lam.allFinite()) continue;
+        if (positive_depths && !(lam.array() > 0).all()) continue;
         bool duplicate = false;
         for (const Eigen::Vector3d& other : depths) {
           duplicate |= (other - lam).norm() < 1e-9 * (1 + lam.norm());

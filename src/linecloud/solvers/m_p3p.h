@@ -18,10 +18,12 @@ namespace linecloud {
 //     |o_i − o_j + λ_i d_i − λ_j d_j|² = |X_i − X_j|²;
 // eliminating λ3 (resultant of two quadratics) and then λ2 (reduction modulo
 // the third equation) gives one polynomial of degree 8 in λ1. Depths of any
-// sign are kept (the same solver serves line clouds, where rays are lines).
+// sign are kept unless `positive_depths` (cheirality on the camera side, for
+// point maps); never for line clouds, where the rays are unoriented lines.
 // Each real root gives R, t by the TRIAD construction. rig_from_world.
 int m_p3p(std::span<const Eigen::Vector3d> origins,
           std::span<const Eigen::Vector3d> directions,
-          std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out);
+          std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out,
+          bool positive_depths = true);
 
 }  // namespace linecloud

@@ -13,6 +13,7 @@
 #include "linecloud/solvers/m_p3p_l.h"
 #include "linecloud/solvers/m_p3p_ls.h"
 #include "linecloud/solvers/p2p_u.h"
+#include "linecloud/solvers/p3p.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
@@ -20,7 +21,7 @@ namespace {
 
 //                       name          n  lines  multi  local  scale  grav.  impl.
 constexpr std::array<MethodInfo, 16> kMethods = {{
-    {"p3P",          3, false, false, false, false, false, false},
+    {"p3P",          3, false, false, false, false, false, true},
     {"p2P+u",        2, false, false, false, false, true,  true},
     {"m-p3P",        3, false, true,  false, false, false, true},
     {"m-p2P+u",      2, false, true,  false, false, true,  true},
@@ -126,6 +127,10 @@ int SolveMinimal(const MethodInfo& m, const MinimalSample& s, std::vector<Sim3d>
   std::vector<Sim3d> sim;
   std::vector<Eigen::Vector3d> origins, directions;
   const std::string_view name = m.name;
+  if (name == "p3P") {
+    p3p(s.bearings, s.points, &rigid);
+    return Collect(rigid, out);
+  }
   if (name == "p2P+u") {
     p2p_u(s.bearings, s.points, &rigid);
     return Collect(rigid, out);
