@@ -10,6 +10,7 @@
 #include "linecloud/solvers/m_p3l_ls.h"
 #include "linecloud/solvers/m_p3l_lu.h"
 #include "linecloud/solvers/m_p3p.h"
+#include "linecloud/solvers/m_p4l_u.h"
 #include "linecloud/solvers/m_p3p_l.h"
 #include "linecloud/solvers/m_p3p_ls.h"
 #include "linecloud/solvers/p2p_u.h"
@@ -30,9 +31,9 @@ constexpr std::array<MethodInfo, 16> kMethods = {{
     {"m-P3P+l+s",    3, false, true,  true,  true,  false, true},
     {"m-P2P+l+u+s",  2, false, true,  true,  true,  true,  true},
     {"p6L",          6, true,  false, false, false, false, false},
-    {"p4L+u",        4, true,  false, false, false, true,  false},
+    {"p4L+u",        4, true,  false, false, false, true,  true},
     {"m-p6L",        6, true,  true,  false, false, false, false},
-    {"m-p4L+u",      4, true,  true,  false, false, true,  false},
+    {"m-p4L+u",      4, true,  true,  false, false, true,  true},
     {"m-P4L+l",      4, true,  true,  true,  false, false, false},
     {"m-P3L+l+u",    3, true,  true,  true,  false, true,  true},
     {"m-P3L+l+s",    3, true,  true,  true,  true,  false, true},
@@ -127,6 +128,15 @@ int SolveMinimal(const MethodInfo& m, const MinimalSample& s, std::vector<Sim3d>
   std::vector<Sim3d> sim;
   std::vector<Eigen::Vector3d> origins, directions;
   const std::string_view name = m.name;
+  if (name == "p4L+u") {
+    p4l_u(s.bearings, s.lines, &rigid);
+    return Collect(rigid, out);
+  }
+  if (name == "m-p4L+u") {
+    RigRays(s, &origins, &directions);
+    m_p4l_u(origins, directions, s.lines, &rigid);
+    return Collect(rigid, out);
+  }
   if (name == "p3P") {
     p3p(s.bearings, s.points, &rigid);
     return Collect(rigid, out);
