@@ -1,0 +1,135 @@
+#include "linecloud/eval/solver_bench.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <random>
+
+#include <Eigen/Geometry>
+
+#include "linecloud/synthetic/minimal_instances.h"
+#include "linecloud/util/error.h"
+
+namespace linecloud {
+
+void SolverBenchOptions::Check() const {
+  if (instances < 10) Fail("bench: --instances must be >= 10");
+  if (!(min_seconds > 0)) Fail("bench: --min-time must be > 0");
+  for (const std::string& m : methods) FindMethod(m);
+}
+
+namespace {
+
+Eigen::Matrix3Xd Columns(const std::vector<Eigen::Vector3d>& v) {
+  Eigen::Matrix3Xd m(3, v.size());
+  for (size_t i = 0; i < v.size(); ++i) m.col(i) = v[i];
+  return m;
+}
+
+// Eigen's umeyama (SVD-based least squares): the peer of the point-point
+// methods named in METHODS.md.
+void UmeyamaPeer(const MinimalSample& s, bool with_scale, std::vector<Sim3d>* out) {
+  const Eigen::Matrix4d t = Eigen::umeyama(Columns(s.points), Columns(s.points_local), with_scale);
+  out->clear();
+  const Eigen::Matrix3d sr = t.topLeftCorner<3, 3>();
+  const double scale = with_scale ? std::cbrt(sr.determinant()) : 1.0;
+  out->emplace_back(scale, Eigen::Quaterniond(sr / scale), t.topRightCorner<3, 1>());
+}
+
+template <typename Solve>
+SolverBenchRow Measure(const std::string& method_name, const std::string& solver,
+                       const std::vector<MinimalInstance>& instances, double min_seconds,
+                       const Solve& solve) {
+  using Clock = std::chrono::steady_clock;
+  SolverBenchRow row;
+  row.method = method_name;
+  row.solver = solver;
+  row.instances = static_cast<int>(instances.size());
+  std::vector<Sim3d> solutions;
+  // Accuracy pass.
+  size_t total = 0;
+  int found = 0;
+  std::vector<double> log_errors;
+  for (const MinimalInstance& inst : instances) {
+    solve(inst.sample, &solutions);
+    total += solutions.size();
+    double best = 1e300;
+    bool has_truth = false;
+    for (const Sim3d& s : solutions) {
+      const PoseError e = ComparePoses(s, inst.truth);
+      best = std::min(best, e.rotation_rad);
+      has_truth |= e.rotation_rad < 1e-6 && e.translation_rel < 1e-6 && e.scale_rel < 1e-6;
+    }
+    found += has_truth;
+    log_errors.push_back(std::log10(std::max(best, 1e-17)));
+  }
+  row.mean_solutions = static_cast<double>(total) / instances.size();
+  row.found_percent = 100.0 * found / instances.size();
+  std::nth_element(log_errors.begin(), log_errors.begin() + log_errors.size() / 2,
+                   log_errors.end());
+  row.median_log10_rotation_error = log_errors[log_errors.size() / 2];
+  // Timing pass: whole sweeps over the instances until min_seconds elapsed.
+  size_t calls = 0;
+  const auto start = Clock::now();
+  double elapsed = 0;
+  do {
+    for (const MinimalInstance& inst : instances) solve(inst.sample, &solutions);
+    calls += instances.size();
+    elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+  } while (elapsed < min_seconds);
+  row.us_per_call = 1e6 * elapsed / calls;
+  return row;
+}
+
+}  // namespace
+
+std::vector<PeerSolver> AvailablePeers() {
+  std::vector<PeerSolver> peers = {
+      {"m-P3P+l", "eigen-umeyama",
+       [](const MinimalSample& s, std::vector<Sim3d>* out) { UmeyamaPeer(s, true, out); }},
+      {"m-P3P+l+s", "eigen-umeyama",
+       [](const MinimalSample& s, std::vector<Sim3d>* out) { UmeyamaPeer(s, false, out); }},
+  };
+  const std::vector<PeerSolver> opengv = OpenGvPeers();
+  peers.insert(peers.end(), opengv.begin(), opengv.end());
+  return peers;
+}
+
+std::vector<SolverBenchRow> RunSolverBench(
+    const SolverBenchOptions& options,
+    const std::function<void(const std::string&)>& progress) {
+  options.Check();
+  const std::vector<PeerSolver> peers = AvailablePeers();
+  std::vector<SolverBenchRow> rows;
+  for (const MethodInfo& method : AllMethods()) {
+    if (!options.methods.empty() &&
+        std::find(options.methods.begin(), options.methods.end(), method.name) ==
+            options.methods.end()) {
+      continue;
+    }
+    if (!method.implemented) continue;
+    std::mt19937_64 rng(options.seed);
+    std::vector<MinimalInstance> instances;
+    for (int i = 0; i < options.instances; ++i) {
+      instances.push_back(RandomMinimalInstance(method, rng));
+      for (PluckerLine& l : instances.back().sample.lines) {
+        if (rng() & 1) l = PluckerLine(-l.v, -l.w);  // lines are unoriented
+      }
+    }
+    progress(std::string(method.name));
+    rows.push_back(Measure(std::string(method.name), "linecloud", instances,
+                           options.min_seconds,
+                           [&](const MinimalSample& s, std::vector<Sim3d>* out) {
+                             SolveMinimal(method, s, out);
+                           }));
+    for (const PeerSolver& peer : peers) {
+      if (peer.method != method.name) continue;
+      progress(std::string(method.name) + " / " + peer.name);
+      rows.push_back(Measure(std::string(method.name), peer.name, instances,
+                             options.min_seconds, peer.solve));
+    }
+  }
+  return rows;
+}
+
+}  // namespace linecloud

@@ -1,0 +1,48 @@
+// `linecloud bench solvers`: every minimal solver (and the peers available in
+// this build: OpenGV, Eigen's umeyama) on the same fixed-seed, noise-free
+// random instances, single thread.
+#pragma once
+
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "linecloud/solvers/minimal_problem.h"
+
+namespace linecloud {
+
+struct SolverBenchOptions {
+  uint64_t seed = 2019;
+  int instances = 2000;        // distinct instances per method
+  double min_seconds = 1.0;    // timing per solver
+  std::vector<std::string> methods;  // empty: all implemented
+  void Check() const;
+};
+
+struct SolverBenchRow {
+  std::string method;
+  std::string solver;          // "linecloud" or the peer's name
+  double us_per_call = 0;
+  double mean_solutions = 0;
+  double found_percent = 0;    // true pose among the solutions
+  double median_log10_rotation_error = 0;  // best solution per instance
+  int instances = 0;
+};
+
+// A peer: solves a method's instance, returning query_from_world poses.
+struct PeerSolver {
+  std::string method;
+  std::string name;
+  std::function<void(const MinimalSample&, std::vector<Sim3d>*)> solve;
+};
+
+// OpenGV's solvers (opengv_peers.cc; empty when built without OpenGV).
+std::vector<PeerSolver> OpenGvPeers();
+
+// Peers compiled into this build (Eigen's umeyama always; OpenGV when found).
+std::vector<PeerSolver> AvailablePeers();
+
+std::vector<SolverBenchRow> RunSolverBench(const SolverBenchOptions& options,
+                                           const std::function<void(const std::string&)>& progress);
+
+}  // namespace linecloud
