@@ -20,24 +20,24 @@
 namespace linecloud {
 namespace {
 
-//                       name          n  lines  multi  local  scale  grav.  impl.
+//                                   name          n  lines  multi  local  scale  grav.  impl.
 constexpr std::array<MethodInfo, 16> kMethods = {{
-    {"p3P",          3, false, false, false, false, false, true},
-    {"p2P+u",        2, false, false, false, false, true,  true},
-    {"m-p3P",        3, false, true,  false, false, false, true},
-    {"m-p2P+u",      2, false, true,  false, false, true,  true},
-    {"m-P3P+l",      3, false, true,  true,  false, false, true},
-    {"m-P2P+l+u",    2, false, true,  true,  false, true,  true},
-    {"m-P3P+l+s",    3, false, true,  true,  true,  false, true},
-    {"m-P2P+l+u+s",  2, false, true,  true,  true,  true,  true},
-    {"p6L",          6, true,  false, false, false, false, false},
-    {"p4L+u",        4, true,  false, false, false, true,  true},
-    {"m-p6L",        6, true,  true,  false, false, false, false},
-    {"m-p4L+u",      4, true,  true,  false, false, true,  true},
-    {"m-P4L+l",      4, true,  true,  true,  false, false, false},
-    {"m-P3L+l+u",    3, true,  true,  true,  false, true,  true},
-    {"m-P3L+l+s",    3, true,  true,  true,  true,  false, true},
-    {"m-P2L+l+u+s",  2, true,  true,  true,  true,  true,  true},
+    {MethodId::kP3P, "p3P",          3, false, false, false, false, false, true},
+    {MethodId::kP2PU, "p2P+u",        2, false, false, false, false, true,  true},
+    {MethodId::kMP3P, "m-p3P",        3, false, true,  false, false, false, true},
+    {MethodId::kMP2PU, "m-p2P+u",      2, false, true,  false, false, true,  true},
+    {MethodId::kMP3PL, "m-P3P+l",      3, false, true,  true,  false, false, true},
+    {MethodId::kMP2PLU, "m-P2P+l+u",    2, false, true,  true,  false, true,  true},
+    {MethodId::kMP3PLS, "m-P3P+l+s",    3, false, true,  true,  true,  false, true},
+    {MethodId::kMP2PLUS, "m-P2P+l+u+s",  2, false, true,  true,  true,  true,  true},
+    {MethodId::kP6L, "p6L",          6, true,  false, false, false, false, false},
+    {MethodId::kP4LU, "p4L+u",        4, true,  false, false, false, true,  true},
+    {MethodId::kMP6L, "m-p6L",        6, true,  true,  false, false, false, false},
+    {MethodId::kMP4LU, "m-p4L+u",      4, true,  true,  false, false, true,  true},
+    {MethodId::kMP4LL, "m-P4L+l",      4, true,  true,  true,  false, false, false},
+    {MethodId::kMP3LLU, "m-P3L+l+u",    3, true,  true,  true,  false, true,  true},
+    {MethodId::kMP3LLS, "m-P3L+l+s",    3, true,  true,  true,  true,  false, true},
+    {MethodId::kMP2LLUS, "m-P2L+l+u+s",  2, true,  true,  true,  true,  true,  true},
 }};
 
 bool UsesBearings(const MethodInfo& m) { return !m.local_points; }
@@ -124,64 +124,57 @@ void CheckSample(const MethodInfo& m, const MinimalSample& s, std::string_view s
 }
 
 int SolveMinimal(const MethodInfo& m, const MinimalSample& s, std::vector<Sim3d>* out) {
-  std::vector<Rigid3d> rigid;
-  std::vector<Sim3d> sim;
-  std::vector<Eigen::Vector3d> origins, directions;
-  const std::string_view name = m.name;
-  if (name == "p4L+u") {
-    p4l_u(s.bearings, s.lines, &rigid);
-    return Collect(rigid, out);
-  }
-  if (name == "m-p4L+u") {
-    RigRays(s, &origins, &directions);
-    m_p4l_u(origins, directions, s.lines, &rigid);
-    return Collect(rigid, out);
-  }
-  if (name == "p3P") {
-    p3p(s.bearings, s.points, &rigid);
-    return Collect(rigid, out);
-  }
-  if (name == "p2P+u") {
-    p2p_u(s.bearings, s.points, &rigid);
-    return Collect(rigid, out);
-  }
-  if (name == "m-p2P+u") {
-    RigRays(s, &origins, &directions);
-    m_p2p_u(origins, directions, s.points, &rigid);
-    return Collect(rigid, out);
-  }
-  if (name == "m-p3P") {
-    RigRays(s, &origins, &directions);
-    m_p3p(origins, directions, s.points, &rigid);
-    return Collect(rigid, out);
-  }
-  if (name == "m-P3L+l+s") {
-    m_p3l_ls(s.lines, s.points_local, &rigid);
-    return Collect(rigid, out);
-  }
-  if (name == "m-P3P+l") {
-    m_p3p_l(s.points_local, s.points, &sim);
-    return Collect(sim, out);
-  }
-  if (name == "m-P2P+l+u") {
-    m_p2p_lu(s.points_local, s.points, &sim);
-    return Collect(sim, out);
-  }
-  if (name == "m-P3P+l+s") {
-    m_p3p_ls(s.points_local, s.points, &rigid);
-    return Collect(rigid, out);
-  }
-  if (name == "m-P2P+l+u+s") {
-    m_p2p_lus(s.points_local, s.points, &rigid);
-    return Collect(rigid, out);
-  }
-  if (name == "m-P3L+l+u") {
-    m_p3l_lu(s.lines, s.points_local, &sim);
-    return Collect(sim, out);
-  }
-  if (name == "m-P2L+l+u+s") {
-    m_p2l_lus(s.lines, s.points_local, &rigid);
-    return Collect(rigid, out);
+  // Scratch buffers reused across calls (RANSAC calls this in a hot loop).
+  thread_local std::vector<Rigid3d> rigid;
+  thread_local std::vector<Sim3d> sim;
+  thread_local std::vector<Eigen::Vector3d> origins, directions;
+  switch (m.id) {
+    case MethodId::kP3P:
+      p3p(s.bearings, s.points, &rigid);
+      return Collect(rigid, out);
+    case MethodId::kP2PU:
+      p2p_u(s.bearings, s.points, &rigid);
+      return Collect(rigid, out);
+    case MethodId::kMP3P:
+      RigRays(s, &origins, &directions);
+      m_p3p(origins, directions, s.points, &rigid);
+      return Collect(rigid, out);
+    case MethodId::kMP2PU:
+      RigRays(s, &origins, &directions);
+      m_p2p_u(origins, directions, s.points, &rigid);
+      return Collect(rigid, out);
+    case MethodId::kMP3PL:
+      m_p3p_l(s.points_local, s.points, &sim);
+      return Collect(sim, out);
+    case MethodId::kMP2PLU:
+      m_p2p_lu(s.points_local, s.points, &sim);
+      return Collect(sim, out);
+    case MethodId::kMP3PLS:
+      m_p3p_ls(s.points_local, s.points, &rigid);
+      return Collect(rigid, out);
+    case MethodId::kMP2PLUS:
+      m_p2p_lus(s.points_local, s.points, &rigid);
+      return Collect(rigid, out);
+    case MethodId::kP4LU:
+      p4l_u(s.bearings, s.lines, &rigid);
+      return Collect(rigid, out);
+    case MethodId::kMP4LU:
+      RigRays(s, &origins, &directions);
+      m_p4l_u(origins, directions, s.lines, &rigid);
+      return Collect(rigid, out);
+    case MethodId::kMP3LLU:
+      m_p3l_lu(s.lines, s.points_local, &sim);
+      return Collect(sim, out);
+    case MethodId::kMP3LLS:
+      m_p3l_ls(s.lines, s.points_local, &rigid);
+      return Collect(rigid, out);
+    case MethodId::kMP2LLUS:
+      m_p2l_lus(s.lines, s.points_local, &rigid);
+      return Collect(rigid, out);
+    case MethodId::kP6L:
+    case MethodId::kMP6L:
+    case MethodId::kMP4LL:
+      break;
   }
   Fail("method {} has no minimal solver in this build yet", m.name);
 }

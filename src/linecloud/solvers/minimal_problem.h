@@ -15,7 +15,13 @@
 
 namespace linecloud {
 
+enum class MethodId {
+  kP3P, kP2PU, kMP3P, kMP2PU, kMP3PL, kMP2PLU, kMP3PLS, kMP2PLUS,
+  kP6L, kP4LU, kMP6L, kMP4LU, kMP4LL, kMP3LLU, kMP3LLS, kMP2LLUS,
+};
+
 struct MethodInfo {
+  MethodId id;
   std::string_view name;
   int sample_size;
   bool lines;         // map of lines (privacy-preserving) vs points
