@@ -1,6 +1,7 @@
 // End-to-end tests of the `linecloud` command line, run in-process.
 #include <filesystem>
 #include <fstream>
+#include <set>
 
 #include <gtest/gtest.h>
 
@@ -261,6 +262,24 @@ TEST(Cli, SolveReturnsTheTruePoseForEveryImplementedMethod) {
   ExpectError(RunCli({"solve", tmp.Path("broken.json")}), "invalid JSON");
   std::ofstream(tmp.Path("unknown.json")) << R"({"method": "p5P"})";
   ExpectError(RunCli({"solve", tmp.Path("unknown.json")}), "unknown method 'p5P'");
+}
+
+TEST(Cli, BenchSolversReportsEveryRequestedMethod) {
+  const CliResult r = RunCli({"bench", "solvers", "--json", "--min-time", "0.01",
+                              "--instances", "50", "--methods", "p3P,m-P3P+l+s,m-P2L+l+u+s"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  std::set<std::string> ours;
+  for (const auto& row : j["rows"]) {
+    if (row["solver"] == "linecloud") {
+      ours.insert(row["method"].get<std::string>());
+      EXPECT_EQ(row["found_percent"].get<double>(), 100.0) << row.dump();
+      EXPECT_GT(row["us_per_call"].get<double>(), 0.0);
+      EXPECT_LT(row["median_log10_rotation_error"].get<double>(), -10.0);
+    }
+  }
+  EXPECT_EQ(ours, (std::set<std::string>{"p3P", "m-P3P+l+s", "m-P2L+l+u+s"}));
+  ExpectError(RunCli({"bench", "solvers", "--methods", "p9P"}), "unknown method 'p9P'");
 }
 
 }  // namespace
