@@ -131,7 +131,7 @@ int m_p3p(std::span<const Eigen::Vector3d> origins,
   const Poly univariate = poly::Add(
       poly::Sub(poly::Mul(g0, g0), poly::Mul(b, poly::Mul(g0, g1))), poly::Mul(c, poly::Mul(g1, g1)));
   std::vector<double> roots1;
-  poly::RealRoots(univariate, &roots1);
+  poly::MonotoneRealRoots(univariate, &roots1);
 
   std::vector<Eigen::Vector3d> depths;
   for (const double l1 : roots1) {
@@ -174,7 +174,7 @@ int m_p3p(std::span<const Eigen::Vector3d> origins,
         const double residual = std::abs(e12.Eval(lam[0], lam[1])) +
                                 std::abs(e13.Eval(lam[0], lam[2])) +
                                 std::abs(e23.Eval(lam[1], lam[2]));
-        if (!(residual < 1e-6) || !lam.allFinite()) continue;
+        if (!(residual < 1e-9) || !lam.allFinite()) continue;
         if (positive_depths && !(lam.array() > 0).all()) continue;
         bool duplicate = false;
         for (const Eigen::Vector3d& other : depths) {

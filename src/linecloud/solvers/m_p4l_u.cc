@@ -12,21 +12,37 @@ namespace linecloud {
 namespace {
 
 using poly::Poly;
-using PolyMatrix = std::array<std::array<Poly, 4>, 4>;
 
-Poly Determinant(const PolyMatrix& m, int size, const std::array<int, 4>& rows,
-                 const std::array<int, 4>& cols) {
-  if (size == 1) return m[rows[0]][cols[0]];
-  Poly det;
-  std::array<int, 4> sub_rows{};
-  for (int i = 1; i < size; ++i) sub_rows[i - 1] = rows[i];
-  for (int k = 0; k < size; ++k) {
-    std::array<int, 4> sub_cols{};
-    for (int j = 0, n = 0; j < size; ++j) {
-      if (j != k) sub_cols[n++] = cols[j];
-    }
-    const Poly term = poly::Mul(m[rows[0]][cols[k]], Determinant(m, size - 1, sub_rows, sub_cols));
-    det = (k % 2 == 0) ? poly::Add(det, term) : poly::Sub(det, term);
+// Quadratic (3 coefficients) and quartic (5) polynomials in x, fixed size.
+using Quad = std::array<double, 3>;
+using Quartic = std::array<double, 5>;
+
+Quartic MulQuad(const Quad& a, const Quad& b) {
+  Quartic r{};
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) r[i + j] += a[i] * b[j];
+  return r;
+}
+
+// det of a 4 x 4 matrix of quadratics by Laplace expansion along rows (0, 1)
+// with complementary 2 x 2 minors of rows (2, 3): a degree-8 polynomial.
+Poly Determinant(const std::array<std::array<Quad, 4>, 4>& m) {
+  static constexpr int kPairs[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
+  const auto minor = [&](int r0, int r1, int c0, int c1) {
+    Quartic a = MulQuad(m[r0][c0], m[r1][c1]);
+    const Quartic b = MulQuad(m[r0][c1], m[r1][c0]);
+    for (int i = 0; i < 5; ++i) a[i] -= b[i];
+    return a;
+  };
+  Poly det(9, 0.0);
+  for (int k = 0; k < 6; ++k) {
+    const int c0 = kPairs[k][0], c1 = kPairs[k][1];
+    const int d0 = kPairs[5 - k][0], d1 = kPairs[5 - k][1];  // complement
+    // Sign of the permutation (c0, c1, d0, d1) relative to (0, 1, 2, 3).
+    const int sign = ((c0 + c1 + 1) % 2 == 0) ? 1 : -1;
+    const Quartic top = minor(0, 1, c0, c1), bottom = minor(2, 3, d0, d1);
+    for (int i = 0; i < 5; ++i)
+      for (int j = 0; j < 5; ++j) det[i + j] += sign * top[i] * bottom[j];
   }
   return det;
 }
@@ -54,16 +70,16 @@ int m_p4l_u(std::span<const Eigen::Vector3d> origins,
   }
   if (!(norm > 0)) return 0;
   // Entries times (1 + x²): c → 1 − x², s → 2x, 1 → 1 + x².
-  PolyMatrix pm;
+  std::array<std::array<Quad, 4>, 4> pm;
   for (int i = 0; i < 4; ++i) {
     for (int j = 0; j < 4; ++j) {
       const double kc = coef[i][0][j] / norm, ks = coef[i][1][j] / norm, k1 = coef[i][2][j] / norm;
       pm[i][j] = {kc + k1, 2 * ks, k1 - kc};
     }
   }
-  const Poly det = Determinant(pm, 4, {0, 1, 2, 3}, {0, 1, 2, 3});
+  const Poly det = Determinant(pm);
   std::vector<double> roots;
-  poly::RealRoots(det, &roots);
+  poly::MonotoneRealRoots(det, &roots);
   for (const double x : roots) {
     const double c = (1 - x * x) / (1 + x * x), s = 2 * x / (1 + x * x);
     Eigen::Matrix<double, 4, 3> g;

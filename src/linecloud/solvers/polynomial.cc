@@ -43,9 +43,16 @@ double EvalDerivative(const Poly& p, double x) {
   return v;
 }
 
+namespace {
+constexpr int kMaxCompanion = 24;
+}  // namespace
+
 void RealRoots(Poly p, std::vector<double>* roots) {
   double largest = 0;
-  for (double c : p) largest = std::max(largest, std::abs(c));
+  for (double c : p) {
+    if (!std::isfinite(c)) return;
+    largest = std::max(largest, std::abs(c));
+  }
   if (!(largest > 0) || !std::isfinite(largest)) return;
   while (!p.empty() && std::abs(p.back()) <= 1e-14 * largest) p.pop_back();
   // Roots at zero.
@@ -61,10 +68,14 @@ void RealRoots(Poly p, std::vector<double>* roots) {
     roots->push_back(-p[0] / p[1]);
     return;
   }
-  Eigen::MatrixXd companion = Eigen::MatrixXd::Zero(n, n);
+  if (n > kMaxCompanion) return;
+  // Dynamic size with a fixed upper bound: lives on the stack.
+  using Companion = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxCompanion,
+                                  kMaxCompanion>;
+  Companion companion = Companion::Zero(n, n);
   for (int i = 0; i < n; ++i) companion(0, i) = -p[n - 1 - i] / p[n];
   for (int i = 1; i < n; ++i) companion(i, i - 1) = 1.0;
-  const Eigen::EigenSolver<Eigen::MatrixXd> solver(companion, false);
+  const Eigen::EigenSolver<Companion> solver(companion, false);
   if (solver.info() != Eigen::Success) return;
   const auto& values = solver.eigenvalues();
   for (int i = 0; i < n; ++i) {
@@ -80,6 +91,119 @@ void RealRoots(Poly p, std::vector<double>* roots) {
     }
     if (std::isfinite(x)) roots->push_back(x);
   }
+}
+
+namespace {
+
+constexpr int kMaxMonotone = 24;
+
+double EvalRaw(const double* p, int n, double x) {
+  double v = p[n];
+  for (int i = n - 1; i >= 0; --i) v = v * x + p[i];
+  return v;
+}
+
+// Σ |p_i| |x|^i: the scale of p(x)'s rounding error.
+double AbsEval(const double* p, int n, double x) {
+  const double ax = std::abs(x);
+  double v = std::abs(p[n]);
+  for (int i = n - 1; i >= 0; --i) v = v * ax + std::abs(p[i]);
+  return v;
+}
+
+double EvalRawDerivative(const double* p, int n, double x) {
+  double v = n * p[n];
+  for (int i = n - 1; i >= 1; --i) v = v * x + i * p[i];
+  return v;
+}
+
+// The root of p in (lo, hi) given p(lo) = flo and p(hi) of the opposite
+// sign: Newton steps kept inside the shrinking bracket, bisection otherwise.
+double BracketedRoot(const double* p, int n, double lo, double hi, double flo,
+                     double tolerance) {
+  double x = 0.5 * (lo + hi);
+  for (int it = 0; it < 200; ++it) {
+    const double f = EvalRaw(p, n, x);
+    if (f == 0) return x;
+    if ((f > 0) == (flo > 0)) {
+      lo = x;
+      flo = f;
+    } else {
+      hi = x;
+    }
+    const double d = EvalRawDerivative(p, n, x);
+    double next = d != 0 ? x - f / d : 0.5 * (lo + hi);
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+    const double size = tolerance * std::max(1.0, std::abs(x));
+    if (std::abs(next - x) <= size || hi - lo <= size) return next;
+    x = next;
+  }
+  return x;
+}
+
+// Sorted real roots of p (degree n) in [-bound, bound], given the sorted
+// roots of p' in `critical`.
+int RootsBetween(const double* p, int n, double bound, const double* critical,
+                 int num_critical, double tolerance, double* out) {
+  int count = 0;
+  double lo = -bound;
+  double flo = EvalRaw(p, n, lo);
+  for (int k = 0; k <= num_critical; ++k) {
+    const double hi = k < num_critical ? critical[k] : bound;
+    const double fhi = EvalRaw(p, n, hi);
+    if (flo != 0 && fhi != 0 && (flo > 0) != (fhi > 0)) {
+      out[count++] = BracketedRoot(p, n, lo, hi, flo, tolerance);
+    } else if (k < num_critical && std::abs(fhi) <= 1e-12 * AbsEval(p, n, hi)) {
+      out[count++] = hi;  // touching (double) root at a critical point
+    }
+    lo = hi;
+    flo = fhi;
+  }
+  return count;
+}
+
+}  // namespace
+
+void MonotoneRealRoots(const Poly& input, std::vector<double>* roots) {
+  double largest = 0;
+  for (double c : input) {
+    if (!std::isfinite(c)) return;
+    largest = std::max(largest, std::abs(c));
+  }
+  if (!(largest > 0) || !std::isfinite(largest)) return;
+  int n = static_cast<int>(input.size()) - 1;
+  while (n >= 0 && std::abs(input[n]) <= 1e-14 * largest) --n;
+  if (n < 1) return;
+  if (n > kMaxMonotone) {
+    RealRoots(input, roots);
+    return;
+  }
+  // Derivatives: d[k] is the k-th derivative, degree n − k (monic scaling
+  // does not matter for roots).
+  double d[kMaxMonotone + 1][kMaxMonotone + 1];
+  for (int i = 0; i <= n; ++i) d[0][i] = input[i] / input[n];
+  for (int k = 1; k < n; ++k) {
+    const int m = n - k;
+    for (int i = 0; i <= m; ++i) d[k][i] = d[k - 1][i + 1] * (i + 1) / (m + 1);
+  }
+  // Fujiwara's bound: every root has |x| <= 2 max_k |a_{n−k}|^{1/k}
+  // (monic; the constant term's share halved).
+  double bound = 0;
+  for (int k = 1; k <= n; ++k) {
+    const double a = std::abs(d[0][n - k]) * (k == n ? 0.5 : 1.0);
+    if (a > 0) bound = std::max(bound, std::pow(a, 1.0 / k));
+  }
+  bound = 2.0 * bound * (1.0 + 1e-12) + 1e-300;
+  // Up from the linear (n−1)-th derivative.
+  double current[kMaxMonotone], next[kMaxMonotone];
+  int num = 1;
+  current[0] = -d[n - 1][0] / d[n - 1][1];
+  for (int k = n - 2; k >= 0; --k) {
+    // Derivatives' roots only bound intervals: 1e-10 is plenty there.
+    num = RootsBetween(d[k], n - k, bound, current, num, k == 0 ? 4e-16 : 1e-10, next);
+    std::copy(next, next + num, current);
+  }
+  roots->insert(roots->end(), current, current + num);
 }
 
 }  // namespace linecloud::poly

@@ -15,10 +15,18 @@ Poly Scale(const Poly& a, double s);
 double Eval(const Poly& p, double x);
 double EvalDerivative(const Poly& p, double x);
 
-// Real roots of p (any degree up to ~20): eigenvalues of the companion
+// Real roots of p (degree up to 24): eigenvalues of the companion
 // matrix with a negligible imaginary part, each polished by Newton steps on
 // p. Leading coefficients that are negligible relative to the largest one are
 // dropped first. Roots are appended to `roots`.
 void RealRoots(Poly p, std::vector<double>* roots);
+
+// The same roots without an eigen-decomposition: the real roots of p' (found
+// recursively down to degree 1) cut the line into intervals on which p is
+// monotonic, each holding at most one root, found by Newton steps kept inside
+// a sign-change bracket; a critical point where p vanishes (a double root) is
+// reported too. Roots lie within the Cauchy bound, and by Gauss–Lucas so do
+// the derivatives' roots. Degree up to 24.
+void MonotoneRealRoots(const Poly& p, std::vector<double>* roots);
 
 }  // namespace linecloud::poly

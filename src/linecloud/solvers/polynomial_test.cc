@@ -1,0 +1,66 @@
+#include "linecloud/solvers/polynomial.h"
+
+#include <algorithm>
+#include <random>
+
+#include <gtest/gtest.h>
+
+namespace linecloud::poly {
+namespace {
+
+// Polynomials built from known roots: k real roots and complex pairs.
+TEST(Polynomial, MonotoneAndCompanionRootFindersFindTheKnownRealRoots) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-5.0, 5.0);
+  for (int trial = 0; trial < 2000; ++trial) {
+    const int real = static_cast<int>(rng() % 9);
+    const int pairs = static_cast<int>(rng() % 3);
+    std::vector<double> truth;
+    Poly p = {u(rng) + (u(rng) > 0 ? 6.0 : -6.0)};  // non-zero leading factor
+    for (int i = 0; i < real; ++i) {
+      truth.push_back(u(rng));
+      p = Mul(p, {-truth.back(), 1.0});
+    }
+    for (int i = 0; i < pairs; ++i) {
+      const double re = u(rng), im = 0.5 + std::abs(u(rng));
+      p = Mul(p, {re * re + im * im, -2 * re, 1.0});
+    }
+    std::sort(truth.begin(), truth.end());
+    // Skip draws with roots closer than 1e-3: ill-conditioned for any method.
+    bool separated = true;
+    for (size_t i = 1; i < truth.size(); ++i) separated &= truth[i] - truth[i - 1] > 1e-3;
+    if (!separated) continue;
+    for (int method = 0; method < 2; ++method) {
+      std::vector<double> roots;
+      if (method == 0) {
+        MonotoneRealRoots(p, &roots);
+      } else {
+        RealRoots(p, &roots);
+      }
+      std::sort(roots.begin(), roots.end());
+      ASSERT_EQ(roots.size(), truth.size()) << "method " << method << " trial " << trial;
+      for (size_t i = 0; i < roots.size(); ++i) {
+        EXPECT_NEAR(roots[i], truth[i], 1e-7 * std::max(1.0, std::abs(truth[i])));
+      }
+    }
+  }
+}
+
+TEST(Polynomial, DegenerateInputs) {
+  std::vector<double> roots;
+  MonotoneRealRoots({}, &roots);
+  MonotoneRealRoots({0.0, 0.0}, &roots);
+  MonotoneRealRoots({3.0}, &roots);
+  EXPECT_TRUE(roots.empty());
+  MonotoneRealRoots({-2.0, 1.0}, &roots);
+  ASSERT_EQ(roots.size(), 1u);
+  EXPECT_DOUBLE_EQ(roots[0], 2.0);
+  roots.clear();
+  MonotoneRealRoots({1.0, 0.0, 1.0}, &roots);  // x² + 1
+  EXPECT_TRUE(roots.empty());
+  MonotoneRealRoots({std::nan(""), 1.0}, &roots);
+  for (double r : roots) EXPECT_TRUE(std::isfinite(r));
+}
+
+}  // namespace
+}  // namespace linecloud::poly
