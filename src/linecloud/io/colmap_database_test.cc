@@ -14,6 +14,7 @@ namespace linecloud {
 namespace {
 
 using testing::SharedDataPath;
+using testing::ErrorOf;
 using testing::TempDir;
 
 TEST(ColmapDatabase, PairIds) {
@@ -105,15 +106,6 @@ TEST(ColmapDatabase, DescriptorsPerPointFromTracks) {
     ASSERT_TRUE(found) << "point " << ids[k];
     if (k > 200) break;  // the rest is the same code path
   }
-}
-
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
 }
 
 TEST(ColmapDatabase, BadFilesGiveErrorsNamingTheFile) {

@@ -14,6 +14,7 @@ namespace linecloud {
 namespace {
 
 using testing::SharedDataPath;
+using testing::ErrorOf;
 using testing::TempDir;
 
 void ExpectSameModel(const Reconstruction& a, const Reconstruction& b) {
@@ -126,15 +127,6 @@ TEST(ColmapModel, SyntheticRoundTripWithRigsAndFrames) {
   EXPECT_FALSE(back.rigs.at(1).sensors[1].sensor_from_rig.has_value());
   ASSERT_EQ(back.frames.at(7).data.size(), 2u);
   EXPECT_EQ(back.frames.at(7).rig_from_world.translation, Eigen::Vector3d(1, 2, 3));
-}
-
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const Error& e) {
-    return e.what();
-  }
-  return "";
 }
 
 TEST(ColmapModel, TruncatedBinaryFilesGiveErrorsNamingTheFile) {

@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include "linecloud/util/error.h"
+
 namespace linecloud::testing {
 
 // ../shared next to the checkout, or $LINECLOUD_SHARED.
@@ -29,6 +31,17 @@ inline std::string SharedDataPath(const std::string& relative) {
                    << " (set LINECLOUD_SHARED to the shared/ folder)";       \
     }                                                                         \
   } while (0)
+
+// The message of the linecloud::Error that `f` throws ("" when none).
+template <typename F>
+std::string ErrorOf(const F& f) {
+  try {
+    f();
+  } catch (const ::linecloud::Error& e) {
+    return e.what();
+  }
+  return "";
+}
 
 // A fresh empty folder under the system temp dir, removed at destruction.
 class TempDir {

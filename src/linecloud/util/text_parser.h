@@ -21,13 +21,8 @@ class TextLines {
 
   // Next non-empty, non-comment line; false at the end.
   bool Next(std::string_view* line) {
-    while (pos_ < data_.size()) {
-      size_t end = data_.find('\n', pos_);
-      if (end == std::string_view::npos) end = data_.size();
-      std::string_view l = data_.substr(pos_, end - pos_);
-      pos_ = end + 1;
-      ++line_number_;
-      if (!l.empty() && l.back() == '\r') l.remove_suffix(1);
+    std::string_view l;
+    while (NextRaw(&l)) {
       const size_t first = l.find_first_not_of(" \t");
       if (first == std::string_view::npos || l[first] == '#') continue;
       *line = l;
