@@ -1,4 +1,5 @@
 #include <chrono>
+#include <filesystem>
 #include <iostream>
 
 #include <fmt/format.h>
@@ -94,9 +95,8 @@ void RunDemo(const DemoArgs& args) {
   WriteModelPly(model, JoinPaths(args.out, "model.ply"));
   WriteLineCloudPly(cloud, JoinPaths(args.out, "map.ply"), 0.5);
 
-  const auto file_size = [](const std::string& p) { return ReadFileToString(p).size(); };
-  const size_t map_bytes = file_size(map_path);
-  const size_t compact_bytes = file_size(compact_path);
+  const size_t map_bytes = std::filesystem::file_size(map_path);
+  const size_t compact_bytes = std::filesystem::file_size(compact_path);
   size_t num_obs = 0;
   for (const auto& [id, im] : model.images) num_obs += im.points2D.size();
 

@@ -52,7 +52,8 @@ nlohmann::json SectionJson(const Section& s) {
   return {{"offset", s.offset}, {"bytes", s.bytes}};
 }
 
-std::string HexChecksum(std::string_view data) {
+// BLAKE2b-256 of `data`, as 32 raw bytes.
+std::string Checksum(std::string_view data) {
   unsigned char hash[kChecksumBytes];
   crypto_generichash(hash, sizeof(hash),
                      reinterpret_cast<const unsigned char*>(data.data()),
@@ -134,7 +135,7 @@ std::string SerializeLineCloud(const LineCloud& cloud) {
                 cloud.descriptors.size());
   }
   const std::string hash =
-      HexChecksum(std::string_view(out.data(), layout.checksum_offset));
+      Checksum(std::string_view(out.data(), layout.checksum_offset));
   std::memcpy(out.data() + layout.checksum_offset, hash.data(), kChecksumBytes);
   return out;
 }
@@ -174,7 +175,7 @@ ParsedHeader ParseHeader(std::string_view data, const std::string& source) {
     Fail("{}: truncated (no room for the checksum)", source);
   }
   const size_t body_end = data.size() - kChecksumBytes;
-  const std::string hash = HexChecksum(data.substr(0, body_end));
+  const std::string hash = Checksum(data.substr(0, body_end));
 #ifndef FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION
   if (std::memcmp(hash.data(), data.data() + body_end, kChecksumBytes) != 0) {
 #else
