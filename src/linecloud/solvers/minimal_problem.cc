@@ -10,6 +10,7 @@
 #include "linecloud/solvers/m_p3l_ls.h"
 #include "linecloud/solvers/m_p3l_lu.h"
 #include "linecloud/solvers/m_p3p.h"
+#include "linecloud/solvers/m_p4l_l.h"
 #include "linecloud/solvers/m_p4l_u.h"
 #include "linecloud/solvers/m_p3p_l.h"
 #include "linecloud/solvers/m_p3p_ls.h"
@@ -34,7 +35,7 @@ constexpr std::array<MethodInfo, 16> kMethods = {{
     {MethodId::kP4LU, "p4L+u",        4, true,  false, false, false, true,  true},
     {MethodId::kMP6L, "m-p6L",        6, true,  true,  false, false, false, false},
     {MethodId::kMP4LU, "m-p4L+u",      4, true,  true,  false, false, true,  true},
-    {MethodId::kMP4LL, "m-P4L+l",      4, true,  true,  true,  false, false, false},
+    {MethodId::kMP4LL, "m-P4L+l",      4, true,  true,  true,  false, false, true},
     {MethodId::kMP3LLU, "m-P3L+l+u",    3, true,  true,  true,  false, true,  true},
     {MethodId::kMP3LLS, "m-P3L+l+s",    3, true,  true,  true,  true,  false, true},
     {MethodId::kMP2LLUS, "m-P2L+l+u+s",  2, true,  true,  true,  true,  true,  true},
@@ -162,6 +163,9 @@ int SolveMinimal(const MethodInfo& m, const MinimalSample& s, std::vector<Sim3d>
       RigRays(s, &origins, &directions);
       m_p4l_u(origins, directions, s.lines, &rigid);
       return Collect(rigid, out);
+    case MethodId::kMP4LL:
+      m_p4l_l(s.lines, s.points_local, &sim);
+      return Collect(sim, out);
     case MethodId::kMP3LLU:
       m_p3l_lu(s.lines, s.points_local, &sim);
       return Collect(sim, out);
@@ -173,7 +177,6 @@ int SolveMinimal(const MethodInfo& m, const MinimalSample& s, std::vector<Sim3d>
       return Collect(rigid, out);
     case MethodId::kP6L:
     case MethodId::kMP6L:
-    case MethodId::kMP4LL:
       break;
   }
   Fail("method {} has no minimal solver in this build yet", m.name);
