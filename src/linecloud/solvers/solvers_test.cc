@@ -9,6 +9,7 @@
 
 #include "linecloud/solvers/minimal_problem.h"
 #include "linecloud/synthetic/minimal_instances.h"
+#include "linecloud/testing/test_util.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
@@ -100,22 +101,9 @@ TEST_P(MinimalSolverTest, DegenerateSamplesGiveFiniteOrNoSolutions) {
   }
 }
 
-std::vector<std::string_view> ImplementedMethods() {
-  std::vector<std::string_view> names;
-  for (const MethodInfo& m : AllMethods()) {
-    if (m.implemented) names.push_back(m.name);
-  }
-  return names;
-}
-
-INSTANTIATE_TEST_SUITE_P(Solvers, MinimalSolverTest, ::testing::ValuesIn(ImplementedMethods()),
-                         [](const auto& info) {
-                           std::string name(info.param);
-                           for (char& c : name) {
-                             if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
-                           }
-                           return name;
-                         });
+INSTANTIATE_TEST_SUITE_P(Solvers, MinimalSolverTest,
+                         ::testing::ValuesIn(testing::ImplementedMethodNames()),
+                         testing::MethodTestName);
 
 TEST(MinimalProblem, CheckSampleNamesTheField) {
   const MethodInfo& m = FindMethod("m-p2P+u");

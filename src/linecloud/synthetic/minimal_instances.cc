@@ -3,20 +3,9 @@
 #include <cmath>
 #include <numbers>
 
+#include "linecloud/synthetic/random.h"
+
 namespace linecloud {
-namespace {
-
-Eigen::Quaterniond RandomRotation(std::mt19937_64& rng) {
-  std::normal_distribution<double> g(0.0, 1.0);
-  return Eigen::Quaterniond(g(rng), g(rng), g(rng), g(rng)).normalized();
-}
-
-Eigen::Vector3d RandomUnit(std::mt19937_64& rng) {
-  std::normal_distribution<double> g(0.0, 1.0);
-  return Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
-}
-
-}  // namespace
 
 MinimalInstance RandomMinimalInstance(const MethodInfo& m, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);

@@ -5,12 +5,32 @@
 #include <filesystem>
 #include <random>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include <gtest/gtest.h>
 
+#include "linecloud/solvers/minimal_problem.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud::testing {
+
+// Names of the methods with a minimal solver, for value-parameterised tests,
+// and a gtest-safe test name for each ("m-P3P+l" → "m_P3P_l").
+inline std::vector<std::string_view> ImplementedMethodNames() {
+  std::vector<std::string_view> names;
+  for (const MethodInfo& m : AllMethods()) {
+    if (m.implemented) names.push_back(m.name);
+  }
+  return names;
+}
+inline std::string MethodTestName(const ::testing::TestParamInfo<std::string_view>& info) {
+  std::string name(info.param);
+  for (char& c : name) {
+    if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
+  }
+  return name;
+}
 
 // ../shared next to the checkout, or $LINECLOUD_SHARED.
 inline std::string SharedDir() {

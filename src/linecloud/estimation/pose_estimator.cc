@@ -1,0 +1,85 @@
+#include "linecloud/estimation/pose_estimator.h"
+
+#include <algorithm>
+
+namespace linecloud {
+
+PoseEstimator::PoseEstimator(const MethodInfo& method, const PoseData& data,
+                             const RefineOptions& local_refinement)
+    : method_(method), data_(data), local_refinement_(local_refinement) {
+  local_refinement_.similarity = method.similarity();
+  if (method.multi && !method.local_points) sample_.cam_from_rig = data.cam_from_rig;
+  if (!method.multi && !data.cam_from_rig.empty()) {
+    camera_to_query_ = data.cam_from_rig[0].rotation.inverse().toRotationMatrix();
+  }
+}
+
+int PoseEstimator::generate_models(std::span<const int> sample, std::vector<Sim3d>* out) {
+  MinimalSample& s = sample_;
+  s.bearings.clear();
+  s.camera_index.clear();
+  s.points_local.clear();
+  s.points.clear();
+  s.lines.clear();
+  for (const int i : sample) {
+    if (method_.local_points) {
+      s.points_local.push_back(data_.points_local[i]);
+    } else {
+      if (method_.multi) {
+        s.bearings.push_back(data_.bearings[i]);
+        s.camera_index.push_back(data_.camera[i]);
+      } else {
+        // One camera at the origin of the query frame, possibly rotated
+        // (gravity pre-alignment): bearings in the query frame.
+        s.bearings.push_back(camera_to_query_ * data_.bearings[i]);
+      }
+    }
+    if (method_.lines) {
+      s.lines.push_back(data_.lines[i]);
+    } else {
+      s.points.push_back(data_.points[i]);
+    }
+  }
+  return SolveMinimal(method_, s, out);
+}
+
+double PoseEstimator::score_model(const Sim3d& model, double threshold,
+                                  int* num_inliers) const {
+  const CameraPoses poses(data_, model);
+  const double t2 = threshold * threshold;
+  double score = 0;
+  int inliers = 0;
+  for (size_t i = 0; i < data_.size(); ++i) {
+    const double e2 = SquaredReprojectionError(data_, poses, i);
+    if (e2 < t2) {
+      score += e2;
+      ++inliers;
+    } else {
+      score += t2;
+    }
+  }
+  *num_inliers = inliers;
+  return score;
+}
+
+void PoseEstimator::inliers(const Sim3d& model, double threshold,
+                            std::vector<char>* mask) const {
+  const CameraPoses poses(data_, model);
+  mask->assign(data_.size(), 0);
+  for (size_t i = 0; i < data_.size(); ++i) {
+    (*mask)[i] = SquaredReprojectionError(data_, poses, i) < threshold * threshold;
+  }
+}
+
+void PoseEstimator::refine_model(Sim3d* model, double threshold) {
+  std::vector<char> mask;
+  inliers(*model, threshold, &mask);
+  inlier_indices_.clear();
+  for (size_t i = 0; i < mask.size(); ++i) {
+    if (mask[i]) inlier_indices_.push_back(static_cast<int>(i));
+  }
+  if (inlier_indices_.size() < static_cast<size_t>(method_.sample_size)) return;
+  RefinePose(data_, inlier_indices_, local_refinement_, model);
+}
+
+}  // namespace linecloud

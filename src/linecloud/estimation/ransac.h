@@ -1,0 +1,161 @@
+// One RANSAC for every estimator: MSAC (truncated quadratic) scoring,
+// adaptive stopping, local optimisation of each new best model, an explicit
+// seed and statistics. Generic over an Estimator with
+//
+//   using Model = ...;
+//   int num_data() const;
+//   int sample_size() const;
+//   // Every model of the minimal sample (indices into the data).
+//   int generate_models(std::span<const int> sample, std::vector<Model>* out);
+//   // Sum over the data of min(r², threshold²); counts inliers (r < threshold).
+//   double score_model(const Model& m, double threshold, int* num_inliers) const;
+//   // Local optimisation on the inliers of `m` (may leave it unchanged).
+//   void refine_model(Model* m, double threshold);
+//   // Marks the inliers of `m`.
+//   void inliers(const Model& m, double threshold, std::vector<char>* mask) const;
+//
+// The structure follows PoseLib's ransac.h and COLMAP's loransac.h (Chum,
+// Matas, Kittler, "Locally optimized RANSAC", DAGM 2003; Torr, Zisserman,
+// "MLESAC", CVIU 2000).
+#pragma once
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <random>
+#include <span>
+#include <vector>
+
+#include "linecloud/util/error.h"
+
+namespace linecloud {
+
+struct RansacOptions {
+  double max_error = 4.0;        // inlier threshold, in the estimator's units (px)
+  double confidence = 0.9999;    // probability of drawing one all-inlier sample
+  int min_iterations = 10;
+  int max_iterations = 10000;
+  bool local_optimization = true;
+  uint64_t seed = 0;
+
+  void Check() const {
+    if (!(max_error > 0) || !std::isfinite(max_error)) {
+      Fail("RANSAC threshold must be a positive number, got {}", max_error);
+    }
+    if (!(confidence > 0 && confidence < 1)) {
+      Fail("RANSAC confidence must be in (0, 1), got {}", confidence);
+    }
+    if (min_iterations < 0 || max_iterations < 1 || min_iterations > max_iterations) {
+      Fail("RANSAC iterations: need 0 <= min ({}) <= max ({}) and max >= 1", min_iterations,
+           max_iterations);
+    }
+  }
+};
+
+struct RansacStats {
+  int iterations = 0;
+  int num_inliers = 0;
+  double inlier_ratio = 0;
+  double mean_solutions = 0;     // models per minimal sample
+  double solver_us = 0;          // mean time of one generate_models call
+  double ransac_ms = 0;          // whole run, local optimisation included
+  int local_optimizations = 0;
+};
+
+template <typename Model>
+struct RansacResult {
+  bool success = false;
+  Model model{};
+  std::vector<char> inlier_mask;
+  RansacStats stats;
+};
+
+// Iterations needed to draw an all-inlier sample with `confidence`.
+inline int RequiredIterations(double inlier_ratio, int sample_size, double confidence,
+                              int max_iterations) {
+  if (inlier_ratio <= 0) return max_iterations;
+  const double all_inliers = std::pow(inlier_ratio, sample_size);
+  if (all_inliers >= 1) return 0;
+  const double n = std::log(1 - confidence) / std::log1p(-all_inliers);
+  return n >= max_iterations ? max_iterations : static_cast<int>(std::ceil(n));
+}
+
+template <typename Estimator>
+RansacResult<typename Estimator::Model> Ransac(Estimator& estimator,
+                                               const RansacOptions& options) {
+  using Model = typename Estimator::Model;
+  using Clock = std::chrono::steady_clock;
+  options.Check();
+  const auto start = Clock::now();
+  RansacResult<Model> result;
+  const int n = estimator.num_data();
+  const int k = estimator.sample_size();
+  if (n < k) return result;
+
+  std::mt19937_64 rng(options.seed);
+  std::vector<int> sample(k);
+  std::vector<Model> models;
+  double best_score = std::numeric_limits<double>::infinity();
+  int best_inliers = 0;
+  long total_models = 0;
+  double solver_seconds = 0;
+  int needed = options.max_iterations;
+  int iteration = 0;
+  for (; iteration < options.max_iterations; ++iteration) {
+    if (iteration >= options.min_iterations && iteration >= needed) break;
+    // k distinct indices (k is tiny: rejection is cheaper than shuffling).
+    for (int i = 0; i < k; ++i) {
+      int candidate;
+      do {
+        candidate = static_cast<int>(rng() % static_cast<uint64_t>(n));
+      } while (std::find(sample.begin(), sample.begin() + i, candidate) !=
+               sample.begin() + i);
+      sample[i] = candidate;
+    }
+    const auto solve_start = Clock::now();
+    estimator.generate_models(sample, &models);
+    solver_seconds += std::chrono::duration<double>(Clock::now() - solve_start).count();
+    total_models += static_cast<long>(models.size());
+    for (Model& model : models) {
+      int inliers = 0;
+      double score = estimator.score_model(model, options.max_error, &inliers);
+      if (score >= best_score) continue;
+      if (options.local_optimization && inliers > k) {
+        Model refined = model;
+        estimator.refine_model(&refined, options.max_error);
+        int refined_inliers = 0;
+        const double refined_score =
+            estimator.score_model(refined, options.max_error, &refined_inliers);
+        ++result.stats.local_optimizations;
+        if (refined_score < score) {
+          model = refined;
+          score = refined_score;
+          inliers = refined_inliers;
+        }
+      }
+      best_score = score;
+      best_inliers = inliers;
+      result.model = model;
+      result.success = true;
+      needed = RequiredIterations(static_cast<double>(inliers) / n, k, options.confidence,
+                                  options.max_iterations);
+    }
+  }
+  result.stats.iterations = iteration;
+  if (result.success) {
+    estimator.inliers(result.model, options.max_error, &result.inlier_mask);
+    result.stats.num_inliers = best_inliers;
+    result.stats.inlier_ratio = static_cast<double>(best_inliers) / n;
+  }
+  if (iteration > 0) {
+    result.stats.mean_solutions = static_cast<double>(total_models) / iteration;
+    result.stats.solver_us = 1e6 * solver_seconds / iteration;
+  }
+  result.stats.ransac_ms =
+      1e3 * std::chrono::duration<double>(Clock::now() - start).count();
+  return result;
+}
+
+}  // namespace linecloud

@@ -1,0 +1,36 @@
+// Levenberg–Marquardt refinement of a query pose on the reprojection error
+// (eq. 2 for points, eq. 6 for lines; Speciale et al., CVPR 2019) with a
+// Cauchy loss, for single images and rigs, SE3 and Sim3.
+#pragma once
+
+#include <span>
+
+#include "linecloud/estimation/pose_data.h"
+#include "linecloud/geometry/rigid3.h"
+
+namespace linecloud {
+
+struct RefineOptions {
+  int max_iterations = 30;
+  double loss_scale = 1.0;             // Cauchy loss scale, px
+  double function_tolerance = 1e-10;   // stop when the cost drops by less (relative)
+  double step_tolerance = 1e-12;       // stop when the update is smaller
+  bool similarity = false;             // also refine the scale (Sim3)
+
+  void Check() const;
+};
+
+struct RefineSummary {
+  int iterations = 0;
+  double initial_cost = 0;  // Σ Cauchy loss over the residuals, px²
+  double final_cost = 0;
+};
+
+// Refines query_from_world on the correspondences `indices` of `data`.
+RefineSummary RefinePose(const PoseData& data, std::span<const int> indices,
+                         const RefineOptions& options, Sim3d* query_from_world);
+
+// Applies the left perturbation of ReprojectionResidual: (ω, δt, δσ).
+Sim3d PerturbPose(const Sim3d& pose, const Eigen::Matrix<double, 7, 1>& delta);
+
+}  // namespace linecloud

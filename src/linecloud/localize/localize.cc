@@ -1,0 +1,201 @@
+#include "linecloud/localize/localize.h"
+
+#include <chrono>
+#include <cmath>
+
+#include <Eigen/Geometry>
+
+#include "linecloud/estimation/pose_data.h"
+#include "linecloud/estimation/pose_estimator.h"
+#include "linecloud/util/error.h"
+
+namespace linecloud {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double MeanReprojectionError(const PoseData& data, const Sim3d& pose,
+                             const std::vector<int>& indices) {
+  if (indices.empty()) return 0;
+  const CameraPoses poses(data, pose);
+  double sum = 0;
+  for (const int i : indices) {
+    sum += std::sqrt(SquaredReprojectionError(data, poses, static_cast<size_t>(i)));
+  }
+  return sum / static_cast<double>(indices.size());
+}
+
+void CheckQuery(const MethodInfo& method, const Query& q, std::string_view source) {
+  if (q.cameras.empty()) Fail("{}: 'cameras' is empty", source);
+  for (size_t c = 0; c < q.cameras.size(); ++c) {
+    q.cameras[c].Check(fmt::format("{}: cameras[{}]", source, c));
+  }
+  if (!q.cam_from_rig.empty() && q.cam_from_rig.size() != q.cameras.size()) {
+    Fail("{}: 'cam_from_rig' has {} poses for {} cameras", source, q.cam_from_rig.size(),
+         q.cameras.size());
+  }
+  for (size_t c = 0; c < q.cam_from_rig.size(); ++c) {
+    if (!q.cam_from_rig[c].rotation.coeffs().allFinite() ||
+        !q.cam_from_rig[c].translation.allFinite()) {
+      Fail("{}: cam_from_rig[{}] is not finite", source, c);
+    }
+  }
+  if (!method.multi && q.cameras.size() != 1) {
+    Fail("{}: method {} localizes one image, but the query has {} cameras (use the m- "
+         "method)",
+         source, method.name, q.cameras.size());
+  }
+  if (q.observations.size() < static_cast<size_t>(method.sample_size)) {
+    Fail("{}: method {} needs at least {} observations, got {}", source, method.name,
+         method.sample_size, q.observations.size());
+  }
+  for (size_t i = 0; i < q.observations.size(); ++i) {
+    const QueryObservation& o = q.observations[i];
+    if (o.camera < 0 || static_cast<size_t>(o.camera) >= q.cameras.size()) {
+      Fail("{}: observations[{}].camera = {} but there are {} cameras", source, i, o.camera,
+           q.cameras.size());
+    }
+    if (!o.xy.allFinite()) Fail("{}: observations[{}].xy is not finite", source, i);
+  }
+  if (method.local_points) {
+    if (q.points_local.size() != q.observations.size()) {
+      Fail("{}: method {} needs 'points_local' with one point per observation ({}), got {}",
+           source, method.name, q.observations.size(), q.points_local.size());
+    }
+    for (size_t i = 0; i < q.points_local.size(); ++i) {
+      if (!q.points_local[i].allFinite()) {
+        Fail("{}: points_local[{}] is not finite", source, i);
+      }
+    }
+  }
+  if (method.gravity) {
+    for (const auto& [g, name] : {std::pair{&q.gravity_query, "gravity_query"},
+                                  std::pair{&q.gravity_map, "gravity_map"}}) {
+      if (!g->has_value()) Fail("{}: method {} needs '{}'", source, method.name, name);
+      if (!(*g)->allFinite() || !((*g)->norm() > 0)) {
+        Fail("{}: '{}' must be a finite non-zero vector", source, name);
+      }
+    }
+  }
+}
+
+}  // namespace
+
+PointMap PointMapFromModel(const Reconstruction& model) {
+  PointMap map;
+  map.points.reserve(model.points3D.size());
+  for (const auto& [id, point] : model.points3D) map.points.emplace(id, point.xyz);
+  return map;
+}
+
+LineMap LineMapFromCloud(const LineCloud& cloud) {
+  LineMap map;
+  map.lines.reserve(cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i) map.lines.emplace(cloud.ids[i], cloud.lines[i]);
+  return map;
+}
+
+void LocalizeOptions::Check() const {
+  ransac.Check();
+  refinement.Check();
+  local_refinement.Check();
+}
+
+Eigen::Matrix3d GravityAlignment(const Eigen::Vector3d& gravity) {
+  return Eigen::Quaterniond::FromTwoVectors(gravity.normalized(), -Eigen::Vector3d::UnitY())
+      .toRotationMatrix();
+}
+
+LocalizeResult Localize(const MethodInfo& method, const Query& query,
+                        const LocalizationMap& map, const LocalizeOptions& options,
+                        std::string_view source) {
+  options.Check();
+  if (!method.implemented) Fail("method {} has no minimal solver in this build yet", method.name);
+  const bool line_map = std::holds_alternative<LineMap>(map);
+  if (method.lines != line_map) {
+    Fail("method {} needs a {} map, but got a {}", method.name,
+         method.lines ? "line cloud (--map)" : "point model (--model)",
+         line_map ? "line cloud" : "point model");
+  }
+  CheckQuery(method, query, source);
+
+  // +u: rotate both frames so that gravity is −y; the solvers then look for
+  // a rotation about y. aligned = A x; undone on the result.
+  Eigen::Matrix3d align_query = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d align_map = Eigen::Matrix3d::Identity();
+  if (method.gravity) {
+    align_query = GravityAlignment(*query.gravity_query);
+    align_map = GravityAlignment(*query.gravity_map);
+  }
+  const Eigen::Quaterniond align_query_q(align_query), align_map_q(align_map);
+
+  PoseData data;
+  for (size_t c = 0; c < query.cameras.size(); ++c) {
+    Rigid3d cam_from_rig;
+    if (method.multi && !query.cam_from_rig.empty()) cam_from_rig = query.cam_from_rig[c];
+    // cam_from_aligned = cam_from_rig ∘ rig_from_aligned.
+    data.cam_from_rig.push_back(cam_from_rig * Rigid3d(align_query_q.inverse(),
+                                                       Eigen::Vector3d::Zero()));
+  }
+  for (size_t i = 0; i < query.observations.size(); ++i) {
+    const QueryObservation& o = query.observations[i];
+    const Camera& camera = query.cameras[o.camera];
+    const Eigen::Vector3d ray = camera.CamFromImg(o.xy);
+    if (!ray.allFinite() || !(ray.z() > 0)) {
+      Fail("{}: observations[{}].xy = ({}, {}) cannot be undistorted by camera {}", source, i,
+           o.xy.x(), o.xy.y(), o.camera);
+    }
+    data.camera.push_back(o.camera);
+    data.normalized.push_back(ray.head<2>() / ray.z());
+    data.focal.push_back(camera.MeanFocalLength());
+    data.bearings.push_back(ray.normalized());
+    if (method.local_points) data.points_local.push_back(align_query * query.points_local[i]);
+    if (line_map) {
+      const auto& lines = std::get<LineMap>(map).lines;
+      const auto it = lines.find(o.id);
+      if (it == lines.end()) Fail("{}: observations[{}].id = {} is not in the map", source, i, o.id);
+      data.lines.push_back(PluckerLine(align_map * it->second.v, align_map * it->second.w));
+    } else {
+      const auto& points = std::get<PointMap>(map).points;
+      const auto it = points.find(o.id);
+      if (it == points.end()) Fail("{}: observations[{}].id = {} is not in the map", source, i, o.id);
+      data.points.push_back(align_map * it->second);
+    }
+  }
+
+  LocalizeResult result;
+  PoseEstimator estimator(method, data, options.local_refinement);
+  const RansacResult<Sim3d> ransac = Ransac(estimator, options.ransac);
+  result.stats = ransac.stats;
+  if (!ransac.success) return result;
+  std::vector<int> ransac_inliers;
+  for (size_t i = 0; i < ransac.inlier_mask.size(); ++i) {
+    if (ransac.inlier_mask[i]) ransac_inliers.push_back(static_cast<int>(i));
+  }
+  Sim3d pose = ransac.model;
+  result.reprojection_initial_px = MeanReprojectionError(data, pose, ransac_inliers);
+  if (options.refine && ransac_inliers.size() >= static_cast<size_t>(method.sample_size)) {
+    const auto start = Clock::now();
+    RefineOptions refinement = options.refinement;
+    refinement.similarity = method.similarity();
+    result.refine_iterations = RefinePose(data, ransac_inliers, refinement, &pose).iterations;
+    result.refine_ms = 1e3 * std::chrono::duration<double>(Clock::now() - start).count();
+  }
+  result.reprojection_refined_px = MeanReprojectionError(data, pose, ransac_inliers);
+  std::vector<char> mask;
+  estimator.inliers(pose, options.ransac.max_error, &mask);
+  for (size_t i = 0; i < mask.size(); ++i) {
+    if (mask[i]) result.inliers.push_back(static_cast<int>(i));
+  }
+  // query_from_world = rig_from_aligned ∘ pose ∘ aligned_from_world.
+  const auto unalign = [&](const Sim3d& p) {
+    return Sim3d(1.0, align_query_q.inverse(), Eigen::Vector3d::Zero()) * p *
+           Sim3d(1.0, align_map_q, Eigen::Vector3d::Zero());
+  };
+  result.query_from_world = unalign(pose);
+  result.initial = unalign(ransac.model);
+  result.success = true;
+  return result;
+}
+
+}  // namespace linecloud

@@ -1,0 +1,86 @@
+// The user-facing localization API: Query × Map × Options → Result. One
+// RANSAC (estimation/ransac.h) around the chosen method's minimal solver,
+// then Levenberg–Marquardt refinement of the reprojection error (eq. 2 for
+// point maps, eq. 6 for line clouds; Speciale et al., CVPR 2019).
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string_view>
+#include <unordered_map>
+#include <variant>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "linecloud/estimation/ransac.h"
+#include "linecloud/estimation/refine_pose.h"
+#include "linecloud/geometry/camera.h"
+#include "linecloud/geometry/plucker.h"
+#include "linecloud/geometry/rigid3.h"
+#include "linecloud/io/colmap_model.h"
+#include "linecloud/lifting/line_cloud.h"
+#include "linecloud/solvers/minimal_problem.h"
+
+namespace linecloud {
+
+struct QueryObservation {
+  int camera = 0;
+  Eigen::Vector2d xy;  // pixels, COLMAP convention (top-left pixel centre at 0.5, 0.5)
+  uint64_t id = 0;     // map point id, or the id of the line lifted from it
+};
+
+struct Query {
+  std::vector<Camera> cameras;
+  std::vector<Rigid3d> cam_from_rig;              // one per camera; empty: identity
+  std::vector<QueryObservation> observations;
+  std::vector<Eigen::Vector3d> points_local;      // +l: one per observation, rig frame
+  std::optional<Eigen::Vector3d> gravity_query;   // +u: gravity direction, rig frame
+  std::optional<Eigen::Vector3d> gravity_map;     // +u: gravity direction, map frame
+};
+
+// A traditional map: point coordinates by id.
+struct PointMap {
+  std::unordered_map<uint64_t, Eigen::Vector3d> points;
+};
+// A privacy-preserving map: lines by id, no coordinates to hold points.
+struct LineMap {
+  std::unordered_map<uint64_t, PluckerLine> lines;
+};
+using LocalizationMap = std::variant<PointMap, LineMap>;
+
+PointMap PointMapFromModel(const Reconstruction& model);
+LineMap LineMapFromCloud(const LineCloud& cloud);
+
+struct LocalizeOptions {
+  RansacOptions ransac;        // max_error in px
+  bool refine = true;
+  RefineOptions refinement;    // final LM; `similarity` follows the method
+  RefineOptions local_refinement{.max_iterations = 5};  // RANSAC's local optimisation
+
+  void Check() const;
+};
+
+struct LocalizeResult {
+  bool success = false;
+  Sim3d query_from_world;     // cam_from_world (one image) / rig_from_world / local_from_world
+  Sim3d initial;              // RANSAC's estimate before the final refinement
+  std::vector<int> inliers;   // observation indices
+  RansacStats stats;
+  double refine_ms = 0;
+  int refine_iterations = 0;
+  double reprojection_initial_px = 0;  // mean over RANSAC's inliers
+  double reprojection_refined_px = 0;  // mean over the same correspondences
+};
+
+// Throws Error (naming `source`) for input the method cannot use: wrong map
+// kind, too few observations, unknown ids, bad camera indices, non-finite
+// values, missing local points or gravity.
+LocalizeResult Localize(const MethodInfo& method, const Query& query,
+                        const LocalizationMap& map, const LocalizeOptions& options,
+                        std::string_view source = "query");
+
+// The rotation taking direction `gravity` to −y (the +u convention).
+Eigen::Matrix3d GravityAlignment(const Eigen::Vector3d& gravity);
+
+}  // namespace linecloud
