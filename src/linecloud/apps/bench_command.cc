@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/eval/localization_bench.h"
 #include "linecloud/eval/solver_bench.h"
 
 namespace linecloud {
@@ -53,6 +54,66 @@ void RunBenchSolvers(const BenchArgs& args) {
   }
 }
 
+struct LocalizeBenchArgs {
+  LocalizationBenchOptions options;
+  bool json = false;
+};
+
+void RunBenchLocalize(const LocalizeBenchArgs& args) {
+  const LocalizationBenchOptions& o = args.options;
+  const auto rows = RunLocalizationBench(o, [&](const std::string& what) {
+    std::cerr << "bench localize: " << what << "\n";
+  });
+  if (args.json) {
+    nlohmann::json j = nlohmann::json::array();
+    for (const LocalizationBenchRow& r : rows) {
+      j.push_back({{"method", r.method},
+                   {"queries", r.queries},
+                   {"localized", r.localized},
+                   {"median_rotation_deg", {{"initial", r.median_rotation_deg[0]},
+                                            {"refined", r.median_rotation_deg[1]}}},
+                   {"median_position_rel", {{"initial", r.median_position_rel[0]},
+                                            {"refined", r.median_position_rel[1]}}},
+                   {"iterations", r.iterations},
+                   {"inlier_ratio", r.inlier_ratio},
+                   {"mean_solutions", r.solutions},
+                   {"solver_us", r.solver_us},
+                   {"ransac_ms", r.ransac_ms},
+                   {"refine_ms", r.refine_ms},
+                   {"refine_iterations", r.refine_iterations},
+                   {"total_ms", r.total_ms}});
+    }
+    std::cout << nlohmann::json{{"seed", o.seed}, {"rows", j}}.dump(2) << "\n";
+    return;
+  }
+  std::cout << fmt::format(
+      "seed {}, {} queries per method, {} correspondences, {:.0f} % inliers, {:.1f} px noise, "
+      "threshold {:.1f} px, one thread; localized = refined within {:.1f} deg and {:.1f} % of "
+      "the scene size\n",
+      o.seed, o.queries, o.instance.num_correspondences, 100 * o.instance.inlier_ratio,
+      o.instance.noise_px, o.localize.ransac.max_error, o.max_rotation_deg,
+      100 * o.max_position_rel);
+  std::cout << "| method | localized | rot. deg init / ref | pos. % init / ref | iters | "
+               "inliers | sols | solver us | RANSAC ms | refine ms (iters) | total ms | ref. rot. / "
+               "counterpart |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const LocalizationBenchRow& r : rows) {
+    std::string ratio;
+    for (const LocalizationBenchRow& other : rows) {
+      if (other.method == r.counterpart && other.median_rotation_deg[1] > 0) {
+        ratio = fmt::format("{:.2f}x {}", r.median_rotation_deg[1] / other.median_rotation_deg[1],
+                            other.method);
+      }
+    }
+    std::cout << fmt::format(
+        "| {} | {:.1f} % | {:.4f} / {:.4f} | {:.3f} / {:.3f} | {:.0f} | {:.0f} % | {:.2f} | "
+        "{:.2f} | {:.3f} | {:.3f} ({:.1f}) | {:.3f} | {} |\n",
+        r.method, 100.0 * r.localized / r.queries, r.median_rotation_deg[0],
+        r.median_rotation_deg[1], 100 * r.median_position_rel[0],
+        100 * r.median_position_rel[1], r.iterations, 100 * r.inlier_ratio, r.solutions,
+        r.solver_us, r.ransac_ms, r.refine_ms, r.refine_iterations, r.total_ms, ratio);
+  }
+}
+
 }  // namespace
 
 void RegisterBenchCommand(CLI::App& app) {
@@ -74,6 +135,32 @@ void RegisterBenchCommand(CLI::App& app) {
   solvers->add_option("--methods", args->options.methods, "Only these methods")
       ->delimiter(',');
   solvers->callback([args] { RunBenchSolvers(*args); });
+
+  auto loc = std::make_shared<LocalizeBenchArgs>();
+  CLI::App* localize = bench->add_subcommand(
+      "localize",
+      "Every method on the same seeded synthetic queries: accuracy, RANSAC statistics and "
+      "time per query (RANSAC + refinement, one thread)");
+  localize->add_flag("--json", loc->json, "Print JSON");
+  localize->add_option("--seed", loc->options.seed, "Random seed")->capture_default_str();
+  localize->add_option("--queries", loc->options.queries, "Queries per method")
+      ->capture_default_str();
+  localize->add_option("--correspondences", loc->options.instance.num_correspondences,
+                       "Correspondences per query")
+      ->capture_default_str();
+  localize->add_option("--inlier-ratio", loc->options.instance.inlier_ratio,
+                       "Share of correct matches")
+      ->capture_default_str();
+  localize->add_option("--noise", loc->options.instance.noise_px, "Pixel noise (std. dev.)")
+      ->capture_default_str();
+  localize->add_option("--local-noise", loc->options.instance.local_noise,
+                       "+l point noise relative to depth")
+      ->capture_default_str();
+  localize->add_option("--threshold", loc->options.localize.ransac.max_error,
+                       "RANSAC threshold (px)")
+      ->capture_default_str();
+  localize->add_option("--methods", loc->options.methods, "Only these methods")->delimiter(',');
+  localize->callback([loc] { RunBenchLocalize(*loc); });
 }
 
 }  // namespace linecloud

@@ -284,3 +284,52 @@ TEST(Cli, BenchSolversReportsEveryRequestedMethod) {
 
 }  // namespace
 }  // namespace linecloud
+
+namespace linecloud {
+namespace {
+
+// The demo's query files localize against its line cloud (p4L+u) and its
+// point model (p2P+u, p3P), close to the ground truth stored in each file.
+TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
+  TempDir tmp;
+  const std::string demo = tmp.Path("demo");
+  ASSERT_EQ(RunCli({"demo", "--out", demo, "--points", "1500", "--queries", "2"}).code, 0);
+  const std::string query = demo + "/queries/query_000.json";
+  const nlohmann::json file = ReadJsonFile(query);
+  const Rigid3d truth = JsonPose(file["ground_truth"]["cam_from_world"], "truth");
+  for (const auto& [method, map_flag, map] :
+       {std::tuple{"p4L+u", "--map", demo + "/map.lcm"},
+        std::tuple{"p2P+u", "--model", demo + "/model"},
+        std::tuple{"p3P", "--model", demo + "/model"}}) {
+    const CliResult r = RunCli({"localize", map_flag, map, "--query", query, "--method", method,
+                                "--out", tmp.Path("result.json")});
+    ASSERT_EQ(r.code, 0) << method << ": " << r.err;
+    const nlohmann::json result = ReadJsonFile(tmp.Path("result.json"));
+    ASSERT_TRUE(result["success"].get<bool>()) << method;
+    const Rigid3d estimate = JsonPose(result, "result");
+    EXPECT_LT(RotationDistance(estimate.rotation, truth.rotation), 0.2 * 3.14159 / 180) << method;
+    EXPECT_LT((estimate.Center() - truth.Center()).norm(), 0.05) << method;
+    EXPECT_GT(result["stats"]["inlier_ratio"].get<double>(), 0.9) << method;
+    EXPECT_GT(result["inliers"].size(), 10u);
+    EXPECT_LE(result["stats"]["reprojection_px"]["refined"].get<double>(),
+              result["stats"]["reprojection_px"]["initial"].get<double>() + 1e-9);
+  }
+  // Wrong map kind, unknown method, missing query: one clear error line.
+  ExpectError(RunCli({"localize", "--model", demo + "/model", "--query", query, "--method",
+                      "p4L+u"}),
+              "needs a line cloud");
+  ExpectError(RunCli({"localize", "--map", demo + "/map.lcm", "--query", query, "--method",
+                      "p5P"}),
+              "unknown method 'p5P'");
+  ExpectError(RunCli({"localize", "--map", demo + "/map.lcm", "--query", tmp.Path("no.json"),
+                      "--method", "p4L+u"}),
+              "no.json");
+  ExpectError(RunCli({"localize", "--query", query, "--method", "p3P"}), "--map");
+  std::ofstream(tmp.Path("bad.json")) << R"({"cameras": [], "observations": []})";
+  ExpectError(RunCli({"localize", "--model", demo + "/model", "--query", tmp.Path("bad.json"),
+                      "--method", "p3P"}),
+              "bad.json: 'cameras' is empty");
+}
+
+}  // namespace
+}  // namespace linecloud

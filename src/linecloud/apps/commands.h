@@ -11,6 +11,7 @@ void RegisterLiftCommand(CLI::App& app);
 void RegisterInfoCommand(CLI::App& app);
 void RegisterExportCommand(CLI::App& app);
 void RegisterSolveCommand(CLI::App& app);
+void RegisterLocalizeCommand(CLI::App& app);
 void RegisterBenchCommand(CLI::App& app);
 
 // Runs the CLI; returns the process exit code. Errors are printed to stderr

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/eval/scene_localization.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/io/json_util.h"
 #include "linecloud/io/lcm_format.h"
@@ -21,6 +22,7 @@ namespace {
 struct DemoArgs {
   std::string out = "linecloud_demo";
   SyntheticSceneOptions scene;
+  SceneQueryOptions queries;
 };
 
 // A query file in the format of `linecloud localize` (SPEC.md), plus the
@@ -128,6 +130,37 @@ void RunDemo(const DemoArgs& args) {
                             : static_cast<double>(total_obs) / scene.queries.size(),
       queries_dir, JoinPaths(args.out, "model.ply"),
       JoinPaths(args.out, "map.ply"));
+
+  // Localize the queries with every method against the map it needs: the
+  // line cloud as read back from disk, or the point model.
+  const LocalizationMap line_map = LineMapFromCloud(full_back);
+  const LocalizationMap point_map = PointMapFromModel(reread);
+  LocalizeOptions options;
+  const double max_position = 0.01 * scene.extent;
+  std::cout << fmt::format(
+      "\nlocalization: {:.0f} % wrong matches, 1 px noise, +l points with {:.1f} % depth noise; "
+      "localized = refined pose within 1 deg and {:.2f} m (1 % of the room)\n",
+      100 * args.queries.outlier_ratio, 100 * args.queries.local_noise, max_position);
+  std::cout << "| method | map | queries | localized | rot. deg init / ref | pos. m init / ref "
+               "| inliers | iters | sols | solver us | ms/query | reproj. px init / ref |\n"
+               "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const MethodInfo& method : AllMethods()) {
+    if (!method.implemented) {
+      std::cout << fmt::format("| {} | {} | no solver yet | | | | | | | | | |\n", method.name,
+                               method.lines ? "lines" : "points");
+      continue;
+    }
+    const std::vector<SceneQuery> queries = SceneQueriesForMethod(scene, method, args.queries);
+    const MethodSummary m = EvaluateMethod(method, queries, method.lines ? line_map : point_map,
+                                           options, 1.0, max_position);
+    std::cout << fmt::format(
+        "| {} | {} | {} | {} | {:.3f} / {:.3f} | {:.3f} / {:.3f} | {:.0f} % | {:.0f} | {:.2f} | "
+        "{:.2f} | {:.2f} | {:.2f} / {:.2f} |\n",
+        m.method, method.lines ? "lines" : "points", m.queries, m.localized,
+        m.median_rotation_deg[0], m.median_rotation_deg[1], m.median_position[0],
+        m.median_position[1], 100 * m.inlier_ratio, m.iterations, m.solutions, m.solver_us,
+        m.total_ms, m.reprojection_px[0], m.reprojection_px[1]);
+  }
 }
 
 }  // namespace
@@ -147,6 +180,9 @@ void RegisterDemoCommand(CLI::App& app) {
   cmd->add_option("--queries", args->scene.num_queries, "Number of query images")
       ->capture_default_str();
   cmd->add_option("--noise", args->scene.noise_px, "2D noise std. dev. (px)")
+      ->capture_default_str();
+  cmd->add_option("--outliers", args->queries.outlier_ratio,
+                  "Share of query matches replaced by wrong map ids")
       ->capture_default_str();
   cmd->callback([args] { RunDemo(*args); });
 }

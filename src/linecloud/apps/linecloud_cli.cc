@@ -17,6 +17,7 @@ int RunLinecloud(int argc, const char* const* argv) {
   RegisterInfoCommand(app);
   RegisterExportCommand(app);
   RegisterSolveCommand(app);
+  RegisterLocalizeCommand(app);
   RegisterBenchCommand(app);
   if (argc >= 2 && argv[1][0] != '-') {
     const std::string name = argv[1];

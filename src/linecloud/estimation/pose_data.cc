@@ -53,21 +53,30 @@ double SquaredReprojectionError(const PoseData& data, const CameraPoses& poses, 
     const Eigen::Vector3d w = poses.scale * (r * l.w) + t.cross(v);
     const double n2 = w.x() * w.x() + w.y() * w.y();
     if (!(n2 > 0)) return kInf;
-    const Eigen::Vector3d ray(x.x(), x.y(), 1.0);
-    if (!LineInFront(v.cross(w), v, ray.normalized())) return kInf;
-    const double e = w.dot(ray);
-    return f * f * e * e / n2;
+    const double e = w.x() * x.x() + w.y() * x.y() + w.z();
+    const double e2 = f * f * e * e / n2;
+    // Cheirality only matters for residuals that could count as inliers.
+    if (e2 < 1e4 && !LineInFront(v.cross(w), v, data.bearings[i])) return kInf;
+    return e2;
   }
   const Eigen::Vector3d p = poses.scale * (r * data.points[i]) + t;
   if (!(p.z() > 0)) return kInf;
   return f * f * (p.head<2>() / p.z() - x).squaredNorm();
 }
 
-int ReprojectionResidual(const PoseData& data, const Sim3d& pose, size_t i,
+PoseLinearization::PoseLinearization(const PoseData& data, const Sim3d& query_from_world)
+    : rotation(query_from_world.rotation.toRotationMatrix()),
+      translation(query_from_world.translation),
+      scale(query_from_world.scale) {
+  cam_rotation.reserve(data.cam_from_rig.size());
+  for (const Rigid3d& p : data.cam_from_rig) cam_rotation.push_back(p.rotation.toRotationMatrix());
+}
+
+int ReprojectionResidual(const PoseData& data, const PoseLinearization& pose, size_t i,
                          Eigen::Vector2d* residual, Eigen::Matrix<double, 2, 7>* jacobian) {
   const Rigid3d& cam_from_rig = data.cam_from_rig[data.camera[i]];
-  const Eigen::Matrix3d rc = cam_from_rig.rotation.toRotationMatrix();
-  const Eigen::Matrix3d r = pose.rotation.toRotationMatrix();
+  const Eigen::Matrix3d& rc = pose.cam_rotation[data.camera[i]];
+  const Eigen::Matrix3d& r = pose.rotation;
   const double s = pose.scale;
   const Eigen::Vector2d& x = data.normalized[i];
   const double f = data.focal[i];
@@ -83,20 +92,21 @@ int ReprojectionResidual(const PoseData& data, const Sim3d& pose, size_t i,
     if (!(n > 0)) return 0;
     const Eigen::Vector3d ray(x.x(), x.y(), 1.0);
     const double e = w2.dot(ray);
-    (*residual)[0] = f * e / n;
+    *residual = Eigen::Vector2d(f * e / n, 0.0);  // second entry unused
     if (jacobian != nullptr) {
-      Eigen::Matrix<double, 3, 7> dw1, dv1 = Eigen::Matrix<double, 3, 7>::Zero();
-      dv1.leftCols<3>() = -Hat(rv);
-      dw1.leftCols<3>() = -s * Hat(rw) - Hat(pose.translation) * Hat(rv);
-      dw1.middleCols<3>(3) = -Hat(rv);
-      dw1.col(6) = s * rw;
-      const Eigen::Matrix<double, 3, 7> dw2 =
-          rc * dw1 + Hat(cam_from_rig.translation) * rc * dv1;
-      const Eigen::RowVector3d de_dw =
-          f * (ray.transpose() / n -
-               e * Eigen::RowVector3d(w2.x(), w2.y(), 0) / (n * n * n));
+      // e = a·w'' with a = ∂e/∂w''. With b = R_cᵀ a and c = R_cᵀ (a × t_c):
+      // de = b·dw' + c·dv', dv' = ω × Rv, dw' = s ω × Rw + δt × Rv +
+      // t × (ω × Rv) + δσ s Rw; each term rewritten as a gradient.
+      const Eigen::Vector3d a =
+          f * (ray / n - e * Eigen::Vector3d(w2.x(), w2.y(), 0) / (n * n * n));
+      const Eigen::Vector3d b = rc.transpose() * a;
+      const Eigen::Vector3d c = rc.transpose() * a.cross(cam_from_rig.translation);
+      const Eigen::Vector3d bt = b.cross(pose.translation);
       jacobian->setZero();
-      jacobian->row(0) = de_dw * dw2;
+      jacobian->block<1, 3>(0, 0) =
+          (-s * b.cross(rw) - bt.cross(rv) - c.cross(rv)).transpose();
+      jacobian->block<1, 3>(0, 3) = -b.cross(rv).transpose();
+      (*jacobian)(0, 6) = s * b.dot(rw);
     }
     return 1;
   }

@@ -39,15 +39,33 @@ struct CameraPoses {
 };
 
 // Squared reprojection error of correspondence i in px²; +∞ when the point is
-// behind its camera or, for a line, when the line passes behind the camera
-// where the viewing ray comes closest to it.
+// behind its camera or, for a line within 100 px of the observation, when the
+// line passes behind the camera where the viewing ray comes closest to it.
 double SquaredReprojectionError(const PoseData& data, const CameraPoses& poses, size_t i);
+
+// A pose with its rotation matrices computed once, for evaluating many
+// residuals.
+struct PoseLinearization {
+  Eigen::Matrix3d rotation;                      // of query_from_world
+  Eigen::Vector3d translation;
+  double scale = 1;
+  std::vector<Eigen::Matrix3d> cam_rotation;     // of cam_from_rig, per camera
+
+  PoseLinearization(const PoseData& data, const Sim3d& query_from_world);
+};
 
 // Residuals of correspondence i (2 for a point, 1 for a line, in px) and their
 // Jacobian with respect to a left perturbation of query_from_world:
 // R ← exp([ω]×) R, t ← t + δt, s ← s·exp(δσ), columns (ω, δt, δσ).
-// Returns the number of residuals, 0 if the point is behind its camera.
-int ReprojectionResidual(const PoseData& data, const Sim3d& query_from_world, size_t i,
+// Returns the number of residuals, 0 if the point is behind its camera; for a
+// line the second residual and Jacobian row are zero.
+int ReprojectionResidual(const PoseData& data, const PoseLinearization& pose, size_t i,
                          Eigen::Vector2d* residual, Eigen::Matrix<double, 2, 7>* jacobian);
+inline int ReprojectionResidual(const PoseData& data, const Sim3d& query_from_world, size_t i,
+                                Eigen::Vector2d* residual,
+                                Eigen::Matrix<double, 2, 7>* jacobian) {
+  return ReprojectionResidual(data, PoseLinearization(data, query_from_world), i, residual,
+                              jacobian);
+}
 
 }  // namespace linecloud

@@ -43,7 +43,7 @@ int PoseEstimator::generate_models(std::span<const int> sample, std::vector<Sim3
   return SolveMinimal(method_, s, out);
 }
 
-double PoseEstimator::score_model(const Sim3d& model, double threshold,
+double PoseEstimator::score_model(const Sim3d& model, double threshold, double bound,
                                   int* num_inliers) const {
   const CameraPoses poses(data_, model);
   const double t2 = threshold * threshold;
@@ -56,6 +56,7 @@ double PoseEstimator::score_model(const Sim3d& model, double threshold,
       ++inliers;
     } else {
       score += t2;
+      if (score >= bound) break;  // cannot beat the best model any more
     }
   }
   *num_inliers = inliers;

@@ -8,7 +8,9 @@
 //   // Every model of the minimal sample (indices into the data).
 //   int generate_models(std::span<const int> sample, std::vector<Model>* out);
 //   // Sum over the data of min(r², threshold²); counts inliers (r < threshold).
-//   double score_model(const Model& m, double threshold, int* num_inliers) const;
+//   // May stop early and return any value >= `bound` once the sum reaches it.
+//   double score_model(const Model& m, double threshold, double bound,
+//                      int* num_inliers) const;
 //   // Local optimisation on the inliers of `m` (may leave it unchanged).
 //   void refine_model(Model* m, double threshold);
 //   // Marks the inliers of `m`.
@@ -120,14 +122,14 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator,
     total_models += static_cast<long>(models.size());
     for (Model& model : models) {
       int inliers = 0;
-      double score = estimator.score_model(model, options.max_error, &inliers);
+      double score = estimator.score_model(model, options.max_error, best_score, &inliers);
       if (score >= best_score) continue;
       if (options.local_optimization && inliers > k) {
         Model refined = model;
         estimator.refine_model(&refined, options.max_error);
         int refined_inliers = 0;
-        const double refined_score =
-            estimator.score_model(refined, options.max_error, &refined_inliers);
+        const double refined_score = estimator.score_model(
+            refined, options.max_error, std::numeric_limits<double>::infinity(), &refined_inliers);
         ++result.stats.local_optimizations;
         if (refined_score < score) {
           model = refined;

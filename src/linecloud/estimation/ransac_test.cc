@@ -30,7 +30,7 @@ struct LineEstimator {
   double Residual(const Model& m, const Eigen::Vector2d& p) const {
     return p.y() - (m[0] * p.x() + m[1]);
   }
-  double score_model(const Model& m, double threshold, int* inliers) const {
+  double score_model(const Model& m, double threshold, double /*bound*/, int* inliers) const {
     double score = 0;
     *inliers = 0;
     for (const auto& p : points) {

@@ -14,12 +14,11 @@ double CauchyLoss(double squared, double c2) { return c2 * std::log1p(squared / 
 
 double Cost(const PoseData& data, std::span<const int> indices, const Sim3d& pose,
             double c2) {
+  const CameraPoses poses(data, pose);
   double cost = 0;
-  Eigen::Vector2d r;
   for (const int i : indices) {
-    const int n = ReprojectionResidual(data, pose, static_cast<size_t>(i), &r, nullptr);
-    // Behind the camera: the largest value the loss takes at 1000 px.
-    cost += n == 0 ? CauchyLoss(1e6, c2) : CauchyLoss(r.head(n).squaredNorm(), c2);
+    // Behind the camera (+∞): the value the loss takes at 1000 px.
+    cost += CauchyLoss(std::min(1e6, SquaredReprojectionError(data, poses, i)), c2);
   }
   return cost;
 }
@@ -59,12 +58,14 @@ RefineSummary RefinePose(const PoseData& data, std::span<const int> indices,
     // Gauss–Newton system with IRLS weights ρ'(r²) of the Cauchy loss.
     Eigen::Matrix<double, 7, 7> h = Eigen::Matrix<double, 7, 7>::Zero();
     Eigen::Matrix<double, 7, 1> g = Eigen::Matrix<double, 7, 1>::Zero();
+    const PoseLinearization linearization(data, *pose);
     for (const int i : indices) {
-      const int n = ReprojectionResidual(data, *pose, static_cast<size_t>(i), &r, &j);
+      const int n = ReprojectionResidual(data, linearization, static_cast<size_t>(i), &r, &j);
       if (n == 0) continue;
-      const double weight = 1.0 / (1.0 + r.head(n).squaredNorm() / c2);
-      h.noalias() += weight * j.topRows(n).transpose() * j.topRows(n);
-      g.noalias() += weight * j.topRows(n).transpose() * r.head(n);
+      // Lines: the second row of r and j is zero.
+      const double weight = 1.0 / (1.0 + r.squaredNorm() / c2);
+      h.noalias() += weight * j.transpose() * j;
+      g.noalias() += weight * j.transpose() * r;
     }
     bool improved = false;
     while (!improved && lambda < 1e12) {

@@ -7,6 +7,7 @@
 
 #include <Eigen/Geometry>
 
+#include "linecloud/eval/statistics.h"
 #include "linecloud/synthetic/minimal_instances.h"
 #include "linecloud/util/error.h"
 
@@ -65,9 +66,7 @@ SolverBenchRow Measure(const std::string& method_name, const std::string& solver
   }
   row.mean_solutions = static_cast<double>(total) / instances.size();
   row.found_percent = 100.0 * found / instances.size();
-  std::nth_element(log_errors.begin(), log_errors.begin() + log_errors.size() / 2,
-                   log_errors.end());
-  row.median_log10_rotation_error = log_errors[log_errors.size() / 2];
+  row.median_log10_rotation_error = Median(std::move(log_errors));
   // Timing pass: whole sweeps over the instances until min_seconds elapsed.
   size_t calls = 0;
   const auto start = Clock::now();

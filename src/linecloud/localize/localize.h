@@ -56,7 +56,7 @@ struct LocalizeOptions {
   RansacOptions ransac;        // max_error in px
   bool refine = true;
   RefineOptions refinement;    // final LM; `similarity` follows the method
-  RefineOptions local_refinement{.max_iterations = 5};  // RANSAC's local optimisation
+  RefineOptions local_refinement{.max_iterations = 3};  // RANSAC's local optimisation
 
   void Check() const;
 };

@@ -1,0 +1,54 @@
+// `linecloud bench localize`: every method on the same seeded synthetic
+// queries (RandomLocalizationInstance), single thread — accuracy of the
+// initial and refined poses, RANSAC statistics and time per query. Each
+// privacy-preserving method sees exactly the queries of its point-map
+// counterpart (Speciale et al., CVPR 2019, Table 1 pairs).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "linecloud/localize/localize.h"
+#include "linecloud/synthetic/localization_instances.h"
+
+namespace linecloud {
+
+struct LocalizationBenchOptions {
+  int queries = 100;
+  uint64_t seed = 1;
+  LocalizationInstanceOptions instance;     // 500 correspondences, 70 % inliers, 1 px
+  LocalizeOptions localize;
+  double max_rotation_deg = 1.0;            // "localized" thresholds
+  double max_position_rel = 0.01;           // of the scene size
+  std::vector<std::string> methods;         // empty: all implemented
+
+  void Check() const;
+};
+
+struct LocalizationBenchRow {
+  std::string method;
+  std::string counterpart;        // the same problem with the other map kind
+  int queries = 0;
+  int localized = 0;
+  double median_rotation_deg[2] = {0, 0};   // initial, refined
+  double median_position_rel[2] = {0, 0};   // / scene size
+  double iterations = 0;
+  double inlier_ratio = 0;
+  double solutions = 0;
+  double solver_us = 0;
+  double ransac_ms = 0;
+  double refine_ms = 0;
+  double refine_iterations = 0;
+  double total_ms = 0;
+};
+
+// The method with the same query data and model but the other map kind.
+std::string CounterpartMethod(const MethodInfo& method);
+
+std::vector<LocalizationBenchRow> RunLocalizationBench(
+    const LocalizationBenchOptions& options,
+    const std::function<void(const std::string&)>& progress);
+
+}  // namespace linecloud

@@ -1,0 +1,150 @@
+#include "linecloud/localize/query_json.h"
+
+#include <cmath>
+
+#include "linecloud/io/json_util.h"
+#include "linecloud/util/error.h"
+
+namespace linecloud {
+namespace {
+
+const nlohmann::json& Array(const nlohmann::json& j, const char* name,
+                            const std::string& source) {
+  if (!j.contains(name)) Fail("{}: field '{}' is missing", source, name);
+  if (!j[name].is_array()) Fail("{}: '{}' must be an array", source, name);
+  return j[name];
+}
+
+Camera ParseCamera(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_object()) Fail("{}: expected an object", where);
+  for (const char* key : {"model", "width", "height", "params"}) {
+    if (!j.contains(key)) Fail("{}: field '{}' is missing", where, key);
+  }
+  if (!j["model"].is_string()) Fail("{}.model: expected a camera model name", where);
+  Camera camera;
+  try {
+    camera.model_id = CameraModelFromName(j["model"].get<std::string>());
+  } catch (const Error& e) {
+    Fail("{}.model: {}", where, e.what());
+  }
+  for (const char* key : {"width", "height"}) {
+    if (!j[key].is_number_unsigned()) Fail("{}.{}: expected a positive integer", where, key);
+  }
+  camera.width = j["width"].get<uint64_t>();
+  camera.height = j["height"].get<uint64_t>();
+  if (!j["params"].is_array()) Fail("{}.params: expected an array of numbers", where);
+  for (size_t i = 0; i < j["params"].size(); ++i) {
+    if (!j["params"][i].is_number()) Fail("{}.params[{}]: not a number", where, i);
+    camera.params.push_back(j["params"][i].get<double>());
+  }
+  camera.Check(where);
+  return camera;
+}
+
+}  // namespace
+
+Query ParseQueryJson(const nlohmann::json& j, const std::string& source) {
+  if (!j.is_object()) Fail("{}: expected a JSON object", source);
+  Query q;
+  const nlohmann::json& cameras = Array(j, "cameras", source);
+  for (size_t c = 0; c < cameras.size(); ++c) {
+    q.cameras.push_back(ParseCamera(cameras[c], fmt::format("{}: cameras[{}]", source, c)));
+  }
+  if (j.contains("cam_from_rig")) {
+    const nlohmann::json& poses = Array(j, "cam_from_rig", source);
+    for (size_t c = 0; c < poses.size(); ++c) {
+      q.cam_from_rig.push_back(JsonPose(poses[c], fmt::format("{}: cam_from_rig[{}]", source, c)));
+    }
+  }
+  const nlohmann::json& observations = Array(j, "observations", source);
+  for (size_t i = 0; i < observations.size(); ++i) {
+    const std::string where = fmt::format("{}: observations[{}]", source, i);
+    const nlohmann::json& o = observations[i];
+    if (!o.is_object() || !o.contains("xy") || !o.contains("id")) {
+      Fail("{}: expected {{\"camera\": c, \"xy\": [u, v], \"id\": n}}", where);
+    }
+    QueryObservation obs;
+    if (o.contains("camera")) {
+      if (!o["camera"].is_number_integer()) Fail("{}.camera: expected an integer", where);
+      obs.camera = o["camera"].get<int>();
+    }
+    if (!o["id"].is_number_unsigned()) Fail("{}.id: expected a non-negative integer", where);
+    obs.id = o["id"].get<uint64_t>();
+    const nlohmann::json& xy = o["xy"];
+    if (!xy.is_array() || xy.size() != 2 || !xy[0].is_number() || !xy[1].is_number()) {
+      Fail("{}.xy: expected [u, v]", where);
+    }
+    obs.xy = Eigen::Vector2d(xy[0].get<double>(), xy[1].get<double>());
+    if (!obs.xy.allFinite()) Fail("{}.xy: not finite", where);
+    q.observations.push_back(obs);
+  }
+  if (j.contains("points_local")) {
+    q.points_local = JsonVector3List(j["points_local"], source + ": points_local");
+  }
+  if (j.contains("gravity_query")) {
+    q.gravity_query = JsonVector3(j["gravity_query"], source + ": gravity_query");
+  }
+  if (j.contains("gravity_map")) {
+    q.gravity_map = JsonVector3(j["gravity_map"], source + ": gravity_map");
+  }
+  return q;
+}
+
+Query ReadQueryJson(const std::string& path) { return ParseQueryJson(ReadJsonFile(path), path); }
+
+nlohmann::json QueryToJson(const Query& q) {
+  nlohmann::json j;
+  j["cameras"] = nlohmann::json::array();
+  for (const Camera& c : q.cameras) {
+    j["cameras"].push_back({{"model", std::string(CameraModelName(c.model_id))},
+                            {"width", c.width},
+                            {"height", c.height},
+                            {"params", c.params}});
+  }
+  if (!q.cam_from_rig.empty()) {
+    j["cam_from_rig"] = nlohmann::json::array();
+    for (const Rigid3d& p : q.cam_from_rig) {
+      j["cam_from_rig"].push_back(PoseToJson(p.rotation, p.translation));
+    }
+  }
+  j["observations"] = nlohmann::json::array();
+  for (const QueryObservation& o : q.observations) {
+    j["observations"].push_back({{"camera", o.camera}, {"xy", {o.xy.x(), o.xy.y()}}, {"id", o.id}});
+  }
+  if (!q.points_local.empty()) {
+    j["points_local"] = nlohmann::json::array();
+    for (const Eigen::Vector3d& p : q.points_local) {
+      j["points_local"].push_back({p.x(), p.y(), p.z()});
+    }
+  }
+  const auto vec = [](const Eigen::Vector3d& v) { return nlohmann::json{v.x(), v.y(), v.z()}; };
+  if (q.gravity_query) j["gravity_query"] = vec(*q.gravity_query);
+  if (q.gravity_map) j["gravity_map"] = vec(*q.gravity_map);
+  return j;
+}
+
+nlohmann::json LocalizeResultToJson(const MethodInfo& method, const LocalizeResult& r) {
+  nlohmann::json j;
+  j["method"] = std::string(method.name);
+  j["success"] = r.success;
+  if (r.success) {
+    const nlohmann::json pose = PoseToJson(r.query_from_world.rotation,
+                                           r.query_from_world.translation);
+    j["q"] = pose["q"];
+    j["t"] = pose["t"];
+    j["scale"] = r.query_from_world.scale;
+  }
+  j["inliers"] = r.inliers;
+  j["stats"] = {{"iterations", r.stats.iterations},
+                {"inlier_ratio", r.stats.inlier_ratio},
+                {"mean_solutions", r.stats.mean_solutions},
+                {"solver_us", r.stats.solver_us},
+                {"ransac_ms", r.stats.ransac_ms},
+                {"refine_ms", r.refine_ms},
+                {"refine_iterations", r.refine_iterations},
+                {"reprojection_px",
+                 {{"initial", r.reprojection_initial_px}, {"refined", r.reprojection_refined_px}}}};
+  return j;
+}
+
+}  // namespace linecloud
