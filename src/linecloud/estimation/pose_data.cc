@@ -14,18 +14,6 @@ Eigen::Matrix3d Hat(const Eigen::Vector3d& v) {
   return m;
 }
 
-// Whether the line (a + α v, |v| = 1) comes closest to the viewing ray d
-// (through the camera centre) in front of the camera. Nearly parallel pairs
-// pass: the closest point is then ill-defined.
-bool LineInFront(const Eigen::Vector3d& anchor, const Eigen::Vector3d& v,
-                 const Eigen::Vector3d& d) {
-  const double vd = v.dot(d);
-  const double denom = 1 - vd * vd;
-  if (denom < 1e-12) return true;
-  const double depth = (anchor.dot(d) - anchor.dot(v) * vd) / denom;
-  return depth > 0;
-}
-
 }  // namespace
 
 CameraPoses::CameraPoses(const PoseData& data, const Sim3d& query_from_world)
@@ -37,31 +25,9 @@ CameraPoses::CameraPoses(const PoseData& data, const Sim3d& query_from_world)
     const Eigen::Matrix3d rc = cam_from_rig.rotation.toRotationMatrix();
     rotation.push_back(rc * r);
     translation.push_back(rc * query_from_world.translation + cam_from_rig.translation);
+    scaled_rotation.push_back(scale * rotation.back());
+    moment_from_v.push_back(Hat(translation.back()) * rotation.back());
   }
-}
-
-double SquaredReprojectionError(const PoseData& data, const CameraPoses& poses, size_t i) {
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  const int c = data.camera[i];
-  const Eigen::Matrix3d& r = poses.rotation[c];
-  const Eigen::Vector3d& t = poses.translation[c];
-  const Eigen::Vector2d& x = data.normalized[i];
-  const double f = data.focal[i];
-  if (data.has_lines()) {
-    const PluckerLine& l = data.lines[i];
-    const Eigen::Vector3d v = r * l.v;
-    const Eigen::Vector3d w = poses.scale * (r * l.w) + t.cross(v);
-    const double n2 = w.x() * w.x() + w.y() * w.y();
-    if (!(n2 > 0)) return kInf;
-    const double e = w.x() * x.x() + w.y() * x.y() + w.z();
-    const double e2 = f * f * e * e / n2;
-    // Cheirality only matters for residuals that could count as inliers.
-    if (e2 < 1e4 && !LineInFront(v.cross(w), v, data.bearings[i])) return kInf;
-    return e2;
-  }
-  const Eigen::Vector3d p = poses.scale * (r * data.points[i]) + t;
-  if (!(p.z() > 0)) return kInf;
-  return f * f * (p.head<2>() / p.z() - x).squaredNorm();
 }
 
 PoseLinearization::PoseLinearization(const PoseData& data, const Sim3d& query_from_world)
@@ -88,7 +54,7 @@ int ReprojectionResidual(const PoseData& data, const PoseLinearization& pose, si
     const Eigen::Vector3d w1 = s * rw + pose.translation.cross(rv);
     const Eigen::Vector3d v2 = rc * rv;
     const Eigen::Vector3d w2 = rc * w1 + cam_from_rig.translation.cross(v2);
-    const double n = std::hypot(w2.x(), w2.y());
+    const double n = std::sqrt(w2.x() * w2.x() + w2.y() * w2.y());
     if (!(n > 0)) return 0;
     const Eigen::Vector3d ray(x.x(), x.y(), 1.0);
     const double e = w2.dot(ray);

@@ -5,7 +5,9 @@
 // both in pixels, with their analytic Jacobians.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
+#include <limits>
 #include <vector>
 
 #include <Eigen/Core>
@@ -31,8 +33,10 @@ struct PoseData {
 
 // Per-camera cam_from_world (Sim3: scale of query_from_world) for one pose.
 struct CameraPoses {
-  std::vector<Eigen::Matrix3d> rotation;
-  std::vector<Eigen::Vector3d> translation;
+  std::vector<Eigen::Matrix3d> rotation;      // R_C = R_c R
+  std::vector<Eigen::Vector3d> translation;   // t_C = R_c t + t_c
+  std::vector<Eigen::Matrix3d> scaled_rotation;  // s R_C
+  std::vector<Eigen::Matrix3d> moment_from_v;    // [t_C]× R_C: w_cam = s R_C w + [t_C]× R_C v
   double scale = 1;
 
   CameraPoses(const PoseData& data, const Sim3d& query_from_world);
@@ -41,7 +45,9 @@ struct CameraPoses {
 // Squared reprojection error of correspondence i in px²; +∞ when the point is
 // behind its camera or, for a line within 100 px of the observation, when the
 // line passes behind the camera where the viewing ray comes closest to it.
-double SquaredReprojectionError(const PoseData& data, const CameraPoses& poses, size_t i);
+// (Inline below: RANSAC scores every correspondence of every model with it.)
+inline double SquaredReprojectionError(const PoseData& data, const CameraPoses& poses,
+                                       size_t i);
 
 // A pose with its rotation matrices computed once, for evaluating many
 // residuals.
@@ -66,6 +72,49 @@ inline int ReprojectionResidual(const PoseData& data, const Sim3d& query_from_wo
                                 Eigen::Matrix<double, 2, 7>* jacobian) {
   return ReprojectionResidual(data, PoseLinearization(data, query_from_world), i, residual,
                               jacobian);
+}
+
+namespace internal {
+// Whether the line (a + α v, |v| = 1) comes closest to the viewing ray d
+// (through the camera centre) in front of the camera. Nearly parallel pairs
+// pass: the closest point is then ill-defined.
+inline bool LineInFront(const Eigen::Vector3d& anchor, const Eigen::Vector3d& v,
+                        const Eigen::Vector3d& d) {
+  const double vd = v.dot(d);
+  const double denom = 1 - vd * vd;
+  if (denom < 1e-12) return true;
+  const double depth = (anchor.dot(d) - anchor.dot(v) * vd) / denom;
+  return depth > 0;
+}
+
+}  // namespace internal
+
+inline double SquaredReprojectionError(const PoseData& data, const CameraPoses& poses,
+                                       size_t i) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const int c = data.camera[i];
+  const Eigen::Matrix3d& r = poses.rotation[c];
+  const Eigen::Vector3d& t = poses.translation[c];
+  const Eigen::Vector2d& x = data.normalized[i];
+  const double f = data.focal[i];
+  if (data.has_lines()) {
+    const PluckerLine& l = data.lines[i];
+    const Eigen::Vector3d w =
+        poses.scaled_rotation[c] * l.w + poses.moment_from_v[c] * l.v;
+    const double n2 = w.x() * w.x() + w.y() * w.y();
+    if (!(n2 > 0)) return kInf;
+    const double e = w.x() * x.x() + w.y() * x.y() + w.z();
+    const double e2 = f * f * e * e / n2;
+    // Cheirality only matters for residuals that could count as inliers.
+    if (e2 < 1e4) {
+      const Eigen::Vector3d v = r * l.v;
+      if (!internal::LineInFront(v.cross(w), v, data.bearings[i])) return kInf;
+    }
+    return e2;
+  }
+  const Eigen::Vector3d p = poses.scale * (r * data.points[i]) + t;
+  if (!(p.z() > 0)) return kInf;
+  return f * f * (p.head<2>() / p.z() - x).squaredNorm();
 }
 
 }  // namespace linecloud

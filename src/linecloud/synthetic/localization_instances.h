@@ -15,7 +15,7 @@ struct LocalizationInstanceOptions {
   int num_correspondences = 500;
   double inlier_ratio = 0.7;
   double noise_px = 1.0;            // std. dev. of the pixel noise of inliers
-  double local_noise = 0.0;         // std. dev. of +l points, relative to depth
+  double local_noise = 0.005;       // std. dev. of +l points, relative to depth
   int num_rig_cameras = 3;          // for m- methods
   double scene_depth = 10.0;        // points at depths in [0.2, 1] × scene_depth
 
