@@ -8,6 +8,7 @@ packages=(
   libeigen3-dev libsqlite3-dev libsodium-dev libcli11-dev nlohmann-json3-dev libfmt-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   libopengv-dev  # a peer in the solver benchmark only
+  libceres-dev   # the peer of our LM in the refinement benchmark only
   "$@"
 )
 missing=()
