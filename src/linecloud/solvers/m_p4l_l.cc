@@ -114,10 +114,11 @@ const Eigen::Matrix3d& PreRotation() {
   return r;
 }
 
-// Two Newton steps on the three quadrics: the eigenvectors of the action
-// matrix carry its conditioning; Newton restores full precision.
+// Newton steps on the three quadrics (until the step is negligible, at most
+// 4): the eigenvectors of the action matrix carry its conditioning; Newton
+// restores full precision.
 void PolishRoot(const Eigen::Matrix<double, 3, 10>& quadrics, Eigen::Vector3d* xyz) {
-  for (int iteration = 0; iteration < 2; ++iteration) {
+  for (int iteration = 0; iteration < 4; ++iteration) {
     const double x = xyz->x(), y = xyz->y(), z = xyz->z();
     Eigen::Matrix<double, 10, 1> mono;
     mono << 1, x, y, z, x * x, x * y, x * z, y * y, y * z, z * z;
@@ -137,6 +138,7 @@ void PolishRoot(const Eigen::Matrix<double, 3, 10>& quadrics, Eigen::Vector3d* x
     const Eigen::Vector3d step = lu.solve(f);
     if (!step.allFinite()) return;
     *xyz -= step;
+    if (step.norm() < 1e-14 * std::max(1.0, xyz->norm())) return;
   }
 }
 
