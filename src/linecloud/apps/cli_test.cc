@@ -293,7 +293,7 @@ namespace {
 TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
   TempDir tmp;
   const std::string demo = tmp.Path("demo");
-  ASSERT_EQ(RunCli({"demo", "--out", demo, "--points", "1500", "--queries", "2"}).code, 0);
+  ASSERT_EQ(RunCli({"demo", "--out", demo, "--points", "1500", "--queries", "3"}).code, 0);
   const std::string query = demo + "/queries/query_000.json";
   const nlohmann::json file = ReadJsonFile(query);
   const Rigid3d truth = JsonPose(file["ground_truth"]["cam_from_world"], "truth");
@@ -313,6 +313,23 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
     EXPECT_GT(result["inliers"].size(), 10u);
     EXPECT_LE(result["stats"]["reprojection_px"]["refined"].get<double>(),
               result["stats"]["reprojection_px"]["initial"].get<double>() + 1e-9);
+  }
+  // A rig query (3 images, local points): m-P4L+l against the line cloud,
+  // m-p3P against the model.
+  const std::string rig = demo + "/rig_queries/rig_000.json";
+  const Rigid3d rig_truth =
+      JsonPose(ReadJsonFile(rig)["ground_truth"]["rig_from_world"], "truth");
+  for (const auto& [method, map_flag, map] :
+       {std::tuple{"m-P4L+l", "--map", demo + "/map.lcm"},
+        std::tuple{"m-p3P", "--model", demo + "/model"}}) {
+    const CliResult r = RunCli({"localize", map_flag, map, "--query", rig, "--method", method});
+    ASSERT_EQ(r.code, 0) << method << ": " << r.err;
+    const nlohmann::json result = nlohmann::json::parse(r.out);
+    ASSERT_TRUE(result["success"].get<bool>()) << method;
+    const Rigid3d estimate = JsonPose(result, "result");
+    EXPECT_LT(RotationDistance(estimate.rotation, rig_truth.rotation), 0.2 * 3.14159 / 180)
+        << method;
+    EXPECT_NEAR(result["scale"].get<double>(), 1.0, 0.01) << method;
   }
   // Wrong map kind, unknown method, missing query: one clear error line.
   ExpectError(RunCli({"localize", "--model", demo + "/model", "--query", query, "--method",

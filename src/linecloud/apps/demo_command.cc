@@ -12,6 +12,7 @@
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/io/ply.h"
 #include "linecloud/lifting/lifting.h"
+#include "linecloud/localize/query_json.h"
 #include "linecloud/synthetic/scene.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
@@ -94,6 +95,20 @@ void RunDemo(const DemoArgs& args) {
                         [&](std::ostream& o) { o << text << "\n"; });
     total_obs += q.observations.size();
   }
+  // Rig queries (3 consecutive query images, local points with depth noise,
+  // metric): for the m- and +l methods.
+  const std::string rig_dir = JoinPaths(args.out, "rig_queries");
+  CreateDirectories(rig_dir);
+  const std::vector<SceneQuery> rig_queries =
+      SceneQueriesForMethod(scene, FindMethod("m-P3P+l+s"), args.queries);
+  for (size_t k = 0; k < rig_queries.size(); ++k) {
+    nlohmann::json j = QueryToJson(rig_queries[k].query);
+    j["ground_truth"] = {{"rig_from_world", PoseToJson(rig_queries[k].truth.rotation,
+                                                       rig_queries[k].truth.translation)}};
+    const std::string text = j.dump(1);
+    WriteFileAtomically(JoinPaths(rig_dir, fmt::format("rig_{:03d}.json", k)),
+                        [&](std::ostream& o) { o << text << "\n"; });
+  }
   WriteModelPly(model, JoinPaths(args.out, "model.ply"));
   WriteLineCloudPly(cloud, JoinPaths(args.out, "map.ply"), 0.5);
 
@@ -114,6 +129,7 @@ void RunDemo(const DemoArgs& args) {
       "  check        max point-to-line distance / |X|: full {:.2e}, "
       "compact {:.2e}\n"
       "  queries      {} query files ({:.0f} observations each) -> {}\n"
+      "               {} rig query files (3 images, local points) -> {}\n"
       "  view         {} (points), {} (line segments)\n",
       args.scene.seed, args.scene.room_size.x(), args.scene.room_size.y(),
       args.scene.room_size.z(), model.images.size(), args.scene.width,
@@ -128,7 +144,7 @@ void RunDemo(const DemoArgs& args) {
       scene.queries.size(),
       scene.queries.empty() ? 0.0
                             : static_cast<double>(total_obs) / scene.queries.size(),
-      queries_dir, JoinPaths(args.out, "model.ply"),
+      queries_dir, rig_queries.size(), rig_dir, JoinPaths(args.out, "model.ply"),
       JoinPaths(args.out, "map.ply"));
 
   // Localize the queries with every method against the map it needs: the

@@ -22,10 +22,12 @@ Camera ParseCamera(const nlohmann::json& j, const std::string& where) {
   }
   if (!j["model"].is_string()) Fail("{}.model: expected a camera model name", where);
   Camera camera;
-  try {
-    camera.model_id = CameraModelFromName(j["model"].get<std::string>());
-  } catch (const Error& e) {
-    Fail("{}.model: {}", where, e.what());
+  const std::string model = j["model"].get<std::string>();
+  camera.model_id = CameraModelFromName(model);
+  if (camera.model_id == CameraModelId::kInvalid) {
+    Fail("{}.model: unknown camera model '{}' (COLMAP models 0-6: SIMPLE_PINHOLE, PINHOLE, "
+         "SIMPLE_RADIAL, RADIAL, OPENCV, OPENCV_FISHEYE, FULL_OPENCV)",
+         where, model);
   }
   for (const char* key : {"width", "height"}) {
     if (!j[key].is_number_unsigned()) Fail("{}.{}: expected a positive integer", where, key);
