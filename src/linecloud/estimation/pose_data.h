@@ -43,11 +43,12 @@ struct CameraPoses {
 };
 
 // Squared reprojection error of correspondence i in px²; +∞ when the point is
-// behind its camera or, for a line within 100 px of the observation, when the
-// line passes behind the camera where the viewing ray comes closest to it.
+// behind its camera or when the line passes behind the camera where the
+// viewing ray comes closest to it. That line test is skipped for errors of at
+// least `cheirality_below` px² (outliers to the caller anyway).
 // (Inline below: RANSAC scores every correspondence of every model with it.)
 inline double SquaredReprojectionError(const PoseData& data, const CameraPoses& poses,
-                                       size_t i);
+                                       size_t i, double cheirality_below = 1e4);
 
 // A pose with its rotation matrices computed once, for evaluating many
 // residuals.
@@ -90,7 +91,7 @@ inline bool LineInFront(const Eigen::Vector3d& anchor, const Eigen::Vector3d& v,
 }  // namespace internal
 
 inline double SquaredReprojectionError(const PoseData& data, const CameraPoses& poses,
-                                       size_t i) {
+                                       size_t i, double cheirality_below) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const int c = data.camera[i];
   const Eigen::Matrix3d& r = poses.rotation[c];
@@ -106,7 +107,7 @@ inline double SquaredReprojectionError(const PoseData& data, const CameraPoses& 
     const double e = w.x() * x.x() + w.y() * x.y() + w.z();
     const double e2 = f * f * e * e / n2;
     // Cheirality only matters for residuals that could count as inliers.
-    if (e2 < 1e4) {
+    if (e2 < cheirality_below) {
       const Eigen::Vector3d v = r * l.v;
       if (!internal::LineInFront(v.cross(w), v, data.bearings[i])) return kInf;
     }

@@ -1,6 +1,8 @@
 #include "linecloud/estimation/pose_estimator.h"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
 
 namespace linecloud {
 
@@ -47,16 +49,39 @@ double PoseEstimator::score_model(const Sim3d& model, double threshold, double b
                                   int* num_inliers) const {
   const CameraPoses poses(data_, model);
   const double t2 = threshold * threshold;
+  const size_t n = data_.size();
+  // Sequential probability ratio test (Matas & Chum, "Randomized RANSAC with
+  // sequential probability ratio test", ICCV 2005) once a best model exists:
+  // its MSAC score bounds the inlier ratio from below, ε ≥ 1 − bound / (n t²);
+  // a wrong model agrees with a correspondence with probability δ. The
+  // likelihood ratio λ of "wrong" against "good" grows by (1 − δ)/(1 − ε) per
+  // outlier and shrinks by δ/ε per inlier; the model is dropped once λ > A.
+  constexpr double kDelta = 0.05;
+  constexpr double kDecision = 1000;
+  const bool sprt = std::isfinite(bound);
+  double lambda = 1, outlier_factor = 1, inlier_factor = 1;
+  if (sprt) {
+    const double epsilon =
+        std::clamp(1.0 - bound / (static_cast<double>(n) * t2), 2 * kDelta, 0.99);
+    outlier_factor = (1 - kDelta) / (1 - epsilon);
+    inlier_factor = kDelta / epsilon;
+  }
   double score = 0;
   int inliers = 0;
-  for (size_t i = 0; i < data_.size(); ++i) {
-    const double e2 = SquaredReprojectionError(data_, poses, i);
+  for (size_t i = 0; i < n; ++i) {
+    const double e2 = SquaredReprojectionError(data_, poses, i, t2);
     if (e2 < t2) {
       score += e2;
       ++inliers;
+      lambda *= inlier_factor;
     } else {
       score += t2;
       if (score >= bound) break;  // cannot beat the best model any more
+      lambda *= outlier_factor;
+      if (sprt && lambda > kDecision) {
+        score = std::numeric_limits<double>::infinity();  // rejected as wrong
+        break;
+      }
     }
   }
   *num_inliers = inliers;
@@ -68,7 +93,8 @@ void PoseEstimator::inliers(const Sim3d& model, double threshold,
   const CameraPoses poses(data_, model);
   mask->assign(data_.size(), 0);
   for (size_t i = 0; i < data_.size(); ++i) {
-    (*mask)[i] = SquaredReprojectionError(data_, poses, i) < threshold * threshold;
+    const double t2 = threshold * threshold;
+    (*mask)[i] = SquaredReprojectionError(data_, poses, i, t2) < t2;
   }
 }
 
