@@ -106,10 +106,8 @@ Eigen::Matrix3d GravityAlignment(const Eigen::Vector3d& gravity) {
       .toRotationMatrix();
 }
 
-LocalizeResult Localize(const MethodInfo& method, const Query& query,
-                        const LocalizationMap& map, const LocalizeOptions& options,
-                        std::string_view source) {
-  options.Check();
+PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query,
+                           const LocalizationMap& map, std::string_view source) {
   if (!method.implemented) Fail("method {} has no minimal solver in this build yet", method.name);
   const bool line_map = std::holds_alternative<LineMap>(map);
   if (method.lines != line_map) {
@@ -121,15 +119,17 @@ LocalizeResult Localize(const MethodInfo& method, const Query& query,
 
   // +u: rotate both frames so that gravity is −y; the solvers then look for
   // a rotation about y. aligned = A x; undone on the result.
+  PreparedQuery prepared;
   Eigen::Matrix3d align_query = Eigen::Matrix3d::Identity();
   Eigen::Matrix3d align_map = Eigen::Matrix3d::Identity();
   if (method.gravity) {
     align_query = GravityAlignment(*query.gravity_query);
     align_map = GravityAlignment(*query.gravity_map);
   }
-  const Eigen::Quaterniond align_query_q(align_query), align_map_q(align_map);
-
-  PoseData data;
+  prepared.aligned_from_query = Eigen::Quaterniond(align_query);
+  prepared.aligned_from_map = Eigen::Quaterniond(align_map);
+  const Eigen::Quaterniond& align_query_q = prepared.aligned_from_query;
+  PoseData& data = prepared.data;
   for (size_t c = 0; c < query.cameras.size(); ++c) {
     Rigid3d cam_from_rig;
     if (method.multi && !query.cam_from_rig.empty()) cam_from_rig = query.cam_from_rig[c];
@@ -163,6 +163,20 @@ LocalizeResult Localize(const MethodInfo& method, const Query& query,
     }
   }
 
+  return prepared;
+}
+
+Sim3d PreparedQuery::ToQueryFromWorld(const Sim3d& aligned_pose) const {
+  return Sim3d(1.0, aligned_from_query.inverse(), Eigen::Vector3d::Zero()) * aligned_pose *
+         Sim3d(1.0, aligned_from_map, Eigen::Vector3d::Zero());
+}
+
+LocalizeResult Localize(const MethodInfo& method, const Query& query,
+                        const LocalizationMap& map, const LocalizeOptions& options,
+                        std::string_view source) {
+  options.Check();
+  const PreparedQuery prepared = PrepareQuery(method, query, map, source);
+  const PoseData& data = prepared.data;
   LocalizeResult result;
   PoseEstimator estimator(method, data, options.local_refinement);
   const RansacResult<Sim3d> ransac = Ransac(estimator, options.ransac);
@@ -187,13 +201,8 @@ LocalizeResult Localize(const MethodInfo& method, const Query& query,
   for (size_t i = 0; i < mask.size(); ++i) {
     if (mask[i]) result.inliers.push_back(static_cast<int>(i));
   }
-  // query_from_world = rig_from_aligned ∘ pose ∘ aligned_from_world.
-  const auto unalign = [&](const Sim3d& p) {
-    return Sim3d(1.0, align_query_q.inverse(), Eigen::Vector3d::Zero()) * p *
-           Sim3d(1.0, align_map_q, Eigen::Vector3d::Zero());
-  };
-  result.query_from_world = unalign(pose);
-  result.initial = unalign(ransac.model);
+  result.query_from_world = prepared.ToQueryFromWorld(pose);
+  result.initial = prepared.ToQueryFromWorld(ransac.model);
   result.success = true;
   return result;
 }

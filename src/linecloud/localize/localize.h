@@ -13,6 +13,7 @@
 
 #include <Eigen/Core>
 
+#include "linecloud/estimation/pose_data.h"
 #include "linecloud/estimation/ransac.h"
 #include "linecloud/estimation/refine_pose.h"
 #include "linecloud/geometry/camera.h"
@@ -72,6 +73,22 @@ struct LocalizeResult {
   double reprojection_initial_px = 0;  // mean over RANSAC's inliers
   double reprojection_refined_px = 0;  // mean over the same correspondences
 };
+
+// A query checked and turned into the solvers' frames: observations
+// undistorted, map points/lines looked up by id, and for +u both frames
+// rotated so that gravity is −y (identity otherwise).
+struct PreparedQuery {
+  PoseData data;
+  Eigen::Quaterniond aligned_from_query = Eigen::Quaterniond::Identity();
+  Eigen::Quaterniond aligned_from_map = Eigen::Quaterniond::Identity();
+
+  // query_from_world = query_from_aligned ∘ pose ∘ aligned_from_map.
+  Sim3d ToQueryFromWorld(const Sim3d& aligned_pose) const;
+};
+
+// Throws Error like Localize.
+PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query,
+                           const LocalizationMap& map, std::string_view source = "query");
 
 // Throws Error (naming `source`) for input the method cannot use: wrong map
 // kind, too few observations, unknown ids, bad camera indices, non-finite

@@ -32,7 +32,8 @@ TEST(IntersectThreeQuadrics, FindsTheEightKnownIntersections) {
       offset[k] = {n(rng), n(rng) + 3.0};
       quadrics.row(k) = ProductOfPlanes(normal[k], offset[k][0], normal[k], offset[k][1]);
     }
-    const Eigen::Matrix3d mix = Eigen::Matrix3d::Random() + 2 * Eigen::Matrix3d::Identity();
+    Eigen::Matrix3d mix = 2 * Eigen::Matrix3d::Identity();
+    for (int k = 0; k < 9; ++k) mix(k / 3, k % 3) += 0.5 * n(rng);
     quadrics = mix * quadrics;
     std::vector<Eigen::Vector3d> roots;
     IntersectThreeQuadrics(quadrics, &roots);
