@@ -72,8 +72,8 @@ void RunBenchLocalize(const LocalizeBenchArgs& args) {
                    {"localized", r.localized},
                    {"median_rotation_deg", {{"initial", r.median_rotation_deg[0]},
                                             {"refined", r.median_rotation_deg[1]}}},
-                   {"median_position_rel", {{"initial", r.median_position_rel[0]},
-                                            {"refined", r.median_position_rel[1]}}},
+                   {"median_position_rel", {{"initial", r.median_position[0]},
+                                            {"refined", r.median_position[1]}}},
                    {"iterations", r.iterations},
                    {"inlier_ratio", r.inlier_ratio},
                    {"mean_solutions", r.solutions},
@@ -108,8 +108,8 @@ void RunBenchLocalize(const LocalizeBenchArgs& args) {
         "| {} | {:.1f} % | {:.4f} / {:.4f} | {:.3f} / {:.3f} | {:.0f} | {:.0f} % | {:.2f} | "
         "{:.2f} | {:.3f} | {:.3f} ({:.1f}) | {:.3f} | {} |\n",
         r.method, 100.0 * r.localized / r.queries, r.median_rotation_deg[0],
-        r.median_rotation_deg[1], 100 * r.median_position_rel[0],
-        100 * r.median_position_rel[1], r.iterations, 100 * r.inlier_ratio, r.solutions,
+        r.median_rotation_deg[1], 100 * r.median_position[0],
+        100 * r.median_position[1], r.iterations, 100 * r.inlier_ratio, r.solutions,
         r.solver_us, r.ransac_ms, r.refine_ms, r.refine_iterations, r.total_ms, ratio);
   }
 }

@@ -29,18 +29,14 @@ struct DemoArgs {
 // A query file in the format of `linecloud localize` (SPEC.md), plus the
 // ground truth under "ground_truth" for evaluation.
 nlohmann::json QueryJson(const SyntheticQuery& q, const Eigen::Vector3d& gravity_world) {
-  nlohmann::json j;
-  j["cameras"] = {{{"model", std::string(CameraModelName(q.camera.model_id))},
-                   {"width", q.camera.width},
-                   {"height", q.camera.height},
-                   {"params", q.camera.params}}};
-  j["observations"] = nlohmann::json::array();
+  Query query;
+  query.cameras = {q.camera};
   for (const SyntheticObservation& o : q.observations) {
-    j["observations"].push_back(
-        {{"camera", 0}, {"xy", {o.xy.x(), o.xy.y()}}, {"id", o.point3D_id}});
+    query.observations.push_back({0, o.xy, o.point3D_id});
   }
-  j["gravity_query"] = {q.gravity_in_cam.x(), q.gravity_in_cam.y(), q.gravity_in_cam.z()};
-  j["gravity_map"] = {gravity_world.x(), gravity_world.y(), gravity_world.z()};
+  query.gravity_query = q.gravity_in_cam;
+  query.gravity_map = gravity_world;
+  nlohmann::json j = QueryToJson(query);
   j["ground_truth"] = {
       {"cam_from_world", PoseToJson(q.cam_from_world.rotation, q.cam_from_world.translation)}};
   return j;

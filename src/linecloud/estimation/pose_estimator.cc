@@ -92,8 +92,8 @@ void PoseEstimator::inliers(const Sim3d& model, double threshold,
                             std::vector<char>* mask) const {
   const CameraPoses poses(data_, model);
   mask->assign(data_.size(), 0);
+  const double t2 = threshold * threshold;
   for (size_t i = 0; i < data_.size(); ++i) {
-    const double t2 = threshold * threshold;
     (*mask)[i] = SquaredReprojectionError(data_, poses, i, t2) < t2;
   }
 }
@@ -101,10 +101,7 @@ void PoseEstimator::inliers(const Sim3d& model, double threshold,
 void PoseEstimator::refine_model(Sim3d* model, double threshold) {
   std::vector<char> mask;
   inliers(*model, threshold, &mask);
-  inlier_indices_.clear();
-  for (size_t i = 0; i < mask.size(); ++i) {
-    if (mask[i]) inlier_indices_.push_back(static_cast<int>(i));
-  }
+  InlierIndices(mask, &inlier_indices_);
   if (inlier_indices_.size() < static_cast<size_t>(method_.sample_size)) return;
   RefinePose(data_, inlier_indices_, local_refinement_, model);
 }

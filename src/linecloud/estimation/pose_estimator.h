@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "linecloud/estimation/pose_data.h"
+#include "linecloud/estimation/ransac.h"
 #include "linecloud/estimation/refine_pose.h"
 #include "linecloud/solvers/minimal_problem.h"
 

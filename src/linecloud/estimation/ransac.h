@@ -74,6 +74,14 @@ struct RansacResult {
   RansacStats stats;
 };
 
+// The indices of the set entries of an inlier mask (replaces *indices).
+inline void InlierIndices(const std::vector<char>& mask, std::vector<int>* indices) {
+  indices->clear();
+  for (size_t i = 0; i < mask.size(); ++i) {
+    if (mask[i]) indices->push_back(static_cast<int>(i));
+  }
+}
+
 // Iterations needed to draw an all-inlier sample with `confidence`.
 inline int RequiredIterations(double inlier_ratio, int sample_size, double confidence,
                               int max_iterations) {

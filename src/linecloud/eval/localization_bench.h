@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "linecloud/eval/localization_summary.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/synthetic/localization_instances.h"
 
@@ -27,21 +28,9 @@ struct LocalizationBenchOptions {
   void Check() const;
 };
 
-struct LocalizationBenchRow {
-  std::string method;
+struct LocalizationBenchRow : LocalizationSummary {
+  std::string method;             // median_position relative to the scene size
   std::string counterpart;        // the same problem with the other map kind
-  int queries = 0;
-  int localized = 0;
-  double median_rotation_deg[2] = {0, 0};   // initial, refined
-  double median_position_rel[2] = {0, 0};   // / scene size
-  double iterations = 0;
-  double inlier_ratio = 0;
-  double solutions = 0;
-  double solver_us = 0;
-  double ransac_ms = 0;
-  double refine_ms = 0;
-  double refine_iterations = 0;
-  double total_ms = 0;
 };
 
 // The method with the same query data and model but the other map kind.

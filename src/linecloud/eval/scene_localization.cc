@@ -1,11 +1,9 @@
 #include "linecloud/eval/scene_localization.h"
 
 #include <algorithm>
-#include <numbers>
 #include <random>
 
 #include "linecloud/synthetic/localization_instances.h"
-#include "linecloud/eval/statistics.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
@@ -69,46 +67,13 @@ std::vector<SceneQuery> SceneQueriesForMethod(const SyntheticScene& scene,
 MethodSummary EvaluateMethod(const MethodInfo& method, const std::vector<SceneQuery>& queries,
                              const LocalizationMap& map, const LocalizeOptions& options,
                              double max_rotation_deg, double max_position) {
-  MethodSummary summary;
-  summary.method = std::string(method.name);
-  std::vector<double> rotation[2], position[2];
-  constexpr double kDeg = 180.0 / std::numbers::pi;
+  LocalizationTally tally(max_rotation_deg, max_position);
   for (const SceneQuery& sq : queries) {
-    ++summary.queries;
-    const LocalizeResult r = Localize(method, sq.query, map, options, sq.name);
-    summary.iterations += r.stats.iterations;
-    summary.solutions += r.stats.mean_solutions;
-    summary.solver_us += r.stats.solver_us;
-    summary.total_ms += r.stats.ransac_ms + r.refine_ms;
-    if (!r.success) {
-      for (int k = 0; k < 2; ++k) {
-        rotation[k].push_back(180);
-        position[k].push_back(1e9);
-      }
-      continue;
-    }
-    summary.inlier_ratio += r.stats.inlier_ratio;
-    summary.reprojection_px[0] += r.reprojection_initial_px;
-    summary.reprojection_px[1] += r.reprojection_refined_px;
-    const Sim3d* estimates[2] = {&r.initial, &r.query_from_world};
-    for (int k = 0; k < 2; ++k) {
-      const LocalizationError e = CompareLocalization(*estimates[k], sq.truth);
-      rotation[k].push_back(e.rotation_rad * kDeg);
-      position[k].push_back(e.position);
-    }
-    summary.localized +=
-        rotation[1].back() < max_rotation_deg && position[1].back() < max_position;
+    tally.Add(Localize(method, sq.query, map, options, sq.name), sq.truth);
   }
-  const double n = std::max(1, summary.queries);
-  for (double* v : {&summary.iterations, &summary.solutions, &summary.solver_us,
-                    &summary.total_ms, &summary.inlier_ratio, &summary.reprojection_px[0],
-                    &summary.reprojection_px[1]}) {
-    *v /= n;
-  }
-  for (int k = 0; k < 2; ++k) {
-    summary.median_rotation_deg[k] = Median(rotation[k]);
-    summary.median_position[k] = Median(position[k]);
-  }
+  MethodSummary summary;
+  static_cast<LocalizationSummary&>(summary) = tally.Summary();
+  summary.method = std::string(method.name);
   return summary;
 }
 

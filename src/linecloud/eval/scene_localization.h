@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "linecloud/eval/localization_summary.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/synthetic/scene.h"
 
@@ -35,18 +36,8 @@ std::vector<SceneQuery> SceneQueriesForMethod(const SyntheticScene& scene,
                                               const MethodInfo& method,
                                               const SceneQueryOptions& options);
 
-struct MethodSummary {
-  std::string method;
-  int queries = 0;
-  int localized = 0;                 // refined pose within the thresholds
-  double median_rotation_deg[2] = {0, 0};   // initial, refined
-  double median_position[2] = {0, 0};       // world units
-  double inlier_ratio = 0;
-  double iterations = 0;
-  double solutions = 0;
-  double solver_us = 0;
-  double total_ms = 0;               // RANSAC + refinement per query
-  double reprojection_px[2] = {0, 0};
+struct MethodSummary : LocalizationSummary {
+  std::string method;  // median_position in world units
 };
 
 // Runs `method` on every query; `localized` counts refined poses within

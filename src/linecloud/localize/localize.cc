@@ -183,9 +183,7 @@ LocalizeResult Localize(const MethodInfo& method, const Query& query,
   result.stats = ransac.stats;
   if (!ransac.success) return result;
   std::vector<int> ransac_inliers;
-  for (size_t i = 0; i < ransac.inlier_mask.size(); ++i) {
-    if (ransac.inlier_mask[i]) ransac_inliers.push_back(static_cast<int>(i));
-  }
+  InlierIndices(ransac.inlier_mask, &ransac_inliers);
   Sim3d pose = ransac.model;
   result.reprojection_initial_px = MeanReprojectionError(data, pose, ransac_inliers);
   if (options.refine && ransac_inliers.size() >= static_cast<size_t>(method.sample_size)) {
@@ -198,9 +196,7 @@ LocalizeResult Localize(const MethodInfo& method, const Query& query,
   result.reprojection_refined_px = MeanReprojectionError(data, pose, ransac_inliers);
   std::vector<char> mask;
   estimator.inliers(pose, options.ransac.max_error, &mask);
-  for (size_t i = 0; i < mask.size(); ++i) {
-    if (mask[i]) result.inliers.push_back(static_cast<int>(i));
-  }
+  InlierIndices(mask, &result.inliers);
   result.query_from_world = prepared.ToQueryFromWorld(pose);
   result.initial = prepared.ToQueryFromWorld(ransac.model);
   result.success = true;
