@@ -311,8 +311,11 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
     EXPECT_LT((estimate.Center() - truth.Center()).norm(), 0.05) << method;
     EXPECT_GT(result["stats"]["inlier_ratio"].get<double>(), 0.9) << method;
     EXPECT_GT(result["inliers"].size(), 10u);
-    EXPECT_LE(result["stats"]["reprojection_px"]["refined"].get<double>(),
-              result["stats"]["reprojection_px"]["initial"].get<double>() + 1e-9);
+    // LM lowers its robust (Cauchy) cost, not necessarily the mean |residual|
+    // reported here, and the demo's fresh key gives other lines each run: check
+    // the refined error against the 1 px noise instead (mean |e| ≈ 0.8 px for
+    // a 1D line residual, ≈ 1.25 px for a 2D point residual).
+    EXPECT_LT(result["stats"]["reprojection_px"]["refined"].get<double>(), 1.6) << method;
   }
   // A rig query (3 images, local points): m-P4L+l against the line cloud,
   // m-p3P against the model.
