@@ -16,6 +16,7 @@
 #include "linecloud/solvers/m_p3p_ls.h"
 #include "linecloud/solvers/p2p_u.h"
 #include "linecloud/solvers/p3p.h"
+#include "linecloud/solvers/p6l.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
@@ -31,9 +32,9 @@ constexpr std::array<MethodInfo, 16> kMethods = {{
     {MethodId::kMP2PLU, "m-P2P+l+u",    2, false, true,  true,  false, true,  true},
     {MethodId::kMP3PLS, "m-P3P+l+s",    3, false, true,  true,  true,  false, true},
     {MethodId::kMP2PLUS, "m-P2P+l+u+s",  2, false, true,  true,  true,  true,  true},
-    {MethodId::kP6L, "p6L",          6, true,  false, false, false, false, false},
+    {MethodId::kP6L, "p6L",          6, true,  false, false, false, false, true},
     {MethodId::kP4LU, "p4L+u",        4, true,  false, false, false, true,  true},
-    {MethodId::kMP6L, "m-p6L",        6, true,  true,  false, false, false, false},
+    {MethodId::kMP6L, "m-p6L",        6, true,  true,  false, false, false, true},
     {MethodId::kMP4LU, "m-p4L+u",      4, true,  true,  false, false, true,  true},
     {MethodId::kMP4LL, "m-P4L+l",      4, true,  true,  true,  false, false, true},
     {MethodId::kMP3LLU, "m-P3L+l+u",    3, true,  true,  true,  false, true,  true},
@@ -176,8 +177,12 @@ int SolveMinimal(const MethodInfo& m, const MinimalSample& s, std::vector<Sim3d>
       m_p2l_lus(s.lines, s.points_local, &rigid);
       return Collect(rigid, out);
     case MethodId::kP6L:
+      p6l(s.bearings, s.lines, &rigid);
+      return Collect(rigid, out);
     case MethodId::kMP6L:
-      break;
+      RigRays(s, &origins, &directions);
+      m_p6l(origins, directions, s.lines, &rigid);
+      return Collect(rigid, out);
   }
   Fail("method {} has no minimal solver in this build yet", m.name);
 }
