@@ -3,7 +3,11 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <complex>
 #include <cstdint>
+#include <limits>
+#include <utility>
+#include <vector>
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
@@ -71,7 +75,15 @@ const Monomials& Mono() {
 struct Layout {
   std::array<std::array<int16_t, kSextic>, tpl::kRows> column;
   std::array<int, tpl::kBasis> action;
-  int basis_one, basis_x, basis_y, basis_z;
+  // ratio[k]: pairs (i, j) of basis indices with B_j = s_k · B_i. s_k is read
+  // off an eigenvector as v_j / v_i with the largest |v_i|: low-degree pairs
+  // for small |s|, high-degree pairs for large |s| (rotations near 180°).
+  std::array<std::vector<std::pair<int, int>>, 3> ratio;
+  // Chains of the action: B_b = x^power[b] · B_start, with start of x-degree 0.
+  // Along a chain the eigenvector of eigenvalue λ is v_b = λ^power[b] u_chain;
+  // chain_end[c] is the basis index whose x-multiple is reducible.
+  std::array<int, tpl::kBasis> chain, power;
+  std::array<int, tpl::kReducible> chain_end;
 };
 
 Layout MakeLayout() {
@@ -106,10 +118,27 @@ Layout MakeLayout() {
                            ? basis_index[target]
                            : -1 - (column[target] - tpl::kEliminated);
   }
-  layout.basis_one = basis_index[key({0, 0, 0})];
-  layout.basis_x = basis_index[key({1, 0, 0})];
-  layout.basis_y = basis_index[key({0, 1, 0})];
-  layout.basis_z = basis_index[key({0, 0, 1})];
+  int chains = 0;
+  std::array<int, 16 * 16 * 16> chain_of_start;
+  chain_of_start.fill(-1);
+  for (int b = 0; b < tpl::kBasis; ++b) {
+    const Exponent e = tpl::kBasisMonomials[b];
+    const int start = key({0, e.y, e.z});
+    if (chain_of_start[start] < 0) chain_of_start[start] = chains++;
+    layout.chain[b] = chain_of_start[start];
+    layout.power[b] = e.x;
+  }
+  for (int b = 0; b < tpl::kBasis; ++b) {
+    if (layout.action[b] < 0) layout.chain_end[layout.chain[b]] = b;
+  }
+  for (int b = 0; b < tpl::kBasis; ++b) {
+    const Exponent e = tpl::kBasisMonomials[b];
+    const Exponent shifted[3] = {{e.x + 1, e.y, e.z}, {e.x, e.y + 1, e.z}, {e.x, e.y, e.z + 1}};
+    for (int k = 0; k < 3; ++k) {
+      const int j = basis_index[key(shifted[k])];
+      if (j >= 0) layout.ratio[k].emplace_back(b, j);
+    }
+  }
   return layout;  // next == kEliminated for the generated template
 }
 
@@ -273,18 +302,53 @@ void SolveSextics(const std::array<Sextic, 15>& sextics, std::vector<Eigen::Vect
       action.row(b) = -reduced.row(tpl::kEliminated + (-1 - target));
     }
   }
-  const Eigen::EigenSolver<Eigen::MatrixXd> eig(action, true);
+  // Eigenvalues only (no Schur vectors); the eigenvector of each real one
+  // comes from the chain structure: v_b = λ^power[b] u_chain[b], where u is the
+  // null vector of the 26 × 26 matrix P(λ) of the nontrivial rows
+  //     Σ_j A(end_c, j) λ^power[j] u_chain[j] − λ^(power[end_c] + 1) u_c = 0.
+  const Eigen::EigenSolver<Eigen::MatrixXd> eig(action, false);
   if (eig.info() != Eigen::Success) return;
   const auto& values = eig.eigenvalues();
-  const auto& vectors = eig.eigenvectors();
   for (int i = 0; i < tpl::kBasis; ++i) {
     if (std::abs(values[i].imag()) > 1e-6 * std::max(1.0, std::abs(values[i]))) continue;
-    const auto vec = vectors.col(i);
-    const std::complex<double> one = vec[layout.basis_one];
-    if (std::abs(one) < 1e-14 * vec.norm()) continue;  // solution at infinity
-    const Eigen::Vector3d s((vec[layout.basis_x] / one).real(),
-                            (vec[layout.basis_y] / one).real(),
-                            (vec[layout.basis_z] / one).real());
+    // Inverse iteration: P(λ) u = 1 from a fixed generic right-hand side. An
+    // exactly singular pivot (λ exact to the last bit) is retried with λ
+    // nudged by a few ulps, as usual for inverse iteration.
+    double lambda = values[i].real();
+    std::array<double, kMaxDegree + 2> powers;
+    Eigen::Matrix<double, tpl::kReducible, 1> u;
+    for (int attempt = 0; attempt < 2; ++attempt) {
+      if (attempt == 1) lambda += 1e-13 * std::max(1.0, std::abs(lambda));
+      powers[0] = 1;
+      for (int k = 1; k < kMaxDegree + 2; ++k) powers[k] = powers[k - 1] * lambda;
+      Eigen::Matrix<double, tpl::kReducible, tpl::kReducible> p =
+          Eigen::Matrix<double, tpl::kReducible, tpl::kReducible>::Zero();
+      for (int c = 0; c < tpl::kReducible; ++c) {
+        const int end = layout.chain_end[c];
+        for (int j = 0; j < tpl::kBasis; ++j) {
+          p(c, layout.chain[j]) += action(end, j) * powers[layout.power[j]];
+        }
+        p(c, c) -= powers[layout.power[end] + 1];
+      }
+      u = p.partialPivLu().solve(Eigen::Matrix<double, tpl::kReducible, 1>::Constant(1.0));
+      if (u.allFinite()) break;
+    }
+    if (!u.allFinite()) continue;
+    Eigen::Matrix<double, tpl::kBasis, 1> vec;
+    for (int b = 0; b < tpl::kBasis; ++b) vec[b] = powers[layout.power[b]] * u[layout.chain[b]];
+    Eigen::Vector3d s;
+    for (int k = 0; k < 3; ++k) {
+      double largest = 0;
+      double value = 0;
+      for (const auto& [from, to] : layout.ratio[k]) {
+        const double magnitude = std::abs(vec[from]);
+        if (magnitude > largest) {
+          largest = magnitude;
+          value = vec[to] / vec[from];
+        }
+      }
+      s[k] = largest > 0 ? value : std::numeric_limits<double>::quiet_NaN();
+    }
     if (s.allFinite()) roots->push_back(s);
   }
 }
