@@ -40,20 +40,14 @@ import random
 
 import numpy as np
 
+import elimination_template
+from elimination_template import grevlex_key
+
 PRIME = 2147483647  # 2^31 - 1: products of two residues fit in int64
 
 
 def monomials_up_to(degree):
-    out = []
-    for d in range(degree + 1):
-        for e in itertools.product(range(d + 1), repeat=3):
-            if sum(e) == d:
-                out.append(e)
-    return out
-
-
-def grevlex_key(e):
-    return (sum(e), tuple(-x for x in reversed(e)))
+    return elimination_template.monomials_up_to(3, degree)
 
 
 # Polynomials in (x, y, z) over GF(PRIME): {exponent triple: residue}.
