@@ -37,17 +37,17 @@ void RunBenchSolvers(const BenchArgs& args) {
       "fixed seed {}, {} noise-free instances per method, >= {:.1f} s timing each, one "
       "thread\n",
       args.options.seed, args.options.instances, args.options.min_seconds);
-  std::cout << fmt::format("| {:<12} | {:<29} | {:>9} | {:>9} | {:>8} | {:>10} | {:>14} |\n",
+  std::cout << fmt::format("| {:<29} | {:<29} | {:>9} | {:>9} | {:>8} | {:>10} | {:>14} |\n",
                            "method", "solver", "µs/call", "solutions", "% true",
                            "med log10", "ours / peer");
-  std::cout << "|--------------|-------------------------------|-----------|-----------|"
+  std::cout << "|-------------------------------|-------------------------------|-----------|-----------|"
                "----------|------------|----------------|\n";
   double ours = 0;
   for (const SolverBenchRow& r : rows) {
     const bool mine = r.solver == "linecloud";
     if (mine) ours = r.us_per_call;
     std::cout << fmt::format(
-        "| {:<12} | {:<29} | {:>9.3f} | {:>9.2f} | {:>8.2f} | {:>10.1f} | {:>14} |\n",
+        "| {:<29} | {:<29} | {:>9.3f} | {:>9.2f} | {:>8.2f} | {:>10.1f} | {:>14} |\n",
         mine ? r.method : "", r.solver, r.us_per_call, r.mean_solutions, r.found_percent,
         r.median_log10_rotation_error,
         mine ? std::string("") : fmt::format("{:.2f}x", ours / r.us_per_call));

@@ -107,25 +107,37 @@ std::vector<SolverBenchRow> RunSolverBench(
       continue;
     }
     if (!method.implemented) continue;
-    std::mt19937_64 rng(options.seed);
-    std::vector<MinimalInstance> instances;
-    for (int i = 0; i < options.instances; ++i) {
-      instances.push_back(RandomMinimalInstance(method, rng));
-      for (PluckerLine& l : instances.back().sample.lines) {
-        if (rng() & 1) l = PluckerLine(-l.v, -l.w);  // lines are unoriented
-      }
+    // p6L / m-p6L are also characterised on near-degenerate families.
+    std::vector<InstanceFamily> families = {InstanceFamily::kGeneric};
+    if (method.lines && !method.local_points && method.sample_size == 6) {
+      families.insert(families.end(), {InstanceFamily::kNarrowFov,
+                                       InstanceFamily::kLinesAlongRays,
+                                       InstanceFamily::kLinesThroughPoint});
     }
-    progress(std::string(method.name));
-    rows.push_back(Measure(std::string(method.name), "linecloud", instances,
-                           options.min_seconds,
-                           [&](const MinimalSample& s, std::vector<Sim3d>* out) {
-                             SolveMinimal(method, s, out);
-                           }));
-    for (const PeerSolver& peer : peers) {
-      if (peer.method != method.name) continue;
-      progress(std::string(method.name) + " / " + peer.name);
-      rows.push_back(Measure(std::string(method.name), peer.name, instances,
-                             options.min_seconds, peer.solve));
+    for (const InstanceFamily family : families) {
+      std::mt19937_64 rng(options.seed);
+      std::vector<MinimalInstance> instances;
+      for (int i = 0; i < options.instances; ++i) {
+        instances.push_back(RandomMinimalInstance(method, rng, family));
+        for (PluckerLine& l : instances.back().sample.lines) {
+          if (rng() & 1) l = PluckerLine(-l.v, -l.w);  // lines are unoriented
+        }
+      }
+      const std::string name =
+          family == InstanceFamily::kGeneric
+              ? std::string(method.name)
+              : std::string(method.name) + " [" + std::string(FamilyName(family)) + "]";
+      progress(name);
+      rows.push_back(Measure(name, "linecloud", instances, options.min_seconds,
+                             [&](const MinimalSample& s, std::vector<Sim3d>* out) {
+                               SolveMinimal(method, s, out);
+                             }));
+      for (const PeerSolver& peer : peers) {
+        if (peer.method != method.name) continue;
+        progress(name + " / " + peer.name);
+        rows.push_back(
+            Measure(name, peer.name, instances, options.min_seconds, peer.solve));
+      }
     }
   }
   return rows;

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <random>
+#include <string_view>
 
 #include "linecloud/solvers/minimal_problem.h"
 
@@ -15,7 +16,19 @@ struct MinimalInstance {
   Sim3d truth;  // query_from_world
 };
 
-MinimalInstance RandomMinimalInstance(const MethodInfo& method, std::mt19937_64& rng);
+// Near-degenerate families of the ray-to-line problems (bearing methods on a
+// line map; other methods ignore the family): the bench characterises the
+// solvers on them.
+enum class InstanceFamily {
+  kGeneric,            // ~90° field of view, random line directions
+  kNarrowFov,          // 10° field of view
+  kLinesAlongRays,     // each line within ~1° of its viewing ray
+  kLinesThroughPoint,  // all lines through one world point
+};
+std::string_view FamilyName(InstanceFamily family);
+
+MinimalInstance RandomMinimalInstance(const MethodInfo& method, std::mt19937_64& rng,
+                                      InstanceFamily family = InstanceFamily::kGeneric);
 
 struct PoseError {
   double rotation_rad = 0;
