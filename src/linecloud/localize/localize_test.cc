@@ -26,7 +26,7 @@ TEST_P(LocalizeTest, LocalizesNoisyQueriesWithHalfOutliers) {
   LocalizeOptions options;
   // The 6-point methods need ~300 RANSAC iterations at 50 % outliers (1.5 ms
   // per minimal solve): fewer queries keep the sanitizer job short.
-  const int kQueries = method.sample_size >= 6 ? 8 : 20;
+  const int kQueries = testing::InstanceCount(method.sample_size >= 6 ? 8 : 20);
   int localized = 0;
   double initial_px = 0, refined_px = 0;
   for (int k = 0; k < kQueries; ++k) {

@@ -13,6 +13,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 
+#include "linecloud/solvers/eigenvalues.h"
 #include "linecloud/solvers/p6l_template.h"
 
 namespace linecloud {
@@ -302,19 +303,25 @@ void SolveSextics(const std::array<Sextic, 15>& sextics, std::vector<Eigen::Vect
       action.row(b) = -reduced.row(tpl::kEliminated + (-1 - target));
     }
   }
-  // Eigenvalues only (no Schur vectors); the eigenvector of each real one
+  // Eigenvalues only (eigenvalues.h: no Schur vectors); the eigenvector of each real one
   // comes from the chain structure: v_b = λ^power[b] u_chain[b], where u is the
   // null vector of the 26 × 26 matrix P(λ) of the nontrivial rows
   //     Σ_j A(end_c, j) λ^power[j] u_chain[j] − λ^(power[end_c] + 1) u_c = 0.
-  const Eigen::EigenSolver<Eigen::MatrixXd> eig(action, false);
-  if (eig.info() != Eigen::Success) return;
-  const auto& values = eig.eigenvalues();
-  for (int i = 0; i < tpl::kBasis; ++i) {
-    if (std::abs(values[i].imag()) > 1e-6 * std::max(1.0, std::abs(values[i]))) continue;
+  thread_local Eigen::MatrixXd scratch;
+  thread_local std::vector<std::complex<double>> values;
+  scratch = action;
+  if (!EigenvaluesInPlace(&scratch, &values)) {
+    // Rare non-convergence of the cheap iteration: Eigen's real Schur form.
+    const Eigen::EigenSolver<Eigen::MatrixXd> eig(action, false);
+    if (eig.info() != Eigen::Success) return;
+    values.assign(eig.eigenvalues().begin(), eig.eigenvalues().end());
+  }
+  for (const std::complex<double>& value : values) {
+    if (std::abs(value.imag()) > 1e-4 * std::max(1.0, std::abs(value))) continue;
     // Inverse iteration: P(λ) u = 1 from a fixed generic right-hand side. An
     // exactly singular pivot (λ exact to the last bit) is retried with λ
     // nudged by a few ulps, as usual for inverse iteration.
-    double lambda = values[i].real();
+    double lambda = value.real();
     std::array<double, kMaxDegree + 2> powers;
     Eigen::Matrix<double, tpl::kReducible, 1> u;
     for (int attempt = 0; attempt < 2; ++attempt) {

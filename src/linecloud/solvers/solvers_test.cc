@@ -20,7 +20,7 @@ class MinimalSolverTest : public ::testing::TestWithParam<std::string_view> {};
 TEST_P(MinimalSolverTest, RecoversTheTruePoseAndSatisfiesItsEquations) {
   const MethodInfo& method = FindMethod(GetParam());
   std::mt19937_64 rng(1234);
-  constexpr int kInstances = 10000;
+  const int kInstances = testing::InstanceCount(10000);
   int found = 0;
   size_t total_solutions = 0;
   double worst_residual = 0;

@@ -1,6 +1,7 @@
 // Helpers shared by the tests: where the real data lives, temporary folders.
 #pragma once
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <random>
@@ -30,6 +31,13 @@ inline std::string MethodTestName(const ::testing::TestParamInfo<std::string_vie
     if (!std::isalnum(static_cast<unsigned char>(c))) c = '_';
   }
   return name;
+}
+
+// Instance counts of the statistical tests: `full` normally; a tenth when
+// LINECLOUD_QUICK_TESTS is set (the sanitizer job, which looks for memory and
+// UB errors, not statistics; the release run asserts on the full counts).
+inline int InstanceCount(int full) {
+  return std::getenv("LINECLOUD_QUICK_TESTS") ? std::max(full / 10, 1) : full;
 }
 
 // ../shared next to the checkout, or $LINECLOUD_SHARED.
