@@ -69,34 +69,46 @@ Noncentral FromLines(const MinimalSample& s) {
   return n;
 }
 
-// p6L / m-p6L as a generalized relative pose: viewpoint 1 is the query rig
-// (one camera per bearing; p6L: all at the origin), viewpoint 2 the world with
-// one "camera" per line at its anchor looking along v. sixpt returns R12 with
-// x1 = R12 x2 + t12, i.e. the rig_from_world rotation, and no translation: t
-// is completed here by linear least squares over the six ray-line equations
-// (R v_i × d_i)ᵀ t = −(d_iᵀ R w_i + m_iᵀ R v_i).
-void SixPoint(const MinimalSample& s, bool rig, std::vector<Sim3d>* out) {
+// The query rays and the map lines as the two viewpoints of OpenGV's
+// generalized relative pose adapter: viewpoint 1 is the query rig (one camera
+// per bearing; p6L: all at the origin), viewpoint 2 the world with one
+// "camera" per line at its anchor looking along v. Both sixpt and seventeenpt
+// return x1 = R12 x2 + t12, i.e. rig_from_world.
+struct RayLineAdapterData {
   opengv::bearingVectors_t b1, b2;
   std::vector<int> c1, c2;
   opengv::translations_t offsets;
   opengv::rotations_t rotations;
-  std::vector<Eigen::Vector3d> origins, directions;
+  std::vector<Eigen::Vector3d> origins, directions;  // query rays, rig frame
+};
+
+RayLineAdapterData RaysAndLines(const MinimalSample& s, bool rig) {
+  RayLineAdapterData d;
   for (size_t i = 0; i < s.bearings.size(); ++i) {
     const Rigid3d cam_from_rig = rig ? s.cam_from_rig[s.camera_index[i]] : Rigid3d();
-    origins.push_back(cam_from_rig.Center());
-    directions.push_back(cam_from_rig.rotation.inverse() * s.bearings[i].normalized());
-    b1.push_back(s.bearings[i].normalized());
-    c1.push_back(static_cast<int>(offsets.size()));
-    offsets.push_back(origins.back());
-    rotations.push_back(cam_from_rig.rotation.inverse().toRotationMatrix());
+    d.origins.push_back(cam_from_rig.Center());
+    d.directions.push_back(cam_from_rig.rotation.inverse() * s.bearings[i].normalized());
+    d.b1.push_back(s.bearings[i].normalized());
+    d.c1.push_back(static_cast<int>(d.offsets.size()));
+    d.offsets.push_back(d.origins.back());
+    d.rotations.push_back(cam_from_rig.rotation.inverse().toRotationMatrix());
   }
   for (const PluckerLine& line : s.lines) {
-    b2.push_back(line.v);
-    c2.push_back(static_cast<int>(offsets.size()));
-    offsets.push_back(line.Anchor());
-    rotations.push_back(Eigen::Matrix3d::Identity());
+    d.b2.push_back(line.v);
+    d.c2.push_back(static_cast<int>(d.offsets.size()));
+    d.offsets.push_back(line.Anchor());
+    d.rotations.push_back(Eigen::Matrix3d::Identity());
   }
-  opengv::relative_pose::NoncentralRelativeAdapter adapter(b1, b2, c1, c2, offsets, rotations);
+  return d;
+}
+
+// sixpt (Stewénius' 6-point generalized relative pose) gives rotations only;
+// t is completed by linear least squares over the six ray-line equations
+// (R v_i × d_i)ᵀ t = −(d_iᵀ R w_i + m_iᵀ R v_i).
+void SixPoint(const MinimalSample& s, bool rig, std::vector<Sim3d>* out) {
+  const RayLineAdapterData d = RaysAndLines(s, rig);
+  opengv::relative_pose::NoncentralRelativeAdapter adapter(d.b1, d.b2, d.c1, d.c2, d.offsets,
+                                                           d.rotations);
   const opengv::rotations_t solutions = opengv::relative_pose::sixpt(adapter);
   out->clear();
   for (const opengv::rotation_t& r : solutions) {
@@ -104,13 +116,24 @@ void SixPoint(const MinimalSample& s, bool rig, std::vector<Sim3d>* out) {
     Eigen::Matrix<double, 6, 1> rhs;
     for (int i = 0; i < 6; ++i) {
       const Eigen::Vector3d rv = r * s.lines[i].v;
-      const Eigen::Vector3d m = origins[i].cross(directions[i]);
-      a.row(i) = rv.cross(directions[i]).transpose();
-      rhs[i] = -(directions[i].dot(r * s.lines[i].w) + m.dot(rv));
+      const Eigen::Vector3d m = d.origins[i].cross(d.directions[i]);
+      a.row(i) = rv.cross(d.directions[i]).transpose();
+      rhs[i] = -(d.directions[i].dot(r * s.lines[i].w) + m.dot(rv));
     }
     const Eigen::Vector3d t = a.colPivHouseholderQr().solve(rhs);
     out->emplace_back(1.0, Eigen::Quaterniond(r), t);
   }
+}
+
+// seventeenpt (Li, Hartley, Kim's linear generalized relative pose) on 17
+// correspondences.
+void SeventeenPoint(const MinimalSample& s, bool rig, std::vector<Sim3d>* out) {
+  const RayLineAdapterData d = RaysAndLines(s, rig);
+  opengv::relative_pose::NoncentralRelativeAdapter adapter(d.b1, d.b2, d.c1, d.c2, d.offsets,
+                                                           d.rotations);
+  const opengv::transformation_t t = opengv::relative_pose::seventeenpt(adapter);
+  out->clear();
+  out->emplace_back(1.0, Eigen::Quaterniond(Eigen::Matrix3d(t.leftCols<3>())), t.col(3));
 }
 
 }  // namespace
@@ -152,6 +175,12 @@ std::vector<PeerSolver> OpenGvPeers() {
        [](const MinimalSample& s, std::vector<Sim3d>* out) { SixPoint(s, false, out); }},
       {"m-p6L", "opengv-sixpt (+ linear t)",
        [](const MinimalSample& s, std::vector<Sim3d>* out) { SixPoint(s, true, out); }},
+      {"p6L", "opengv-seventeenpt (17 corr.)",
+       [](const MinimalSample& s, std::vector<Sim3d>* out) { SeventeenPoint(s, false, out); },
+       17},
+      {"m-p6L", "opengv-seventeenpt (17 corr.)",
+       [](const MinimalSample& s, std::vector<Sim3d>* out) { SeventeenPoint(s, true, out); },
+       17},
       {"m-P3P+l+s", "opengv-threept_arun",
        [](const MinimalSample& s, std::vector<Sim3d>* out) {
          const opengv::points_t local(s.points_local.begin(), s.points_local.end());

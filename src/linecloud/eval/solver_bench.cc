@@ -114,15 +114,19 @@ std::vector<SolverBenchRow> RunSolverBench(
                                        InstanceFamily::kLinesAlongRays,
                                        InstanceFamily::kLinesThroughPoint});
     }
-    for (const InstanceFamily family : families) {
+    const auto make_instances = [&](InstanceFamily family, int correspondences) {
       std::mt19937_64 rng(options.seed);
       std::vector<MinimalInstance> instances;
       for (int i = 0; i < options.instances; ++i) {
-        instances.push_back(RandomMinimalInstance(method, rng, family));
+        instances.push_back(RandomMinimalInstance(method, rng, family, correspondences));
         for (PluckerLine& l : instances.back().sample.lines) {
           if (rng() & 1) l = PluckerLine(-l.v, -l.w);  // lines are unoriented
         }
       }
+      return instances;
+    };
+    for (const InstanceFamily family : families) {
+      const std::vector<MinimalInstance> instances = make_instances(family, 0);
       const std::string name =
           family == InstanceFamily::kGeneric
               ? std::string(method.name)
@@ -135,8 +139,11 @@ std::vector<SolverBenchRow> RunSolverBench(
       for (const PeerSolver& peer : peers) {
         if (peer.method != method.name) continue;
         progress(name + " / " + peer.name);
-        rows.push_back(
-            Measure(name, peer.name, instances, options.min_seconds, peer.solve));
+        rows.push_back(Measure(name, peer.name,
+                               peer.correspondences > 0
+                                   ? make_instances(family, peer.correspondences)
+                                   : instances,
+                               options.min_seconds, peer.solve));
       }
     }
   }

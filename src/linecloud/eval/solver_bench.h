@@ -34,6 +34,7 @@ struct PeerSolver {
   std::string method;
   std::string name;
   std::function<void(const MinimalSample&, std::vector<Sim3d>*)> solve;
+  int correspondences = 0;  // > 0: needs this many (its own instances, same seed)
 };
 
 // OpenGV's solvers (opengv_peers.cc; empty when built without OpenGV).

@@ -18,7 +18,7 @@ std::string_view FamilyName(InstanceFamily family) {
 }
 
 MinimalInstance RandomMinimalInstance(const MethodInfo& m, std::mt19937_64& rng,
-                                      InstanceFamily family) {
+                                      InstanceFamily family, int num_correspondences) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   std::normal_distribution<double> g(0.0, 1.0);
   MinimalInstance inst;
@@ -33,7 +33,7 @@ MinimalInstance RandomMinimalInstance(const MethodInfo& m, std::mt19937_64& rng,
   truth.scale = m.similarity() ? std::pow(10.0, u(rng)) : 1.0;
   const Sim3d world_from_query = truth.Inverse();
   MinimalSample& s = inst.sample;
-  const int n = m.sample_size;
+  const int n = num_correspondences > 0 && !m.local_points ? num_correspondences : m.sample_size;
 
   if (m.local_points) {
     // X̃ spread around the query frame; X the corresponding map point.

@@ -27,8 +27,11 @@ enum class InstanceFamily {
 };
 std::string_view FamilyName(InstanceFamily family);
 
+// `num_correspondences` > 0 overrides the method's sample size (bearing
+// methods only; for peers that need more than a minimal sample).
 MinimalInstance RandomMinimalInstance(const MethodInfo& method, std::mt19937_64& rng,
-                                      InstanceFamily family = InstanceFamily::kGeneric);
+                                      InstanceFamily family = InstanceFamily::kGeneric,
+                                      int num_correspondences = 0);
 
 struct PoseError {
   double rotation_rad = 0;
