@@ -27,12 +27,25 @@ void ReduceToHessenberg(Eigen::MatrixXd* matrix) {
       a.col(pivot).swap(a.col(m));
     }
     const double x = a(m, m - 1);
-    for (Eigen::Index i = m + 1; i < n; ++i) {
-      const double y = a(i, m - 1) / x;
-      a(i, m - 1) = 0;
-      if (y == 0) continue;
-      a.row(i).tail(n - m) -= y * a.row(m).tail(n - m);  // G⁻¹ from the left
-      a.col(m) += y * a.col(i);                          // G from the right
+    // Multipliers of column m − 1 below row m, then G⁻¹ from the left
+    // column by column and G from the right (both on contiguous columns).
+    const Eigen::Index below = n - m - 1;
+    double y[128];
+    for (Eigen::Index i = 0; i < below; ++i) {
+      y[i] = a(m + 1 + i, m - 1) / x;
+      a(m + 1 + i, m - 1) = 0;
+    }
+    for (Eigen::Index j = m; j < n; ++j) {
+      const double pivot_row = a(m, j);
+      if (pivot_row == 0) continue;
+      double* column = &a(m + 1, j);
+      for (Eigen::Index i = 0; i < below; ++i) column[i] -= y[i] * pivot_row;
+    }
+    double* target = &a(0, m);
+    for (Eigen::Index i = 0; i < below; ++i) {
+      if (y[i] == 0) continue;
+      const double* source = &a(0, m + 1 + i);
+      for (Eigen::Index k = 0; k < n; ++k) target[k] += y[i] * source[k];
     }
   }
 }
@@ -77,21 +90,31 @@ bool Reflector(const double* in, double* v, double* tau) {
 }
 
 // Applies P from the left to rows r..r+N−1 (columns c0..c1) and from the
-// right to columns r..r+N−1 (rows r0..r1).
+// right to columns r..r+N−1 (rows r0..r1). The right product runs down whole
+// columns (contiguous in column-major storage) so that it vectorises.
 template <int N>
 void ApplyReflector(Eigen::MatrixXd& h, Eigen::Index r, const double* v, double tau,
                     Eigen::Index c0, Eigen::Index c1, Eigen::Index r0, Eigen::Index r1) {
   for (Eigen::Index j = c0; j <= c1; ++j) {
+    double* column = &h(r, j);
     double dot = 0;
-    for (int i = 0; i < N; ++i) dot += v[i] * h(r + i, j);
+    for (int i = 0; i < N; ++i) dot += v[i] * column[i];
     dot *= tau;
-    for (int i = 0; i < N; ++i) h(r + i, j) -= dot * v[i];
+    for (int i = 0; i < N; ++i) column[i] -= dot * v[i];
   }
-  for (Eigen::Index i = r0; i <= r1; ++i) {
-    double dot = 0;
-    for (int k = 0; k < N; ++k) dot += h(i, r + k) * v[k];
-    dot *= tau;
-    for (int k = 0; k < N; ++k) h(i, r + k) -= dot * v[k];
+  const Eigen::Index len = r1 - r0 + 1;
+  if (len <= 0) return;
+  double dots[128];
+  double* first = &h(r0, r);
+  for (Eigen::Index i = 0; i < len; ++i) dots[i] = first[i] * v[0];
+  for (int k = 1; k < N; ++k) {
+    const double* column = &h(r0, r + k);
+    for (Eigen::Index i = 0; i < len; ++i) dots[i] += column[i] * v[k];
+  }
+  for (int k = 0; k < N; ++k) {
+    double* column = &h(r0, r + k);
+    const double scale = tau * v[k];
+    for (Eigen::Index i = 0; i < len; ++i) column[i] -= dots[i] * scale;
   }
 }
 
@@ -101,6 +124,7 @@ bool EigenvaluesInPlace(Eigen::MatrixXd* matrix, std::vector<std::complex<double
   values->clear();
   Eigen::MatrixXd& h = *matrix;
   const Eigen::Index n = h.rows();
+  if (n > 128) return false;  // block buffers are sized for the solvers' matrices
   if (n == 0 || !h.allFinite()) return n == 0;
   ReduceToHessenberg(matrix);
   constexpr double kEps = std::numeric_limits<double>::epsilon();

@@ -14,7 +14,7 @@
 
 namespace linecloud {
 
-// All n eigenvalues of the square matrix `a` (overwritten). Returns false when
+// All n eigenvalues of the square matrix `a` (n ≤ 128; overwritten). Returns false when
 // the QR iteration does not converge within 60 sweeps per eigenvalue or the
 // input is not finite; `values` then holds what was found.
 bool EigenvaluesInPlace(Eigen::MatrixXd* a, std::vector<std::complex<double>>* values);

@@ -289,9 +289,18 @@ void SolveSextics(const std::array<Sextic, 15>& sextics, std::vector<Eigen::Vect
     for (int k = 0; k < kSextic; ++k) t(r, layout.column[r][k]) = scale[eq] * sextics[eq][k];
   }
   constexpr int kSquare = tpl::kEliminated + tpl::kReducible;
+  // P T_sq = L U; only the reducible rows of T_sq⁻¹ T_B are needed: forward
+  // substitution with L on all rows, back substitution with the trailing
+  // 26 × 26 block of U only.
   const Eigen::PartialPivLU<Eigen::MatrixXd> lu(t.leftCols(kSquare));
+  thread_local Eigen::MatrixXd forward;
+  forward = lu.permutationP() * t.rightCols(tpl::kBasis);
+  lu.matrixLU().triangularView<Eigen::UnitLower>().solveInPlace(forward);
   thread_local Eigen::MatrixXd reduced;
-  reduced = lu.solve(t.rightCols(tpl::kBasis));
+  reduced = lu.matrixLU()
+                .bottomRightCorner(tpl::kReducible, tpl::kReducible)
+                .triangularView<Eigen::Upper>()
+                .solve(forward.bottomRows(tpl::kReducible));
   if (!reduced.allFinite()) return;
   thread_local Eigen::MatrixXd action;
   action.setZero(tpl::kBasis, tpl::kBasis);
@@ -300,7 +309,7 @@ void SolveSextics(const std::array<Sextic, 15>& sextics, std::vector<Eigen::Vect
     if (target >= 0) {
       action(b, target) = 1.0;
     } else {
-      action.row(b) = -reduced.row(tpl::kEliminated + (-1 - target));
+      action.row(b) = -reduced.row(-1 - target);
     }
   }
   // Eigenvalues only (eigenvalues.h: no Schur vectors); the eigenvector of each real one
