@@ -5,6 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include "linecloud/io/colmap_model.h"
+#include "linecloud/lifting/key.h"
+#include "linecloud/lifting/lifting.h"
 #include "linecloud/synthetic/localization_instances.h"
 #include "linecloud/testing/test_util.h"
 
@@ -54,6 +57,45 @@ TEST_P(LocalizeTest, LocalizesNoisyQueriesWithHalfOutliers) {
 INSTANTIATE_TEST_SUITE_P(Methods, LocalizeTest,
                          ::testing::ValuesIn(testing::ImplementedMethodNames()),
                          testing::MethodTestName);
+
+// Real data: image 03.jpg of ../shared/data/colmap-maupertuis as a query (its
+// 611 COLMAP observations with their point ids), against the point model
+// (p3P) and against the line cloud lifted from it with a fresh key (p6L):
+// both must give back COLMAP's own pose of that image.
+TEST(Localize, RealImageAgainstItsModelAndLineCloud) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/reconstruction");
+  const Reconstruction model =
+      ReadColmapModel(testing::SharedDataPath("colmap-maupertuis/reconstruction"));
+  const Image* image = nullptr;
+  for (const auto& [id, im] : model.images) {
+    if (im.name == "03.jpg") image = &im;
+  }
+  ASSERT_NE(image, nullptr);
+  Query query;
+  query.cameras.push_back(model.cameras.at(image->camera_id));
+  for (const Point2D& p : image->points2D) {
+    if (p.point3D_id != kInvalidPoint3DId) query.observations.push_back({0, p.xy, p.point3D_id});
+  }
+  ASSERT_GT(query.observations.size(), 500u);
+  std::vector<uint64_t> ids = model.SortedPoint3DIds();
+  std::vector<Eigen::Vector3d> points;
+  for (uint64_t id : ids) points.push_back(model.points3D.at(id).xyz);
+  const LineCloud cloud = LiftPoints(ids, points, LiftingKey::Generate(), {});
+  LocalizeOptions options;
+  for (const auto& [name, map] :
+       {std::pair<const char*, LocalizationMap>{"p3P", PointMapFromModel(model)},
+        std::pair<const char*, LocalizationMap>{"p6L", LineMapFromCloud(cloud)}}) {
+    const LocalizeResult r = Localize(FindMethod(name), query, map, options);
+    ASSERT_TRUE(r.success) << name;
+    const Rigid3d& truth = image->cam_from_world;
+    EXPECT_LT(r.query_from_world.rotation.angularDistance(truth.rotation), 1e-4) << name;
+    EXPECT_LT((r.query_from_world.translation - truth.translation).norm(),
+              1e-3 * std::max(1.0, truth.translation.norm()))
+        << name;
+    EXPECT_GE(r.inliers.size(), 0.95 * query.observations.size()) << name;
+    EXPECT_LT(r.reprojection_refined_px, 1.0) << name;
+  }
+}
 
 TEST(Localize, BadInputGetsAClearError) {
   std::mt19937_64 rng(1);
