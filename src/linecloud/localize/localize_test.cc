@@ -61,7 +61,10 @@ INSTANTIATE_TEST_SUITE_P(Methods, LocalizeTest,
 // Real data: image 03.jpg of ../shared/data/colmap-maupertuis as a query (its
 // 611 COLMAP observations with their point ids), against the point model
 // (p3P) and against the line cloud lifted from it with a fresh key (p6L):
-// both must give back COLMAP's own pose of that image.
+// both must give back COLMAP's own pose of that image — to ~0.01° for the
+// points, and within 0.06° / 1 % for the lines, whose refined optimum moves
+// with the random line directions (COLMAP's bundle adjustment minimised the
+// point-to-point error with the points free).
 TEST(Localize, RealImageAgainstItsModelAndLineCloud) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/reconstruction");
   const Reconstruction model =
@@ -88,9 +91,11 @@ TEST(Localize, RealImageAgainstItsModelAndLineCloud) {
     const LocalizeResult r = Localize(FindMethod(name), query, map, options);
     ASSERT_TRUE(r.success) << name;
     const Rigid3d& truth = image->cam_from_world;
-    EXPECT_LT(r.query_from_world.rotation.angularDistance(truth.rotation), 1e-4) << name;
+    const bool lines = std::string_view(name) == "p6L";
+    EXPECT_LT(r.query_from_world.rotation.angularDistance(truth.rotation), lines ? 1e-3 : 2e-4)
+        << name;
     EXPECT_LT((r.query_from_world.translation - truth.translation).norm(),
-              1e-3 * std::max(1.0, truth.translation.norm()))
+              (lines ? 1e-2 : 1e-3) * std::max(1.0, truth.translation.norm()))
         << name;
     EXPECT_GE(r.inliers.size(), 0.95 * query.observations.size()) << name;
     EXPECT_LT(r.reprojection_refined_px, 1.0) << name;
