@@ -131,7 +131,7 @@ int m_p3p(std::span<const Eigen::Vector3d> origins,
   const Poly univariate = poly::Add(
       poly::Sub(poly::Mul(g0, g0), poly::Mul(b, poly::Mul(g0, g1))), poly::Mul(c, poly::Mul(g1, g1)));
   std::vector<double> roots1;
-  poly::MonotoneRealRoots(univariate, &roots1);
+  poly::SturmRealRoots(univariate, &roots1);
 
   std::vector<Eigen::Vector3d> depths;
   for (const double l1 : roots1) {

@@ -78,9 +78,10 @@ int m_p4l_u(std::span<const Eigen::Vector3d> origins,
     }
   }
   const Poly det = Determinant(pm);
-  std::vector<double> roots;
-  poly::MonotoneRealRoots(det, &roots);
-  for (const double x : roots) {
+  double roots[8];
+  const int num_roots = poly::SturmRealRoots(det.data(), 8, roots);
+  for (int r = 0; r < num_roots; ++r) {
+    const double x = roots[r];
     const double c = (1 - x * x) / (1 + x * x), s = 2 * x / (1 + x * x);
     Eigen::Matrix<double, 4, 3> g;
     Eigen::Vector4d k;

@@ -206,4 +206,222 @@ void MonotoneRealRoots(const Poly& input, std::vector<double>* roots) {
   roots->insert(roots->end(), current, current + num);
 }
 
+namespace {
+
+constexpr int kMaxSturm = 16;
+
+struct SturmSequence {
+  double p[kMaxSturm + 1][kMaxSturm + 1];  // p[k][i]: coefficient i of member k
+  int degree[kMaxSturm + 1];
+  int size = 0;
+
+  // Sign changes along the sequence at x (zeros skipped).
+  int SignChanges(double x) const {
+    int changes = 0;
+    double previous = 0;
+    for (int k = 0; k < size; ++k) {
+      double v = p[k][degree[k]];
+      for (int i = degree[k] - 1; i >= 0; --i) v = v * x + p[k][i];
+      if (v == 0) continue;
+      if (previous != 0 && (v > 0) != (previous > 0)) ++changes;
+      previous = v;
+    }
+    return changes;
+  }
+};
+
+// Scales a member to unit largest coefficient (a positive factor keeps the
+// sign pattern) and drops negligible leading coefficients; false when zero.
+bool Normalise(double* c, int* degree, double reference) {
+  double largest = 0;
+  for (int i = 0; i <= *degree; ++i) largest = std::max(largest, std::abs(c[i]));
+  if (!(largest > 1e-13 * reference)) return false;
+  for (int i = 0; i <= *degree; ++i) c[i] /= largest;
+  while (*degree > 0 && std::abs(c[*degree]) < 1e-14) --*degree;
+  return true;
+}
+
+void BuildSturm(const double* monic, int n, SturmSequence* s) {
+  std::copy(monic, monic + n + 1, s->p[0]);
+  s->degree[0] = n;
+  for (int i = 1; i <= n; ++i) s->p[1][i - 1] = i * monic[i];
+  s->degree[1] = n - 1;
+  s->size = 2;
+  double reference = 0;
+  for (int i = 0; i <= n; ++i) reference = std::max(reference, std::abs(monic[i]));
+  Normalise(s->p[0], &s->degree[0], reference);
+  Normalise(s->p[1], &s->degree[1], 1.0);
+  while (s->degree[s->size - 1] > 0 && s->size <= kMaxSturm) {
+    // r = a mod b, then the next member is −r.
+    const double* b = s->p[s->size - 1];
+    const int db = s->degree[s->size - 1];
+    double r[kMaxSturm + 1];
+    int dr = s->degree[s->size - 2];
+    std::copy(s->p[s->size - 2], s->p[s->size - 2] + dr + 1, r);
+    while (dr >= db) {
+      const double q = r[dr] / b[db];
+      for (int i = 0; i <= db; ++i) r[dr - db + i] -= q * b[i];
+      r[dr] = 0;
+      --dr;
+    }
+    if (dr < 0) break;
+    for (int i = 0; i <= dr; ++i) r[i] = -r[i];
+    while (dr > 0 && std::abs(r[dr]) == 0) --dr;
+    if (!Normalise(r, &dr, 1.0)) break;  // gcd reached: multiple roots
+    std::copy(r, r + dr + 1, s->p[s->size]);
+    s->degree[s->size] = dr;
+    ++s->size;
+  }
+}
+
+// The single root of p in (a, b] (Sturm count 1): Newton steps kept inside a
+// shrinking bracket, bisection when a step leaves it.
+double PolishRoot(const double* p, int n, double a, double b) {
+  const auto eval = [&](double x, double* derivative) {
+    double f = p[n], df = 0;
+    for (int i = n - 1; i >= 0; --i) {
+      df = df * x + f;
+      f = f * x + p[i];
+    }
+    *derivative = df;
+    return f;
+  };
+  double d;
+  double fa = eval(a, &d);
+  const double fb = eval(b, &d);
+  // Start from the secant (regula falsi) point of the bracket.
+  double x = a - fa * (b - a) / (fb - fa);
+  if (!(x > a && x < b)) x = 0.5 * (a + b);
+  for (int iteration = 0; iteration < 100; ++iteration) {
+    double df;
+    const double f = eval(x, &df);
+    if (f == 0) return x;
+    // Keep the sign change inside [a, b].
+    if ((f > 0) == (fa > 0)) {
+      a = x;
+      fa = f;
+    } else {
+      b = x;
+    }
+    double next = x - f / df;
+    // Converged when a Newton step is at rounding level (the result is then
+    // as good as double allows; one more step would only oscillate). Tested
+    // before the bracket check: x is itself an end of the updated bracket.
+    if (std::abs(next - x) <= 2e-15 * std::max(1.0, std::abs(x))) return next;
+    if (!(next > a && next < b)) next = 0.5 * (a + b);
+    if (b - a <= 4e-16 * std::max(1.0, std::abs(x))) return next;
+    x = next;
+  }
+  return x;
+}
+
+}  // namespace
+
+int SturmRealRoots(const double* coefficients, int degree, double* roots) {
+  double largest = 0;
+  for (int i = 0; i <= degree; ++i) {
+    if (!std::isfinite(coefficients[i])) return 0;
+    largest = std::max(largest, std::abs(coefficients[i]));
+  }
+  if (!(largest > 0)) return 0;
+  int n = degree;
+  while (n >= 0 && std::abs(coefficients[n]) <= 1e-14 * largest) --n;
+  if (n < 1) return 0;
+  if (n > kMaxSturm) {
+    std::vector<double> found;
+    MonotoneRealRoots(Poly(coefficients, coefficients + degree + 1), &found);
+    std::copy(found.begin(), found.end(), roots);
+    return static_cast<int>(found.size());
+  }
+  double monic[kMaxSturm + 1];
+  for (int i = 0; i <= n; ++i) monic[i] = coefficients[i] / coefficients[n];
+  if (n == 1) {
+    roots[0] = -monic[0];
+    return 1;
+  }
+  // Fujiwara's bound (as in MonotoneRealRoots).
+  double bound = 0;
+  for (int k = 1; k <= n; ++k) {
+    const double a = std::abs(monic[n - k]) * (k == n ? 0.5 : 1.0);
+    if (a > 0) bound = std::max(bound, std::pow(a, 1.0 / k));
+  }
+  bound = 2.0 * bound * (1.0 + 1e-12) + 1e-300;
+  SturmSequence sturm;
+  BuildSturm(monic, n, &sturm);
+  struct Interval {
+    double a, b;
+    int changes_a, changes_b;
+  };
+  Interval stack[2 * kMaxSturm + 64];
+  int top = 0;
+  stack[top++] = {-bound, bound, sturm.SignChanges(-bound), sturm.SignChanges(bound)};
+  int count = 0;
+  while (top > 0 && count < n) {
+    const Interval iv = stack[--top];
+    const int inside = iv.changes_a - iv.changes_b;
+    if (inside <= 0) continue;
+    if (inside == 1) {
+      const auto value = [&](double x) {
+        double f = monic[n];
+        for (int i = n - 1; i >= 0; --i) f = f * x + monic[i];
+        return f;
+      };
+      if ((value(iv.a) > 0) != (value(iv.b) > 0)) {
+        roots[count++] = PolishRoot(monic, n, iv.a, iv.b);
+        continue;
+      }
+      // No sign change: a root of even multiplicity; bisect on the counts.
+      double a = iv.a, b = iv.b;
+      int changes_a = iv.changes_a;
+      for (int step = 0; step < 200 && b - a > 1e-14 * std::max(1.0, std::abs(a)); ++step) {
+        const double mid = 0.5 * (a + b);
+        const int changes_mid = sturm.SignChanges(mid);
+        if (changes_a - changes_mid >= 1) {
+          b = mid;
+        } else {
+          a = mid;
+          changes_a = changes_mid;
+        }
+      }
+      roots[count++] = 0.5 * (a + b);
+      continue;
+    }
+    // Split at 0 first, then geometrically while the interval spans orders
+    // of magnitude (the Fujiwara bound is often far beyond the roots), else
+    // in the middle.
+    double mid = 0.5 * (iv.a + iv.b);
+    if (iv.a < 0 && iv.b > 0) {
+      mid = 0;
+    } else {
+      const double lo = std::min(std::abs(iv.a), std::abs(iv.b));
+      const double hi = std::max(std::abs(iv.a), std::abs(iv.b));
+      if (hi > 8 * std::max(lo, 1e-3)) {
+        const double geometric = std::sqrt(std::max(lo, 1e-3) * hi);
+        mid = iv.a >= 0 ? geometric : -geometric;
+      }
+    }
+    if (iv.b - iv.a <= 1e-14 * std::max(1.0, std::abs(mid))) {
+      roots[count++] = mid;  // a cluster or multiple root: reported once
+      continue;
+    }
+    if (top + 2 > static_cast<int>(std::size(stack))) break;
+    const int changes_mid = sturm.SignChanges(mid);
+    stack[top++] = {iv.a, mid, iv.changes_a, changes_mid};
+    stack[top++] = {mid, iv.b, changes_mid, iv.changes_b};
+  }
+  return count;
+}
+
+void SturmRealRoots(const Poly& p, std::vector<double>* roots) {
+  if (p.empty()) return;
+  double found[kMaxSturm + 1];
+  const int degree = static_cast<int>(p.size()) - 1;
+  if (degree > kMaxSturm) {
+    MonotoneRealRoots(p, roots);
+    return;
+  }
+  const int count = SturmRealRoots(p.data(), degree, found);
+  roots->insert(roots->end(), found, found + count);
+}
+
 }  // namespace linecloud::poly

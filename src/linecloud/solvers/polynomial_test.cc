@@ -9,7 +9,7 @@ namespace linecloud::poly {
 namespace {
 
 // Polynomials built from known roots: k real roots and complex pairs.
-TEST(Polynomial, MonotoneAndCompanionRootFindersFindTheKnownRealRoots) {
+TEST(Polynomial, MonotoneCompanionAndSturmRootFindersFindTheKnownRealRoots) {
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<double> u(-5.0, 5.0);
   for (int trial = 0; trial < 2000; ++trial) {
@@ -30,12 +30,14 @@ TEST(Polynomial, MonotoneAndCompanionRootFindersFindTheKnownRealRoots) {
     bool separated = true;
     for (size_t i = 1; i < truth.size(); ++i) separated &= truth[i] - truth[i - 1] > 1e-3;
     if (!separated) continue;
-    for (int method = 0; method < 2; ++method) {
+    for (int method = 0; method < 3; ++method) {
       std::vector<double> roots;
       if (method == 0) {
         MonotoneRealRoots(p, &roots);
-      } else {
+      } else if (method == 1) {
         RealRoots(p, &roots);
+      } else {
+        SturmRealRoots(p, &roots);
       }
       std::sort(roots.begin(), roots.end());
       ASSERT_EQ(roots.size(), truth.size()) << "method " << method << " trial " << trial;
@@ -44,6 +46,28 @@ TEST(Polynomial, MonotoneAndCompanionRootFindersFindTheKnownRealRoots) {
       }
     }
   }
+}
+
+TEST(Polynomial, SturmDegenerateInputs) {
+  std::vector<double> roots;
+  SturmRealRoots(Poly{}, &roots);
+  SturmRealRoots(Poly{0.0, 0.0}, &roots);
+  SturmRealRoots(Poly{3.0}, &roots);
+  EXPECT_TRUE(roots.empty());
+  SturmRealRoots(Poly{-2.0, 1.0}, &roots);
+  ASSERT_EQ(roots.size(), 1u);
+  EXPECT_DOUBLE_EQ(roots[0], 2.0);
+  roots.clear();
+  SturmRealRoots(Poly{1.0, 0.0, 1.0}, &roots);  // x² + 1
+  EXPECT_TRUE(roots.empty());
+  SturmRealRoots(Poly{std::nan(""), 1.0}, &roots);
+  EXPECT_TRUE(roots.empty());
+  // (x − 1)² (x + 2): the double root once, the simple root exactly.
+  SturmRealRoots(Mul(Mul(Poly{-1.0, 1.0}, Poly{-1.0, 1.0}), Poly{2.0, 1.0}), &roots);
+  std::sort(roots.begin(), roots.end());
+  ASSERT_EQ(roots.size(), 2u);
+  EXPECT_NEAR(roots[0], -2.0, 1e-12);
+  EXPECT_NEAR(roots[1], 1.0, 1e-6);
 }
 
 TEST(Polynomial, DegenerateInputs) {
