@@ -9,6 +9,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   libopengv-dev  # a peer in the solver benchmark only
   libceres-dev   # the peer of our LM in the refinement benchmark only
+  libcairo2-dev  # eval: PNG plots
+  colmap         # eval: structure from motion (its command line)
   "$@"
 )
 missing=()

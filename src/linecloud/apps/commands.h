@@ -13,6 +13,7 @@ void RegisterExportCommand(CLI::App& app);
 void RegisterSolveCommand(CLI::App& app);
 void RegisterLocalizeCommand(CLI::App& app);
 void RegisterBenchCommand(CLI::App& app);
+void RegisterEvalCommand(CLI::App& app);
 
 // Runs the CLI; returns the process exit code. Errors are printed to stderr
 // as one line `error: ...`.

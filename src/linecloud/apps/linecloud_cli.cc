@@ -19,6 +19,7 @@ int RunLinecloud(int argc, const char* const* argv) {
   RegisterSolveCommand(app);
   RegisterLocalizeCommand(app);
   RegisterBenchCommand(app);
+  RegisterEvalCommand(app);
   if (argc >= 2 && argv[1][0] != '-') {
     const std::string name = argv[1];
     bool known = false;

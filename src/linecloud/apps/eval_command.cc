@@ -1,0 +1,64 @@
+#include <iostream>
+
+#include "linecloud/apps/commands.h"
+#include "linecloud/eval/eval_prepare.h"
+#include "linecloud/eval/eval_run.h"
+
+namespace linecloud {
+
+void RegisterEvalCommand(CLI::App& app) {
+  CLI::App* eval = app.add_subcommand(
+      "eval", "The paper's experiments on a real image dataset (see ../shared/data/README.md)");
+  eval->require_subcommand(1);
+
+  auto prepare_options = std::make_shared<EvalPrepareOptions>();
+  CLI::App* prepare = eval->add_subcommand(
+      "prepare",
+      "COLMAP on all images (ground truth), one map per query group without its images, "
+      "the group's own reconstruction (+l, rig), 2D-3D correspondences by indirect matching");
+  prepare->add_option("--dataset", prepare_options->dataset_dir, "dataset directory")->required();
+  prepare->add_option("--work", prepare_options->work_dir, "work directory (COLMAP results are cached here)")
+      ->required();
+  prepare->add_option("--gravity-noise-deg", prepare_options->gravity_noise_deg,
+                      "+u without an IMU: tilt of the ground-truth gravity, |N(0, sigma)| degrees")
+      ->capture_default_str();
+  prepare->add_option("--colmap", prepare_options->colmap.executable, "COLMAP executable")->capture_default_str();
+  prepare->add_option("--threads", prepare_options->colmap.num_threads, "COLMAP threads (-1: all cores)")
+      ->capture_default_str();
+  prepare->add_flag("--accurate-features", prepare_options->colmap.accurate_features,
+                    "affine-covariant SIFT, domain-size pooling, guided matching (slower)");
+  prepare->add_flag("--verbose", prepare_options->colmap.verbose, "show COLMAP's output instead of logging it");
+  prepare->add_option("--seed", prepare_options->seed, "seed of the gravity noise")->capture_default_str();
+  prepare->callback([prepare_options] { PrepareEvaluation(*prepare_options); });
+
+  auto run_options = std::make_shared<EvalRunOptions>();
+  auto no_sweeps = std::make_shared<bool>(false);
+  CLI::App* run = eval->add_subcommand(
+      "run", "the 16 methods on the prepared correspondences: report.json, report.md, PNG plots");
+  run->add_option("--work", run_options->work_dir, "work directory of `eval prepare`")->required();
+  run->add_option("--out", run_options->out_dir, "results directory")->required();
+  run->add_option("--methods", run_options->methods, "methods to run (default: all 16)");
+  run->add_option("--sparsify", run_options->sparsify, "share of map points/lines dropped at random")
+      ->capture_default_str();
+  run->add_option("--noise", run_options->noise_px, "Gaussian noise (px) added to the query pixels")
+      ->capture_default_str();
+  run->add_option("--threshold", run_options->threshold_px, "RANSAC inlier threshold (px)")->capture_default_str();
+  run->add_option("--seed", run_options->seed, "RANSAC / sparsification seed")->capture_default_str();
+  run->add_option("--density-sweep", run_options->density_sweep, "dropped shares for the density plot")
+      ->capture_default_str();
+  run->add_option("--noise-sweep", run_options->noise_sweep, "synthetic pixel noise levels for the noise plot")
+      ->capture_default_str();
+  run->add_option("--noise-queries", run_options->noise_sweep_queries, "synthetic queries per noise level")
+      ->capture_default_str();
+  run->add_flag("--no-sweeps", *no_sweeps, "skip the density and noise sweeps (and their plots)");
+  run->callback([run_options, no_sweeps] {
+    EvalRunOptions o = *run_options;
+    if (*no_sweeps) {
+      o.density_sweep.clear();
+      o.noise_sweep.clear();
+    }
+    RunEvaluation(o);
+  });
+}
+
+}  // namespace linecloud

@@ -1,0 +1,593 @@
+#include "linecloud/eval/eval_run.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <numbers>
+#include <random>
+#include <set>
+
+#include <fmt/core.h>
+
+#include "linecloud/eval/plot.h"
+#include "linecloud/eval/scene_localization.h"
+#include "linecloud/eval/statistics.h"
+#include "linecloud/io/colmap_model.h"
+#include "linecloud/io/json_util.h"
+#include "linecloud/lifting/key.h"
+#include "linecloud/lifting/lifting.h"
+#include "linecloud/localize/localize.h"
+#include "linecloud/synthetic/localization_instances.h"
+#include "linecloud/synthetic/scene.h"
+#include "linecloud/util/error.h"
+#include "linecloud/util/file.h"
+
+namespace linecloud {
+namespace {
+
+using nlohmann::json;
+constexpr double kDeg = 180.0 / std::numbers::pi;
+
+// The paper's Table 2 on its real data (Speciale et al., CVPR 2019): mean
+// RANSAC iterations, inlier ratio %, mean solutions; and its mean
+// reprojection errors initial / refined where it reports them (px;
+// point-to-line, point-to-point against the secret points in brackets).
+struct PaperRow {
+  const char* method;
+  double iterations, inlier_percent, solutions;
+  double reprojection_initial, reprojection_refined;  // 0: not reported
+};
+constexpr PaperRow kPaper[] = {
+    {"p3P", 31, 64, 2.05, 1.84, 1.42},        {"p2P+u", 15, 64, 2, 1.88, 1.43},
+    {"m-p3P", 38, 64, 1.7, 0, 0},             {"m-p2P+u", 11, 65, 2, 0, 0},
+    {"m-P3P+l", 23, 62, 1, 0, 0},             {"m-P2P+l+u", 12, 62, 1, 0, 0},
+    {"m-P3P+l+s", 24, 62, 1, 0, 0},           {"m-P2P+l+u+s", 12, 62, 1, 0, 0},
+    {"p6L", 158, 69, 64, 1.55, 1.10},         {"p4L+u", 40, 70, 4, 1.45, 1.08},
+    {"m-p6L", 64, 72, 64, 0, 0},              {"m-p4L+u", 23, 72, 4, 0, 0},
+    {"m-P4L+l", 27, 68, 1.5, 0, 0},           {"m-P3L+l+u", 24, 68, 1, 0, 0},
+    {"m-P3L+l+s", 18, 68, 2.1, 0, 0},         {"m-P2L+l+u+s", 9, 68, 2, 0, 0}};
+
+const PaperRow* PaperFor(std::string_view method) {
+  for (const PaperRow& r : kPaper) {
+    if (method == r.method) return &r;
+  }
+  return nullptr;
+}
+
+// Recall thresholds (rotation °, translation in the work's units).
+constexpr std::pair<double, double> kRecall[] = {{0.25, 0.025}, {0.5, 0.05}, {1, 0.1}, {2, 0.25}, {5, 1}};
+
+uint64_t SplitMix(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+// Keeps a point when a hash of (seed, id) is at least `drop`: the same points
+// (and their lines) go for every method, and nested levels drop supersets.
+bool KeepPoint(uint64_t id, double drop, uint64_t seed) {
+  if (drop <= 0) return true;
+  const double u = static_cast<double>(SplitMix(id ^ SplitMix(seed)) >> 11) * 0x1.0p-53;
+  return u >= drop;
+}
+
+struct GroupMaps {
+  PointMap points;
+  LineMap lines;
+};
+
+struct QueryRecord {
+  std::string group, name;
+  int correspondences = 0;
+  bool success = false;
+  std::string error;
+  double rotation_deg[2] = {180, 180};
+  double position[2] = {1e9, 1e9};
+  double reprojection_px[2] = {0, 0};
+  double point_reprojection_px[2] = {0, 0};
+  RansacStats stats;
+  double refine_ms = 0;
+};
+
+struct EvalQuery {
+  std::string group, name;
+  Query query;
+  Sim3d truth;
+};
+
+Sim3d ToSim3(const Rigid3d& p) { return Sim3d(1.0, p.rotation, p.translation); }
+
+// One method's queries: single images, or each group as a rig; +l methods
+// use the correspondences that have a local point; without known scale the
+// local points and the rig are in the local reconstruction's own scale.
+std::vector<EvalQuery> QueriesForMethod(const EvalWork& work, const MethodInfo& method,
+                                        const std::vector<GroupMaps>& maps) {
+  std::vector<EvalQuery> out;
+  for (size_t gi = 0; gi < work.groups.size(); ++gi) {
+    const EvalGroup& g = work.groups[gi];
+    const auto& ids = maps[gi].points.points;
+    if (!method.multi) {
+      for (const EvalImage& im : g.images) {
+        EvalQuery q{g.name, im.name, {}, ToSim3(im.cam_from_world)};
+        q.query.cameras = {work.cameras.at(im.camera_id)};
+        for (const EvalCorrespondence& c : im.correspondences) {
+          if (ids.count(c.point_id)) q.query.observations.push_back({0, c.xy, c.point_id});
+        }
+        if (method.gravity) {
+          q.query.gravity_query = im.gravity;
+          q.query.gravity_map = work.gravity_world;
+        }
+        out.push_back(std::move(q));
+      }
+      continue;
+    }
+    if (!g.has_rig || g.images.size() < 2) continue;
+    const double scale = method.similarity() ? g.local_scale : 1.0;
+    std::string name = g.name;
+    EvalQuery q{g.name, "", {}, Sim3d(scale, g.rig_from_world.rotation, scale * g.rig_from_world.translation)};
+    for (size_t c = 0; c < g.images.size(); ++c) {
+      const EvalImage& im = g.images[c];
+      name += (c ? "+" : ":") + im.name;
+      q.query.cameras.push_back(work.cameras.at(im.camera_id));
+      Rigid3d cam_from_rig = im.cam_from_rig;
+      cam_from_rig.translation *= scale;
+      q.query.cam_from_rig.push_back(cam_from_rig);
+      for (const EvalCorrespondence& corr : im.correspondences) {
+        if (!ids.count(corr.point_id)) continue;
+        if (method.local_points) {
+          if (!corr.point_local) continue;
+          q.query.points_local.push_back(scale * *corr.point_local);
+        }
+        q.query.observations.push_back({static_cast<int>(c), corr.xy, corr.point_id});
+      }
+    }
+    q.name = name;
+    if (method.gravity) {
+      q.query.gravity_query = g.gravity_rig;
+      q.query.gravity_map = work.gravity_world;
+    }
+    out.push_back(std::move(q));
+  }
+  return out;
+}
+
+// Mean reprojection error of the map's (secret) points over `inliers`.
+double PointReprojection(const Query& query, const PointMap& map, const Sim3d& pose,
+                         const std::vector<int>& inliers) {
+  double sum = 0;
+  int n = 0;
+  for (int i : inliers) {
+    const QueryObservation& o = query.observations[i];
+    Eigen::Vector3d x = pose * map.points.at(o.id);
+    if (!query.cam_from_rig.empty()) x = query.cam_from_rig[o.camera] * x;
+    if (!(x.z() > 0)) continue;
+    sum += (query.cameras[o.camera].ImgFromCam(x) - o.xy).norm();
+    ++n;
+  }
+  return n ? sum / n : 0;
+}
+
+std::vector<QueryRecord> RunMethod(const EvalWork& work, const MethodInfo& method,
+                                   const std::vector<GroupMaps>& maps, const EvalRunOptions& options) {
+  std::vector<QueryRecord> records;
+  std::map<std::string, size_t> group_index;
+  for (size_t gi = 0; gi < work.groups.size(); ++gi) group_index[work.groups[gi].name] = gi;
+  LocalizeOptions lo;
+  lo.ransac.max_error = options.threshold_px;
+  lo.ransac.seed = options.seed;
+  for (const EvalQuery& q : QueriesForMethod(work, method, maps)) {
+    QueryRecord r;
+    r.group = q.group;
+    r.name = q.name;
+    r.correspondences = static_cast<int>(q.query.observations.size());
+    const GroupMaps& m = maps[group_index.at(q.group)];
+    const LocalizationMap map = method.lines ? LocalizationMap(m.lines) : LocalizationMap(m.points);
+    try {
+      const LocalizeResult res = Localize(method, q.query, map, lo, q.name);
+      r.success = res.success;
+      r.stats = res.stats;
+      r.refine_ms = res.refine_ms;
+      if (res.success) {
+        const Sim3d* est[2] = {&res.initial, &res.query_from_world};
+        for (int k = 0; k < 2; ++k) {
+          const LocalizationError e = CompareLocalization(*est[k], q.truth);
+          r.rotation_deg[k] = e.rotation_rad * kDeg;
+          // Positions in the work's units also for Sim3 queries (the rig
+          // centre in the world frame is scale-free).
+          r.position[k] = e.position;
+          r.point_reprojection_px[k] = PointReprojection(q.query, m.points, *est[k], res.inliers);
+        }
+        r.reprojection_px[0] = res.reprojection_initial_px;
+        r.reprojection_px[1] = res.reprojection_refined_px;
+      } else {
+        r.error = "RANSAC found no pose";
+      }
+    } catch (const Error& e) {
+      r.error = e.what();
+    }
+    records.push_back(std::move(r));
+  }
+  return records;
+}
+
+json MethodReport(const std::vector<QueryRecord>& records) {
+  const double n = std::max<size_t>(1, records.size());
+  std::vector<double> rot[2], pos[2];
+  double iterations = 0, inliers = 0, solutions = 0, solver_us = 0, ransac_ms = 0, refine_ms = 0;
+  double reproj[2] = {0, 0}, point_reproj[2] = {0, 0};
+  int localized = 0, successes = 0;
+  json per_query = json::array();
+  for (const QueryRecord& r : records) {
+    for (int k = 0; k < 2; ++k) {
+      rot[k].push_back(r.rotation_deg[k]);
+      pos[k].push_back(r.position[k]);
+    }
+    iterations += r.stats.iterations;
+    inliers += r.stats.inlier_ratio;
+    solutions += r.stats.mean_solutions;
+    solver_us += r.stats.solver_us;
+    ransac_ms += r.stats.ransac_ms;
+    refine_ms += r.refine_ms;
+    if (r.success) {
+      ++successes;
+      for (int k = 0; k < 2; ++k) {
+        reproj[k] += r.reprojection_px[k];
+        point_reproj[k] += r.point_reprojection_px[k];
+      }
+    }
+    localized += r.rotation_deg[1] < 1.0 && r.position[1] < 0.1;
+    json q = {{"group", r.group}, {"query", r.name}, {"correspondences", r.correspondences},
+              {"success", r.success},
+              {"rotation_deg", {{"initial", r.rotation_deg[0]}, {"refined", r.rotation_deg[1]}}},
+              {"translation", {{"initial", r.position[0]}, {"refined", r.position[1]}}},
+              {"iterations", r.stats.iterations}, {"inlier_ratio", r.stats.inlier_ratio},
+              {"mean_solutions", r.stats.mean_solutions}, {"solver_us", r.stats.solver_us},
+              {"ransac_ms", r.stats.ransac_ms}, {"refine_ms", r.refine_ms},
+              {"reprojection_px", {{"initial", r.reprojection_px[0]}, {"refined", r.reprojection_px[1]},
+                                   {"point_initial", r.point_reprojection_px[0]},
+                                   {"point_refined", r.point_reprojection_px[1]}}}};
+    if (!r.error.empty()) q["error"] = r.error;
+    per_query.push_back(q);
+  }
+  json recall = json::object();
+  for (const auto& [deg, t] : kRecall) {
+    int hits = 0;
+    for (const QueryRecord& r : records) hits += r.rotation_deg[1] < deg && r.position[1] < t;
+    recall[fmt::format("{:g}deg_{:g}", deg, t)] = records.empty() ? 0.0 : hits / n;
+  }
+  const double ns = std::max(1, successes);
+  return {{"queries", records.size()},
+          {"localized", localized},
+          {"median_rotation_deg", Median(rot[1])},
+          {"median_translation", Median(pos[1])},
+          {"median_rotation_deg_initial", Median(rot[0])},
+          {"median_translation_initial", Median(pos[0])},
+          {"recall", recall},
+          {"mean_iterations", iterations / n},
+          {"inlier_ratio", inliers / n},
+          {"mean_solutions", solutions / n},
+          {"solver_us", solver_us / n},
+          {"ransac_ms", ransac_ms / n},
+          {"refine_ms", refine_ms / n},
+          {"reprojection_px", {{"initial", reproj[0] / ns}, {"refined", reproj[1] / ns},
+                               {"point_initial", point_reproj[0] / ns},
+                               {"point_refined", point_reproj[1] / ns}}},
+          {"per_query", per_query}};
+}
+
+std::vector<GroupMaps> LoadMaps(const EvalWork& work, const std::string& work_dir,
+                                const LiftingKey& key, double drop, uint64_t seed) {
+  std::vector<GroupMaps> maps;
+  for (const EvalGroup& g : work.groups) {
+    const Reconstruction model = ReadColmapModel(JoinPaths(work_dir, g.map_dir));
+    std::vector<uint64_t> ids;
+    std::vector<Eigen::Vector3d> xyz;
+    for (uint64_t id : model.SortedPoint3DIds()) {
+      if (!KeepPoint(id, drop, seed)) continue;
+      ids.push_back(id);
+      xyz.push_back(model.points3D.at(id).xyz);
+    }
+    GroupMaps m;
+    for (size_t i = 0; i < ids.size(); ++i) m.points.points[ids[i]] = xyz[i];
+    m.lines = LineMapFromCloud(LiftPoints(ids, xyz, key, {LineEncoding::kPlucker}));
+    maps.push_back(std::move(m));
+  }
+  return maps;
+}
+
+// Pair colours: a point method and its line twin share a colour; lines dashed.
+int PairColor(const MethodInfo& m) {
+  const auto all = AllMethods();
+  for (size_t i = 0; i < all.size(); ++i) {
+    if (all[i].name == m.name) return static_cast<int>(i % 8);
+  }
+  return 0;
+}
+
+std::vector<double> CumulativeAt(std::vector<double> errors, const std::vector<double>& xs) {
+  std::sort(errors.begin(), errors.end());
+  std::vector<double> y;
+  for (double x : xs) {
+    const auto it = std::upper_bound(errors.begin(), errors.end(), x);
+    y.push_back(errors.empty() ? 0.0 : 100.0 * (it - errors.begin()) / errors.size());
+  }
+  return y;
+}
+
+std::string Fixed(double v, int decimals) {
+  return std::isfinite(v) ? fmt::format("{:.{}f}", v, decimals) : "–";
+}
+
+// A markdown table: one row per method (paper order), one column per sweep level.
+std::string SweepTable(const std::vector<std::string>& columns, const json& values_by_method) {
+  std::string md = "| method |";
+  for (const std::string& c : columns) md += " " + c + " |";
+  md += "\n|---|";
+  for (size_t i = 0; i < columns.size(); ++i) md += "---|";
+  md += "\n";
+  for (const MethodInfo& info : AllMethods()) {
+    const std::string name(info.name);
+    if (!values_by_method.contains(name)) continue;
+    md += "| " + name + " |";
+    for (double x : values_by_method[name]) md += " " + Fixed(x, 3) + " |";
+    md += "\n";
+  }
+  return md;
+}
+
+std::string ReportMarkdown(const EvalWork& work, const EvalRunOptions& options, const json& report) {
+  std::string md = fmt::format("# linecloud eval — {}\n\n", work.dataset);
+  md += fmt::format("Units: {}. RANSAC threshold {} px for every method; seed {}; map sparsified by {:.0f} %; "
+                    "extra pixel noise σ = {} px.\n\n",
+                    work.units, options.threshold_px, options.seed, 100 * options.sparsify, options.noise_px);
+  if (work.reconstruction.contains("ground_truth")) {
+    const json& g = work.reconstruction["ground_truth"];
+    md += fmt::format("COLMAP reconstruction vs. ground truth (similarity on {} map cameras): map cameras max "
+                      "{:.3f}° / {:.4f} m, query cameras max {:.3f}° / {:.4f} m.\n\n",
+                      g["aligned_on"].get<int>(), g["map_max_rotation_deg"].get<double>(),
+                      g["map_max_position_m"].get<double>(), g["query_max_rotation_deg"].get<double>(),
+                      g["query_max_position_m"].get<double>());
+  }
+  md += fmt::format("Gravity (+u): {}.\n\n", work.gravity_source);
+  md += "Table 2 layout. Rotation error (°) and translation error; `loc.` = within 1° and 0.1; "
+        "iterations, inlier ratio, solutions and solver time are means per query; reprojection "
+        "errors (px) are means over the inliers: point-to-line for line methods with the point-to-point "
+        "error against the secret points in brackets. Paper = Speciale et al., CVPR 2019, Table 2.\n\n";
+  md += "| method | queries | loc. | rot. init / ref. | trans. init / ref. | iters | inliers % | "
+        "solutions | solver µs | reproj. init / ref. px | paper: iters / inl. % / sol. | paper reproj. |\n";
+  md += "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const MethodInfo& info : AllMethods()) {
+    const std::string name(info.name);
+    if (!report["methods"].contains(name)) continue;
+    const json& m = report["methods"][name];
+    const bool lines = info.lines;
+    const json& rp = m["reprojection_px"];
+    std::string reproj = Fixed(rp["initial"], 2) + " / " + Fixed(rp["refined"], 2);
+    if (lines) {
+      reproj = fmt::format("{} ({}) / {} ({})", Fixed(rp["initial"], 2), Fixed(rp["point_initial"], 2),
+                           Fixed(rp["refined"], 2), Fixed(rp["point_refined"], 2));
+    }
+    std::string paper = "–", paper_reproj = "–";
+    if (const PaperRow* p = PaperFor(name)) {
+      paper = fmt::format("{:g} / {:g} / {:g}", p->iterations, p->inlier_percent, p->solutions);
+      if (p->reprojection_initial > 0) paper_reproj = fmt::format("{:.2f} / {:.2f}", p->reprojection_initial, p->reprojection_refined);
+    }
+    md += fmt::format("| {} | {} | {} | {} / {} | {} / {} | {:.1f} | {:.0f} | {:.2f} | {:.1f} | {} | {} | {} |\n",
+                      name, m["queries"].get<int>(), m["localized"].get<int>(),
+                      Fixed(m["median_rotation_deg_initial"], 3), Fixed(m["median_rotation_deg"], 3),
+                      Fixed(m["median_translation_initial"], 4), Fixed(m["median_translation"], 4),
+                      m["mean_iterations"].get<double>(), 100 * m["inlier_ratio"].get<double>(),
+                      m["mean_solutions"].get<double>(), m["solver_us"].get<double>(), reproj, paper,
+                      paper_reproj);
+  }
+  if (report.contains("density")) {
+    std::vector<std::string> columns;
+    for (double f : report["density"]["dropped"]) columns.push_back(fmt::format("{:.0f} %", 100 * f));
+    md += "\n## Error vs. map density (Fig. 7)\n\nMedian refined rotation error (°) when a share of the "
+          "map's points (and the same lines) is dropped at random.\n\n" +
+          SweepTable(columns, report["density"]["median_rotation_deg"]);
+  }
+  if (report.contains("noise")) {
+    std::vector<std::string> columns;
+    for (double f : report["noise"]["noise_px"]) columns.push_back(fmt::format("{:g} px", f));
+    md += "\n## Error vs. pixel noise, synthetic (Fig. 8)\n\nMedian refined rotation error (°).\n\n" +
+          SweepTable(columns, report["noise"]["median_rotation_deg"]);
+  }
+  return md;
+}
+
+double SecondsSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+void EvalRunOptions::Check() const {
+  if (work_dir.empty()) Fail("--work: empty");
+  if (out_dir.empty()) Fail("--out: empty");
+  for (const std::string& m : methods) FindMethod(m);
+  if (!(sparsify >= 0 && sparsify < 1)) Fail("--sparsify: {} not in [0, 1)", sparsify);
+  if (!(noise_px >= 0 && std::isfinite(noise_px))) Fail("--noise: {} is not a pixel std. dev. >= 0", noise_px);
+  if (!(threshold_px > 0 && std::isfinite(threshold_px))) Fail("--threshold: {} must be > 0", threshold_px);
+  for (double f : density_sweep) {
+    if (!(f >= 0 && f < 1)) Fail("density sweep: {} not in [0, 1)", f);
+  }
+  for (double n : noise_sweep) {
+    if (!(n >= 0 && std::isfinite(n))) Fail("noise sweep: {} is not >= 0", n);
+  }
+  if (noise_sweep_queries < 1) Fail("noise sweep queries: {} < 1", noise_sweep_queries);
+}
+
+json RunEvaluation(const EvalRunOptions& options) {
+  options.Check();
+  const std::string work_path = JoinPaths(options.work_dir, "prepared.json");
+  if (!FileExists(work_path)) Fail("{}: not found (run `linecloud eval prepare --work {}` first)", work_path, options.work_dir);
+  EvalWork work = EvalWorkFromJson(ReadJsonFile(work_path), work_path);
+  if (options.noise_px > 0) {
+    std::mt19937_64 rng(options.seed);
+    std::normal_distribution<double> noise(0.0, options.noise_px);
+    for (EvalGroup& g : work.groups) {
+      for (EvalImage& im : g.images) {
+        for (EvalCorrespondence& c : im.correspondences) c.xy += Eigen::Vector2d(noise(rng), noise(rng));
+      }
+    }
+  }
+  // The evaluation's maps are lifted with one permanent key per work directory.
+  const std::string key_path = JoinPaths(options.work_dir, "lifting.key");
+  if (!FileExists(key_path)) WriteKeyFile(key_path, LiftingKey::Generate());
+  const LiftingKey key = ReadKeyFile(key_path);
+
+  std::vector<const MethodInfo*> methods;
+  if (options.methods.empty()) {
+    for (const MethodInfo& m : AllMethods()) methods.push_back(&m);
+  } else {
+    for (const std::string& n : options.methods) methods.push_back(&FindMethod(n));
+  }
+  CreateDirectories(options.out_dir);
+
+  json report = {{"dataset", work.dataset}, {"units", work.units},
+                 {"threshold_px", options.threshold_px}, {"sparsify", options.sparsify},
+                 {"noise_px", options.noise_px}, {"seed", options.seed},
+                 {"gravity_source", work.gravity_source}, {"reconstruction", work.reconstruction}};
+  report["methods"] = json::object();
+  std::map<std::string, std::vector<QueryRecord>> all_records;
+  {
+    const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, options.sparsify, options.seed);
+    for (const MethodInfo* m : methods) {
+      const auto t0 = std::chrono::steady_clock::now();
+      std::vector<QueryRecord> records = RunMethod(work, *m, maps, options);
+      json mr = MethodReport(records);
+      fmt::print("[eval] {:<12} {:>3} queries, {:>3} localized, median {:.3f}° / {:.4f}, {:>6.1f} iterations, "
+                 "inliers {:.0f} %, reprojection {:.2f} px ({:.1f} s)\n",
+                 m->name, mr["queries"].get<int>(), mr["localized"].get<int>(),
+                 mr["median_rotation_deg"].get<double>(), mr["median_translation"].get<double>(),
+                 mr["mean_iterations"].get<double>(), 100 * mr["inlier_ratio"].get<double>(),
+                 mr["reprojection_px"]["refined"].get<double>(), SecondsSince(t0));
+      std::fflush(stdout);
+      report["methods"][std::string(m->name)] = mr;
+      all_records[std::string(m->name)] = std::move(records);
+    }
+  }
+
+  // Fig. 5: cumulative error curves.
+  {
+    std::vector<double> xr, xt;
+    // Log-spaced: 1e-3° .. 10°, 1e-4 .. 10 units.
+    for (int i = 0; i <= 200; ++i) xr.push_back(std::pow(10.0, -3 + 4.0 * i / 200));
+    for (int i = 0; i <= 250; ++i) xt.push_back(std::pow(10.0, -4 + 5.0 * i / 250));
+    std::vector<PlotSeries> rs, ts;
+    for (const MethodInfo* m : methods) {
+      std::vector<double> r, t;
+      for (const QueryRecord& q : all_records[std::string(m->name)]) {
+        r.push_back(q.rotation_deg[1]);
+        t.push_back(q.position[1]);
+      }
+      rs.push_back({std::string(m->name), xr, CumulativeAt(r, xr), PairColor(*m), m->lines});
+      ts.push_back({std::string(m->name), xt, CumulativeAt(t, xt), PairColor(*m), m->lines});
+    }
+    WriteLinePlot(JoinPaths(options.out_dir, "cumulative_rotation.png"),
+                  {.title = work.dataset + ": cumulative rotation error (refined)", .x_label = "rotation error (deg)",
+                   .y_label = "queries (%)", .log_x = true, .y_min = 0, .y_max = 100},
+                  rs);
+    WriteLinePlot(JoinPaths(options.out_dir, "cumulative_translation.png"),
+                  {.title = work.dataset + ": cumulative translation error (refined)",
+                   .x_label = "translation error (" + work.units + ")", .y_label = "queries (%)", .log_x = true, .y_min = 0, .y_max = 100},
+                  ts);
+  }
+
+  // Fig. 7: error vs. map density.
+  if (!options.density_sweep.empty()) {
+    json d = {{"dropped", options.density_sweep}, {"median_rotation_deg", json::object()},
+              {"median_translation", json::object()}};
+    std::map<std::string, std::vector<double>> rot, pos;
+    for (double drop : options.density_sweep) {
+      const auto t0 = std::chrono::steady_clock::now();
+      const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, drop, options.seed);
+      for (const MethodInfo* m : methods) {
+        std::vector<QueryRecord> records = drop == options.sparsify ? all_records[std::string(m->name)]
+                                                                    : RunMethod(work, *m, maps, options);
+        std::vector<double> r, t;
+        for (const QueryRecord& q : records) {
+          r.push_back(q.rotation_deg[1]);
+          t.push_back(q.position[1]);
+        }
+        rot[std::string(m->name)].push_back(Median(r));
+        pos[std::string(m->name)].push_back(Median(t));
+      }
+      fmt::print("[eval] map density: {:.0f} % of the points dropped ({:.1f} s)\n", 100 * drop, SecondsSince(t0));
+      std::fflush(stdout);
+    }
+    std::vector<PlotSeries> series;
+    for (const MethodInfo* m : methods) {
+      const std::string n(m->name);
+      d["median_rotation_deg"][n] = rot[n];
+      d["median_translation"][n] = pos[n];
+      std::vector<double> x;
+      for (double f : options.density_sweep) x.push_back(100 * f);
+      series.push_back({n, x, rot[n], PairColor(*m), m->lines});
+    }
+    report["density"] = d;
+    WriteLinePlot(JoinPaths(options.out_dir, "error_vs_density.png"),
+                  {.title = work.dataset + ": median rotation error vs. map density",
+                   .x_label = "points / lines dropped (%)", .y_label = "median rotation error (deg)", .log_y = true},
+                  series);
+  }
+
+  // Fig. 8: error vs. pixel noise on the synthetic scene.
+  if (!options.noise_sweep.empty()) {
+    json d = {{"noise_px", options.noise_sweep}, {"queries_per_level", options.noise_sweep_queries},
+              {"median_rotation_deg", json::object()}, {"median_translation_relative", json::object()}};
+    std::map<std::string, std::vector<double>> rot, pos;
+    for (double noise : options.noise_sweep) {
+      const auto t0 = std::chrono::steady_clock::now();
+      SyntheticSceneOptions so;
+      so.noise_px = noise;
+      so.num_queries = options.noise_sweep_queries;
+      so.seed = options.seed;
+      const SyntheticScene scene = GenerateSyntheticScene(so);
+      const std::vector<uint64_t> ids = scene.model.SortedPoint3DIds();
+      std::vector<Eigen::Vector3d> xyz;
+      for (uint64_t id : ids) xyz.push_back(scene.model.points3D.at(id).xyz);
+      const PointMap point_map = PointMapFromModel(scene.model);
+      const LineMap line_map = LineMapFromCloud(LiftPoints(ids, xyz, key, {LineEncoding::kPlucker}));
+      SceneQueryOptions qo;
+      qo.seed = options.seed;
+      LocalizeOptions lo;
+      lo.ransac.max_error = std::max(options.threshold_px, 3 * noise);
+      lo.ransac.seed = options.seed;
+      for (const MethodInfo* m : methods) {
+        const auto queries = SceneQueriesForMethod(scene, *m, qo);
+        const MethodSummary s = EvaluateMethod(*m, queries, m->lines ? LocalizationMap(line_map) : LocalizationMap(point_map),
+                                               lo, 1.0, 0.01 * scene.extent);
+        rot[std::string(m->name)].push_back(s.median_rotation_deg[1]);
+        pos[std::string(m->name)].push_back(s.median_position[1] / scene.extent);
+      }
+      fmt::print("[eval] synthetic noise {} px ({:.1f} s)\n", noise, SecondsSince(t0));
+      std::fflush(stdout);
+    }
+    std::vector<PlotSeries> series;
+    for (const MethodInfo* m : methods) {
+      const std::string n(m->name);
+      d["median_rotation_deg"][n] = rot[n];
+      d["median_translation_relative"][n] = pos[n];
+      series.push_back({n, options.noise_sweep, rot[n], PairColor(*m), m->lines});
+    }
+    report["noise"] = d;
+    WriteLinePlot(JoinPaths(options.out_dir, "error_vs_noise.png"),
+                  {.title = "synthetic scene: median rotation error vs. pixel noise", .x_label = "pixel noise σ (px)",
+                   .y_label = "median rotation error (deg)", .log_y = true},
+                  series);
+  }
+
+  WriteFileAtomically(JoinPaths(options.out_dir, "report.json"),
+                      [&](std::ostream& o) { o << report.dump(1) << "\n"; });
+  const std::string md = ReportMarkdown(work, options, report);
+  WriteFileAtomically(JoinPaths(options.out_dir, "report.md"), [&](std::ostream& o) { o << md; });
+  fmt::print("[eval] wrote {}/report.json, report.md and PNG plots\n", options.out_dir);
+  return report;
+}
+
+}  // namespace linecloud

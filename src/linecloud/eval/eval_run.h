@@ -1,0 +1,37 @@
+// `linecloud eval run`: the 16 methods on the correspondences `eval prepare`
+// stored, against each group's point map and its lifted line cloud, initial
+// and refined; report.json, report.md (the paper's Table 2 layout) and PNG
+// plots (Figs. 5, 7 and 8 of Speciale et al., CVPR 2019).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "linecloud/eval/eval_work.h"
+
+namespace linecloud {
+
+struct EvalRunOptions {
+  std::string work_dir;
+  std::string out_dir;
+  std::vector<std::string> methods;  // empty: all 16
+  double sparsify = 0.0;             // share of map points (and lines) dropped at random
+  double noise_px = 0.0;             // Gaussian noise added to the query pixels
+  double threshold_px = 4.0;         // RANSAC inlier threshold, every method
+  uint64_t seed = 1;
+  // Fig. 7: map densities (share dropped) swept for the density plot; empty: no sweep.
+  std::vector<double> density_sweep = {0.0, 0.5, 0.75, 0.9, 0.95};
+  // Fig. 8: synthetic pixel-noise levels; empty: no sweep.
+  std::vector<double> noise_sweep = {0.0, 1.0, 2.0, 3.0, 4.0, 5.0};
+  int noise_sweep_queries = 10;      // synthetic queries per method and level
+
+  void Check() const;
+};
+
+// Runs everything and writes RESULTS; returns report.json's content.
+nlohmann::json RunEvaluation(const EvalRunOptions& options);
+
+}  // namespace linecloud
