@@ -324,15 +324,15 @@ std::string Fixed(double v, int decimals) {
 // A markdown table: one row per method (paper order), one column per sweep level.
 std::string SweepTable(const std::vector<std::string>& columns, const json& values_by_method) {
   std::string md = "| method |";
-  for (const std::string& c : columns) md += " " + c + " |";
+  for (const std::string& c : columns) md += fmt::format(" {} |", c);
   md += "\n|---|";
   for (size_t i = 0; i < columns.size(); ++i) md += "---|";
   md += "\n";
   for (const MethodInfo& info : AllMethods()) {
     const std::string name(info.name);
     if (!values_by_method.contains(name)) continue;
-    md += "| " + name + " |";
-    for (double x : values_by_method[name]) md += " " + Fixed(x, 3) + " |";
+    md += fmt::format("| {} |", name);
+    for (double x : values_by_method[name]) md += fmt::format(" {} |", Fixed(x, 3));
     md += "\n";
   }
   return md;
@@ -345,11 +345,11 @@ std::string ReportMarkdown(const EvalWork& work, const EvalRunOptions& options, 
                     work.units, options.threshold_px, options.seed, 100 * options.sparsify, options.noise_px);
   if (work.reconstruction.contains("ground_truth")) {
     const json& g = work.reconstruction["ground_truth"];
-    md += fmt::format("COLMAP reconstruction vs. ground truth (similarity on {} map cameras): map cameras max "
-                      "{:.3f}° / {:.4f} m, query cameras max {:.3f}° / {:.4f} m.\n\n",
-                      g["aligned_on"].get<int>(), g["map_max_rotation_deg"].get<double>(),
-                      g["map_max_position_m"].get<double>(), g["query_max_rotation_deg"].get<double>(),
-                      g["query_max_position_m"].get<double>());
+    md += fmt::format("COLMAP reconstruction vs. ground truth, after a similarity alignment on {} cameras "
+                      "(rotation from their orientations, scale and translation from their centres): "
+                      "max {:.3f}° / {:.4f} m.\n\n",
+                      g["aligned_on"].get<int>(), g["max_rotation_deg"].get<double>(),
+                      g["max_position_m"].get<double>());
   }
   md += fmt::format("Gravity (+u): {}.\n\n", work.gravity_source);
   md += "Table 2 layout. Rotation error (°) and translation error; `loc.` = within 1° and 0.1; "
