@@ -59,6 +59,12 @@ int ReprojectionResidual(const PoseData& data, const PoseLinearization& pose, si
     const Eigen::Vector3d ray(x.x(), x.y(), 1.0);
     const double e = w2.dot(ray);
     *residual = Eigen::Vector2d(f * e / n, 0.0);  // second entry unused
+    // The line passes behind the camera where the viewing ray comes closest:
+    // as SquaredReprojectionError, for residuals that could be inliers.
+    if ((*residual)[0] * (*residual)[0] < kCheiralityBelow &&
+        !internal::LineInFront(v2.cross(w2), v2, data.bearings[i])) {
+      return 0;
+    }
     if (jacobian != nullptr) {
       // e = a·w'' with a = ∂e/∂w''. With b = R_cᵀ a and c = R_cᵀ (a × t_c):
       // de = b·dw' + c·dv', dv' = ω × Rv, dw' = s ω × Rw + δt × Rv +

@@ -17,6 +17,10 @@
 
 namespace linecloud {
 
+// Cheirality of a line is only tested for residuals below this (px²):
+// larger ones are outliers to any caller anyway.
+constexpr double kCheiralityBelow = 1e4;
+
 struct PoseData {
   std::vector<Rigid3d> cam_from_rig;        // one per camera; identity for one image
   std::vector<int> camera;                  // camera of each correspondence
@@ -48,7 +52,7 @@ struct CameraPoses {
 // least `cheirality_below` px² (outliers to the caller anyway).
 // (Inline below: RANSAC scores every correspondence of every model with it.)
 inline double SquaredReprojectionError(const PoseData& data, const CameraPoses& poses,
-                                       size_t i, double cheirality_below = 1e4);
+                                       size_t i, double cheirality_below = kCheiralityBelow);
 
 // A pose with its rotation matrices computed once, for evaluating many
 // residuals.
@@ -64,8 +68,10 @@ struct PoseLinearization {
 // Residuals of correspondence i (2 for a point, 1 for a line, in px) and their
 // Jacobian with respect to a left perturbation of query_from_world:
 // R ← exp([ω]×) R, t ← t + δt, s ← s·exp(δσ), columns (ω, δt, δσ).
-// Returns the number of residuals, 0 if the point is behind its camera; for a
-// line the second residual and Jacobian row are zero.
+// Returns the number of residuals, 0 if the point is behind its camera or the
+// line passes behind it (the test of SquaredReprojectionError, for residuals
+// below kCheiralityBelow); for a line the second residual and Jacobian row are
+// zero.
 int ReprojectionResidual(const PoseData& data, const PoseLinearization& pose, size_t i,
                          Eigen::Vector2d* residual, Eigen::Matrix<double, 2, 7>* jacobian);
 inline int ReprojectionResidual(const PoseData& data, const Sim3d& query_from_world, size_t i,

@@ -1,6 +1,8 @@
 #include "linecloud/estimation/refine_pose.h"
 
+#include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Geometry>
@@ -12,15 +14,43 @@ namespace {
 
 double CauchyLoss(double squared, double c2) { return c2 * std::log1p(squared / c2); }
 
-double Cost(const PoseData& data, std::span<const int> indices, const Sim3d& pose,
-            double c2) {
-  const CameraPoses poses(data, pose);
+// The value the loss takes for a correspondence behind its camera: its loss
+// at 1000 px.
+constexpr double kBehindSquared = 1e6;
+
+// Σ ρ(r²) over the correspondences and the Gauss–Newton system of the
+// IRLS-weighted residuals (weights ρ'(r²) of the Cauchy loss), in one pass:
+// the LM loop evaluates each candidate once and, when it is accepted, already
+// has the system for the next step. Only the upper triangle of h is filled.
+struct Linearization {
   double cost = 0;
+  Eigen::Matrix<double, 7, 7> h;
+  Eigen::Matrix<double, 7, 1> g;
+};
+
+void Linearize(const PoseData& data, std::span<const int> indices, const Sim3d& pose,
+               double c2, Linearization* out) {
+  out->cost = 0;
+  out->h.setZero();
+  out->g.setZero();
+  const PoseLinearization linearization(data, pose);
+  Eigen::Vector2d r;
+  Eigen::Matrix<double, 2, 7> j;
   for (const int i : indices) {
-    // Behind the camera (+∞): the value the loss takes at 1000 px.
-    cost += CauchyLoss(std::min(1e6, SquaredReprojectionError(data, poses, i)), c2);
+    const int n = ReprojectionResidual(data, linearization, static_cast<size_t>(i), &r, &j);
+    if (n == 0) {
+      out->cost += CauchyLoss(kBehindSquared, c2);
+      continue;
+    }
+    const double squared = r.squaredNorm();  // lines: the second entry is 0
+    out->cost += CauchyLoss(std::min(kBehindSquared, squared), c2);
+    const double weight = 1.0 / (1.0 + squared / c2);
+    for (int row = 0; row < n; ++row) {
+      const Eigen::Matrix<double, 1, 7> jr = j.row(row);
+      out->h.template selfadjointView<Eigen::Upper>().rankUpdate(jr.transpose(), weight);
+      out->g.noalias() += (weight * r[row]) * jr.transpose();
+    }
   }
-  return cost;
 }
 
 }  // namespace
@@ -48,47 +78,42 @@ RefineSummary RefinePose(const PoseData& data, std::span<const int> indices,
   const double c2 = options.loss_scale * options.loss_scale;
   const int dim = options.similarity ? 7 : 6;
   RefineSummary summary;
-  double cost = Cost(data, indices, *pose, c2);
-  summary.initial_cost = summary.final_cost = cost;
+  Linearization current, candidate;
+  Linearize(data, indices, *pose, c2, &current);
+  summary.initial_cost = summary.final_cost = current.cost;
   double lambda = 1e-3;
-  Eigen::Vector2d r;
-  Eigen::Matrix<double, 2, 7> j;
   for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
     summary.iterations = iteration + 1;
-    // Gauss–Newton system with IRLS weights ρ'(r²) of the Cauchy loss.
-    Eigen::Matrix<double, 7, 7> h = Eigen::Matrix<double, 7, 7>::Zero();
-    Eigen::Matrix<double, 7, 1> g = Eigen::Matrix<double, 7, 1>::Zero();
-    const PoseLinearization linearization(data, *pose);
-    for (const int i : indices) {
-      const int n = ReprojectionResidual(data, linearization, static_cast<size_t>(i), &r, &j);
-      if (n == 0) continue;
-      // Lines: the second row of r and j is zero.
-      const double weight = 1.0 / (1.0 + r.squaredNorm() / c2);
-      h.noalias() += weight * j.transpose() * j;
-      g.noalias() += weight * j.transpose() * r;
-    }
     bool improved = false;
     while (!improved && lambda < 1e12) {
-      Eigen::MatrixXd damped = h.topLeftCorner(dim, dim);
-      // Marquardt damping; the floor keeps gauge directions (the scale of a
-      // single camera at the rig origin) from blowing up.
-      const double floor = 1e-12 * std::max(1.0, damped.diagonal().maxCoeff());
+      // Marquardt damping on the active block (the scale column stays out
+      // for SE3); the floor keeps gauge directions (the scale of a single
+      // camera at the rig origin) from blowing up.
+      Eigen::Matrix<double, 7, 7> damped = current.h;
+      damped.triangularView<Eigen::StrictlyLower>() = damped.transpose();
+      double largest = 1.0;
+      for (int k = 0; k < dim; ++k) largest = std::max(largest, damped(k, k));
+      const double floor = 1e-12 * largest;
       for (int k = 0; k < dim; ++k) damped(k, k) += lambda * (damped(k, k) + floor);
       Eigen::Matrix<double, 7, 1> delta = Eigen::Matrix<double, 7, 1>::Zero();
-      delta.head(dim) = -damped.ldlt().solve(g.head(dim));
+      if (dim == 7) {
+        delta = -damped.ldlt().solve(current.g);
+      } else {
+        delta.head<6>() = -damped.topLeftCorner<6, 6>().ldlt().solve(current.g.head<6>());
+      }
       if (!delta.allFinite()) break;
-      const Sim3d candidate = PerturbPose(*pose, delta);
-      const double candidate_cost = Cost(data, indices, candidate, c2);
-      if (candidate_cost < cost) {
-        const double decrease = cost - candidate_cost;
-        *pose = candidate;
-        const bool converged = decrease < options.function_tolerance * cost ||
+      const Sim3d moved = PerturbPose(*pose, delta);
+      Linearize(data, indices, moved, c2, &candidate);
+      if (candidate.cost < current.cost) {
+        const double decrease = current.cost - candidate.cost;
+        const bool converged = decrease < options.function_tolerance * current.cost ||
                                delta.norm() < options.step_tolerance;
-        cost = candidate_cost;
+        *pose = moved;
+        std::swap(current, candidate);
         lambda = std::max(1e-9, lambda / 10);
         improved = true;
         if (converged) {
-          summary.final_cost = cost;
+          summary.final_cost = current.cost;
           return summary;
         }
       } else {
@@ -97,7 +122,7 @@ RefineSummary RefinePose(const PoseData& data, std::span<const int> indices,
     }
     if (!improved) break;
   }
-  summary.final_cost = cost;
+  summary.final_cost = current.cost;
   return summary;
 }
 

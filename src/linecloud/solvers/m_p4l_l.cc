@@ -4,11 +4,12 @@
 #include <array>
 #include <cmath>
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <Eigen/LU>
+#include <utility>
 #include <Eigen/QR>
 
+#include "linecloud/solvers/polynomial.h"
 #include "linecloud/solvers/upright.h"
 
 namespace linecloud {
@@ -148,19 +149,47 @@ int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
                            std::vector<Eigen::Vector3d>* out) {
   out->clear();
   const TemplateLayout& layout = Layout();
-  Eigen::Matrix<double, kRows, kCols> t = Eigen::Matrix<double, kRows, kCols>::Zero();
+  // Row-major template; Gaussian elimination with partial pivoting on its
+  // first kRows columns (in place, on the whole rows), then back substitution
+  // for the last kReducible unknowns only: the reducible monomials are
+  // −(T_sq⁻¹ T_B)[reducible rows] · basis, and an upper-triangular system
+  // gives its last rows from its trailing block alone.
+  double t[kRows][kCols] = {};
   for (int r = 0; r < kRows; ++r) {
     for (int k = 0; k < 10; ++k) {
-      t(r, layout.column[r][k]) = quadrics(kTemplateRows[r].equation, k);
+      t[r][layout.column[r][k]] = quadrics(kTemplateRows[r].equation, k);
     }
   }
-  const Eigen::PartialPivLU<Eigen::Matrix<double, kRows, kRows>> lu(
-      t.leftCols<kRows>());
-  // Reducible monomials = −(rows of T_ER⁻¹ T_B) · basis.
-  const Eigen::Matrix<double, kRows, kBasis> reduced = lu.solve(t.rightCols<kBasis>());
-  if (!reduced.allFinite()) return 0;
+  double scale = 0;
+  for (int k = 0; k < 10; ++k) {
+    for (int e = 0; e < 3; ++e) scale = std::max(scale, std::abs(quadrics(e, k)));
+  }
+  if (!(scale > 0) || !std::isfinite(scale)) return 0;
+  for (int k = 0; k < kRows; ++k) {
+    int pivot = k;
+    for (int r = k + 1; r < kRows; ++r) {
+      if (std::abs(t[r][k]) > std::abs(t[pivot][k])) pivot = r;
+    }
+    if (!(std::abs(t[pivot][k]) > 1e-14 * scale)) return 0;  // singular template
+    if (pivot != k) std::swap(t[pivot], t[k]);
+    const double inverse = 1.0 / t[k][k];
+    for (int r = k + 1; r < kRows; ++r) {
+      const double factor = t[r][k] * inverse;
+      if (factor == 0) continue;
+      for (int c = k + 1; c < kCols; ++c) t[r][c] -= factor * t[k][c];
+    }
+  }
   Eigen::Matrix<double, kBasis, kBasis> action = Eigen::Matrix<double, kBasis, kBasis>::Zero();
-  action.topRows<kReducible>() = -reduced.bottomRows<kReducible>();
+  for (int j = 0; j < kBasis; ++j) {
+    double x[kReducible];
+    for (int i = kReducible - 1; i >= 0; --i) {
+      const int r = kEliminated + i;
+      double v = t[r][kRows + j];
+      for (int c = i + 1; c < kReducible; ++c) v -= t[r][kEliminated + c] * x[c];
+      x[i] = v / t[r][r];
+    }
+    for (int i = 0; i < kReducible; ++i) action(i, j) = -x[i];
+  }
   // z·z² = z³, z·x = xz, z·y = yz, z·z = z², z·1 = z.
   action(3, 0) = 1;
   action(4, 1) = 1;
@@ -168,15 +197,54 @@ int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
   action(6, 3) = 1;
   action(7, 6) = 1;
   if (!action.allFinite()) return 0;
-  const Eigen::EigenSolver<Eigen::Matrix<double, kBasis, kBasis>> eig(action, true);
-  if (eig.info() != Eigen::Success) return 0;
-  const auto& values = eig.eigenvalues();
-  const auto& vectors = eig.eigenvectors();
-  for (int i = 0; i < kBasis; ++i) {
-    if (std::abs(values[i].imag()) > 1e-8 * std::max(1.0, std::abs(values[i]))) continue;
-    const auto v = vectors.col(i);
-    if (std::abs(v[7]) < 1e-12 * v.norm()) continue;  // solution at infinity
-    Eigen::Vector3d xyz((v[4] / v[7]).real(), (v[5] / v[7]).real(), (v[6] / v[7]).real());
+  // Eigenvalues of the action without an eigen-decomposition. At a root the
+  // basis monomials β = (z³, xz, yz, z², x, y, z, 1) satisfy action·β = z·β;
+  // its five unit rows only restate β, and the three others are linear in
+  // (x, y) for a fixed z:
+  //     X_b(z) x + Y_b(z) y + C_b(z) = 0,   b = 0, 1, 2,
+  // so z is a root of det[X Y C] (degree 8, leading coefficient ±1: the
+  // characteristic polynomial of the action), whose real roots come from
+  // Sturm sequences; (x, y) then from the 3 × 2 linear system.
+  std::array<std::array<double, 3>, 3> px{}, py{};
+  std::array<std::array<double, 5>, 3> pc{};
+  for (int b = 0; b < 3; ++b) {
+    px[b] = {action(b, 4), action(b, 1), b == 1 ? -1.0 : 0.0};
+    py[b] = {action(b, 5), action(b, 2), b == 2 ? -1.0 : 0.0};
+    pc[b] = {action(b, 7), action(b, 6), action(b, 3), action(b, 0), b == 0 ? -1.0 : 0.0};
+  }
+  // Y_i C_j − Y_j C_i (degree 6), then the expansion along the X column.
+  const auto minor = [&](int i, int j) {
+    std::array<double, 7> m{};
+    for (int a = 0; a < 3; ++a) {
+      for (int c = 0; c < 5; ++c) m[a + c] += py[i][a] * pc[j][c] - py[j][a] * pc[i][c];
+    }
+    return m;
+  };
+  const std::array<std::array<double, 7>, 3> minors = {minor(1, 2), minor(0, 2), minor(0, 1)};
+  std::array<double, 9> det{};
+  for (int b = 0; b < 3; ++b) {
+    const double sign = b == 1 ? -1.0 : 1.0;
+    for (int a = 0; a < 3; ++a) {
+      for (int c = 0; c < 7; ++c) det[a + c] += sign * px[b][a] * minors[b][c];
+    }
+  }
+  double z_roots[8];
+  const int num_roots = poly::SturmRealRoots(det.data(), 8, z_roots);
+  for (int k = 0; k < num_roots; ++k) {
+    const double z = z_roots[k];
+    Eigen::Matrix<double, 3, 2> m;
+    Eigen::Vector3d rhs;
+    for (int b = 0; b < 3; ++b) {
+      m(b, 0) = (px[b][2] * z + px[b][1]) * z + px[b][0];
+      m(b, 1) = (py[b][2] * z + py[b][1]) * z + py[b][0];
+      rhs[b] = -((((pc[b][4] * z + pc[b][3]) * z + pc[b][2]) * z + pc[b][1]) * z + pc[b][0]);
+    }
+    // Rank < 2: (x, y) not determined by this root (a solution at infinity
+    // or a degenerate configuration).
+    const Eigen::ColPivHouseholderQR<Eigen::Matrix<double, 3, 2>> qr(m);
+    if (qr.rank() < 2) continue;
+    const Eigen::Vector2d xy = qr.solve(rhs);
+    Eigen::Vector3d xyz(xy.x(), xy.y(), z);
     PolishRoot(quadrics, &xyz);
     if (xyz.allFinite()) out->push_back(xyz);
   }

@@ -26,7 +26,10 @@ namespace linecloud {
 // rotation of the problem (so no true pose has q_w = 0 by construction).
 // Their 8 intersections come from an 8 × 8 action matrix (multiplication by
 // z) obtained from a 26 × 34 elimination template (tools/elimination_template.py
-// three_quadrics_z). Real solutions with s > 0 are ranked by the residual of
+// three_quadrics_z); only its real eigenvalues are needed: the action's three
+// non-trivial rows are linear in (x, y) for fixed z, so its characteristic
+// polynomial is a 3 × 3 determinant of degree 8 in z, whose real roots come
+// from Sturm sequences (no eigen-decomposition). Real solutions with s > 0 are ranked by the residual of
 // the unused eighth equation and kept while within 100× of the best one (for
 // exact data: exactly the solutions of all eight equations). No sign is
 // imposed along the lines. local_from_world, best first.
@@ -35,7 +38,7 @@ int m_p4l_l(std::span<const PluckerLine> lines,
 
 // The eight intersections of three quadrics in (x, y, z), each given by its
 // coefficients on (1, x, y, z, x², xy, xz, y², yz, z²). Writes the real ones
-// (imaginary parts below 1e-8 relative) and returns how many.
+// (a double root once), polished by Newton steps, and returns how many.
 int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
                            std::vector<Eigen::Vector3d>* out);
 

@@ -45,6 +45,36 @@ double EvalDerivative(const Poly& p, double x) {
 
 namespace {
 constexpr int kMaxCompanion = 24;
+
+// Degree of c[0..degree] after dropping leading coefficients that only
+// carry roots "at infinity". Scale-invariant: in the variable x / ρ, with ρ
+// Fujiwara's bound on the roots of the polynomial without its leading term,
+// that term must be below 1e-14 of the largest coefficient. (Comparing raw
+// coefficients would drop the leading term of, e.g., a degree-8 polynomial
+// whose roots are all near 100: its constant term is ~10¹⁶ times larger.)
+int EffectiveDegree(const double* c, int degree) {
+  int n = degree;
+  while (n >= 0 && c[n] == 0) --n;
+  while (n >= 1) {
+    const double top = std::abs(c[n - 1]);
+    if (!(top > 0)) break;  // the next term vanishes: keep c[n]
+    double rho = 0;
+    for (int k = 0; k < n - 1; ++k) {
+      const double a = std::abs(c[k]) / top;
+      if (a > 0) rho = std::max(rho, std::pow(a, 1.0 / (n - 1 - k)));
+    }
+    rho = rho > 0 ? 2 * rho : 1.0;
+    // Scaled coefficients |c_k| ρ^k, relative to |c_{n−1}| ρ^(n−1).
+    double largest = 1;
+    for (int k = 0; k < n - 1; ++k) {
+      largest = std::max(largest, std::abs(c[k]) / top * std::pow(rho, k - (n - 1)));
+    }
+    if (std::abs(c[n]) / top * rho > 1e-14 * largest) break;
+    --n;
+    while (n >= 0 && c[n] == 0) --n;
+  }
+  return n;
+}
 }  // namespace
 
 void RealRoots(Poly p, std::vector<double>* roots) {
@@ -54,7 +84,7 @@ void RealRoots(Poly p, std::vector<double>* roots) {
     largest = std::max(largest, std::abs(c));
   }
   if (!(largest > 0) || !std::isfinite(largest)) return;
-  while (!p.empty() && std::abs(p.back()) <= 1e-14 * largest) p.pop_back();
+  p.resize(static_cast<size_t>(EffectiveDegree(p.data(), static_cast<int>(p.size()) - 1) + 1));
   // Roots at zero.
   size_t zeros = 0;
   while (zeros < p.size() && p[zeros] == 0.0) ++zeros;
@@ -171,8 +201,7 @@ void MonotoneRealRoots(const Poly& input, std::vector<double>* roots) {
     largest = std::max(largest, std::abs(c));
   }
   if (!(largest > 0) || !std::isfinite(largest)) return;
-  int n = static_cast<int>(input.size()) - 1;
-  while (n >= 0 && std::abs(input[n]) <= 1e-14 * largest) --n;
+  const int n = EffectiveDegree(input.data(), static_cast<int>(input.size()) - 1);
   if (n < 1) return;
   if (n > kMaxMonotone) {
     RealRoots(input, roots);
@@ -324,8 +353,7 @@ int SturmRealRoots(const double* coefficients, int degree, double* roots) {
     largest = std::max(largest, std::abs(coefficients[i]));
   }
   if (!(largest > 0)) return 0;
-  int n = degree;
-  while (n >= 0 && std::abs(coefficients[n]) <= 1e-14 * largest) --n;
+  const int n = EffectiveDegree(coefficients, degree);
   if (n < 1) return 0;
   if (n > kMaxSturm) {
     std::vector<double> found;
@@ -338,6 +366,18 @@ int SturmRealRoots(const double* coefficients, int degree, double* roots) {
   if (n == 1) {
     roots[0] = -monic[0];
     return 1;
+  }
+  // Substitute x = σ ξ with σ a power of two (exact) near the geometric mean
+  // of the roots' magnitudes, |a₀ / aₙ|^(1/n): the sequence's members then
+  // have coefficients of comparable size, so dropping negligible leading
+  // coefficients never removes a real one (roots ~10² would otherwise give
+  // coefficients spanning 10¹⁸). The roots are scaled back at the end.
+  int lowest = 0;
+  while (lowest < n && monic[lowest] == 0) ++lowest;
+  const int exponent = static_cast<int>(std::lround(
+      std::log2(std::abs(monic[lowest])) / static_cast<double>(n - lowest)));
+  if (exponent != 0) {
+    for (int i = 0; i < n; ++i) monic[i] = std::ldexp(monic[i], -exponent * (n - i));
   }
   // Fujiwara's bound (as in MonotoneRealRoots).
   double bound = 0;
@@ -408,6 +448,9 @@ int SturmRealRoots(const double* coefficients, int degree, double* roots) {
     const int changes_mid = sturm.SignChanges(mid);
     stack[top++] = {iv.a, mid, iv.changes_a, changes_mid};
     stack[top++] = {mid, iv.b, changes_mid, iv.changes_b};
+  }
+  if (exponent != 0) {
+    for (int i = 0; i < count; ++i) roots[i] = std::ldexp(roots[i], exponent);
   }
   return count;
 }

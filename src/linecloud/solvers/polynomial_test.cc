@@ -48,6 +48,45 @@ TEST(Polynomial, MonotoneCompanionAndSturmRootFindersFindTheKnownRealRoots) {
   }
 }
 
+// Roots far from 1 (|x| ~ 50–300, as the quaternion ratios of near-180°
+// rotations give): the constant term is ~10¹⁸ times the leading one, which
+// must not be taken for a negligible leading coefficient. A genuinely
+// negligible one (a root near 10¹⁸ next to roots of size 1) is still dropped.
+TEST(Polynomial, LargeRootsKeepTheLeadingTermAndRootsAtInfinityAreDropped) {
+  const std::vector<double> truth = {-311.8, -305.1, -256.7, -250.0, -153.9, -147.1, -98.8, -92.0};
+  Poly p = {-1.0};
+  for (double r : truth) p = Mul(p, {-r, 1.0});
+  for (int method = 0; method < 3; ++method) {
+    std::vector<double> roots;
+    if (method == 0) {
+      MonotoneRealRoots(p, &roots);
+    } else if (method == 1) {
+      RealRoots(p, &roots);
+    } else {
+      SturmRealRoots(p, &roots);
+    }
+    std::sort(roots.begin(), roots.end());
+    ASSERT_EQ(roots.size(), truth.size()) << "method " << method;
+    for (size_t i = 0; i < roots.size(); ++i) EXPECT_NEAR(roots[i], truth[i], 1e-9 * 300);
+  }
+  // (1e-18 x + 1)(x − 1)(x + 2): the root at −10¹⁸ is "at infinity".
+  const Poly q = Mul(Mul(Poly{1.0, 1e-18}, Poly{-1.0, 1.0}), Poly{2.0, 1.0});
+  for (int method = 0; method < 3; ++method) {
+    std::vector<double> roots;
+    if (method == 0) {
+      MonotoneRealRoots(q, &roots);
+    } else if (method == 1) {
+      RealRoots(q, &roots);
+    } else {
+      SturmRealRoots(q, &roots);
+    }
+    std::sort(roots.begin(), roots.end());
+    ASSERT_EQ(roots.size(), 2u) << "method " << method;
+    EXPECT_NEAR(roots[0], -2.0, 1e-12);
+    EXPECT_NEAR(roots[1], 1.0, 1e-12);
+  }
+}
+
 TEST(Polynomial, SturmDegenerateInputs) {
   std::vector<double> roots;
   SturmRealRoots(Poly{}, &roots);
