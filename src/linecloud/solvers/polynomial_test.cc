@@ -8,6 +8,21 @@
 namespace linecloud::poly {
 namespace {
 
+// The real roots of p by one of the three finders (0: monotone intervals,
+// 1: companion matrix, 2: Sturm sequences), sorted.
+std::vector<double> SortedRoots(int method, const Poly& p) {
+  std::vector<double> roots;
+  if (method == 0) {
+    MonotoneRealRoots(p, &roots);
+  } else if (method == 1) {
+    RealRoots(p, &roots);
+  } else {
+    SturmRealRoots(p, &roots);
+  }
+  std::sort(roots.begin(), roots.end());
+  return roots;
+}
+
 // Polynomials built from known roots: k real roots and complex pairs.
 TEST(Polynomial, MonotoneCompanionAndSturmRootFindersFindTheKnownRealRoots) {
   std::mt19937_64 rng(11);
@@ -31,15 +46,7 @@ TEST(Polynomial, MonotoneCompanionAndSturmRootFindersFindTheKnownRealRoots) {
     for (size_t i = 1; i < truth.size(); ++i) separated &= truth[i] - truth[i - 1] > 1e-3;
     if (!separated) continue;
     for (int method = 0; method < 3; ++method) {
-      std::vector<double> roots;
-      if (method == 0) {
-        MonotoneRealRoots(p, &roots);
-      } else if (method == 1) {
-        RealRoots(p, &roots);
-      } else {
-        SturmRealRoots(p, &roots);
-      }
-      std::sort(roots.begin(), roots.end());
+      const std::vector<double> roots = SortedRoots(method, p);
       ASSERT_EQ(roots.size(), truth.size()) << "method " << method << " trial " << trial;
       for (size_t i = 0; i < roots.size(); ++i) {
         EXPECT_NEAR(roots[i], truth[i], 1e-7 * std::max(1.0, std::abs(truth[i])));
@@ -57,30 +64,14 @@ TEST(Polynomial, LargeRootsKeepTheLeadingTermAndRootsAtInfinityAreDropped) {
   Poly p = {-1.0};
   for (double r : truth) p = Mul(p, {-r, 1.0});
   for (int method = 0; method < 3; ++method) {
-    std::vector<double> roots;
-    if (method == 0) {
-      MonotoneRealRoots(p, &roots);
-    } else if (method == 1) {
-      RealRoots(p, &roots);
-    } else {
-      SturmRealRoots(p, &roots);
-    }
-    std::sort(roots.begin(), roots.end());
+    const std::vector<double> roots = SortedRoots(method, p);
     ASSERT_EQ(roots.size(), truth.size()) << "method " << method;
     for (size_t i = 0; i < roots.size(); ++i) EXPECT_NEAR(roots[i], truth[i], 1e-9 * 300);
   }
   // (1e-18 x + 1)(x − 1)(x + 2): the root at −10¹⁸ is "at infinity".
   const Poly q = Mul(Mul(Poly{1.0, 1e-18}, Poly{-1.0, 1.0}), Poly{2.0, 1.0});
   for (int method = 0; method < 3; ++method) {
-    std::vector<double> roots;
-    if (method == 0) {
-      MonotoneRealRoots(q, &roots);
-    } else if (method == 1) {
-      RealRoots(q, &roots);
-    } else {
-      SturmRealRoots(q, &roots);
-    }
-    std::sort(roots.begin(), roots.end());
+    const std::vector<double> roots = SortedRoots(method, q);
     ASSERT_EQ(roots.size(), 2u) << "method " << method;
     EXPECT_NEAR(roots[0], -2.0, 1e-12);
     EXPECT_NEAR(roots[1], 1.0, 1e-12);
