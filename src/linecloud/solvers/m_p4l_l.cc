@@ -3,10 +3,10 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <utility>
 
 #include <Eigen/Geometry>
 #include <Eigen/LU>
-#include <utility>
 #include <Eigen/QR>
 
 #include "linecloud/solvers/polynomial.h"
@@ -160,11 +160,9 @@ int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
       t[r][layout.column[r][k]] = quadrics(kTemplateRows[r].equation, k);
     }
   }
-  double scale = 0;
-  for (int k = 0; k < 10; ++k) {
-    for (int e = 0; e < 3; ++e) scale = std::max(scale, std::abs(quadrics(e, k)));
-  }
-  if (!(scale > 0) || !std::isfinite(scale)) return 0;
+  if (!quadrics.allFinite()) return 0;
+  const double scale = quadrics.cwiseAbs().maxCoeff();
+  if (!(scale > 0)) return 0;
   for (int k = 0; k < kRows; ++k) {
     int pivot = k;
     for (int r = k + 1; r < kRows; ++r) {
