@@ -14,11 +14,12 @@ int m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
   // e^{iθ} = (e_z + i e_x) / (d_z + i d_x), normalised.
   const double re = e.z() * d.z() + e.x() * d.x();
   const double im = e.x() * d.z() - e.z() * d.x();
-  const double norm = std::hypot(re, im);
-  if (!(norm > 1e-12 * (d.squaredNorm() + e.squaredNorm())) || !std::isfinite(norm)) {
+  const double norm2 = re * re + im * im;
+  if (!(norm2 > 1e-24 * (d.squaredNorm() + e.squaredNorm()) * (d.squaredNorm() + e.squaredNorm())) ||
+      !std::isfinite(norm2)) {
     return 0;
   }
-  const Eigen::Quaterniond q = upright::RotationY(re / norm, im / norm);
+  const Eigen::Quaterniond q = upright::RotationY(re, im);
   const Eigen::Vector3d t = 0.5 * (points_local[0] + points_local[1]) -
                             q * (0.5 * (points[0] + points[1]));
   out->emplace_back(q, t);

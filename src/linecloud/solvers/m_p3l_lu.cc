@@ -36,9 +36,10 @@ int m_p3l_lu(std::span<const PluckerLine> lines,
   const Eigen::PartialPivLU<Eigen::Matrix<double, 6, 6>> lu(m);
   // Reject (near-)singular systems: degenerate configurations.
   const double det = lu.determinant();
-  if (!(std::abs(det) > 1e-14 * std::pow(m.norm(), 6)) || !std::isfinite(det)) return 0;
+  const double norm2 = m.squaredNorm();
+  if (!(std::abs(det) > 1e-14 * norm2 * norm2 * norm2) || !std::isfinite(det)) return 0;
   const Eigen::Matrix<double, 6, 1> x = lu.solve(b);
-  const double scale = std::hypot(x[0], x[1]);
+  const double scale = std::sqrt(x[0] * x[0] + x[1] * x[1]);
   if (!(scale > 0) || !(x[2] > 0) || !x.allFinite()) return 0;
   const Sim3d world_from_local(scale, upright::RotationY(x[0], x[1]), x.tail<3>());
   out->push_back(world_from_local.Inverse());

@@ -11,46 +11,44 @@
 namespace linecloud {
 namespace {
 
-using poly::Poly;
-
-// Bivariate polynomial in (λ1, λ2) of degree <= 4 in each variable.
+// Bivariate polynomial in (λ1, λ2) of total degree ≤ 4: c[i][j] λ1^i λ2^j.
 struct Bi {
-  std::array<std::array<double, 5>, 5> c{};  // c[i][j]: λ1^i λ2^j
-
-  static Bi InX(const Poly& p) {  // polynomial in λ1 only
-    Bi b;
-    for (size_t i = 0; i < p.size(); ++i) b.c[i][0] = p[i];
-    return b;
-  }
-  static Bi InY(const Poly& p) {  // polynomial in λ2 only
-    Bi b;
-    for (size_t j = 0; j < p.size(); ++j) b.c[0][j] = p[j];
-    return b;
-  }
+  std::array<std::array<double, 5>, 5> c{};
 };
 
-Bi operator+(const Bi& a, const Bi& b) {
-  Bi r;
-  for (int i = 0; i < 5; ++i)
-    for (int j = 0; j < 5; ++j) r.c[i][j] = a.c[i][j] + b.c[i][j];
-  return r;
-}
 Bi operator-(const Bi& a, const Bi& b) {
   Bi r;
   for (int i = 0; i < 5; ++i)
-    for (int j = 0; j < 5; ++j) r.c[i][j] = a.c[i][j] - b.c[i][j];
+    for (int j = 0; i + j < 5; ++j) r.c[i][j] = a.c[i][j] - b.c[i][j];
   return r;
 }
+// Product truncated to total degree 4 (the factors used here never exceed it).
 Bi operator*(const Bi& a, const Bi& b) {
   Bi r;
   for (int i = 0; i < 5; ++i)
-    for (int j = 0; j < 5; ++j) {
+    for (int j = 0; i + j < 5; ++j) {
       if (a.c[i][j] == 0) continue;
-      for (int k = 0; i + k < 5; ++k)
-        for (int l = 0; j + l < 5; ++l) r.c[i + k][j + l] += a.c[i][j] * b.c[k][l];
+      for (int k = 0; i + j + k < 5; ++k)
+        for (int l = 0; i + j + k + l < 5; ++l) r.c[i + k][j + l] += a.c[i][j] * b.c[k][l];
     }
   return r;
 }
+Bi operator+(const Bi& a, const Bi& b) {
+  Bi r;
+  for (int i = 0; i < 5; ++i)
+    for (int j = 0; i + j < 5; ++j) r.c[i][j] = a.c[i][j] + b.c[i][j];
+  return r;
+}
+
+// Quadratic q0 + q1 x + x² and linear b0 + b1 x in one variable.
+struct Lin {
+  double b0, b1;
+  double operator()(double x) const { return b0 + b1 * x; }
+};
+struct MonicQuad {
+  double c0, c1;
+  double operator()(double x) const { return c0 + (c1 + x) * x; }
+};
 
 struct Equation {  // λi² + λj² − 2 c λiλj + 2 p λi − 2 q λj + r = 0
   double c, p, q, r;
@@ -108,65 +106,98 @@ int m_p3p(std::span<const Eigen::Vector3d> origins,
   const Equation e13 = MakeEquation(o[0], d[0], o[2], d[2], (x[0] - x[2]).squaredNorm());
   const Equation e23 = MakeEquation(o[1], d[1], o[2], d[2], (x[1] - x[2]).squaredNorm());
 
-  // E13 and E23 as monic quadratics in λ3: λ3² + B λ3 + C.
-  const Poly b1 = {-2 * e13.q, -2 * e13.c}, c1 = {e13.r, 2 * e13.p, 1.0};  // in λ1
-  const Poly b2 = {-2 * e23.q, -2 * e23.c}, c2 = {e23.r, 2 * e23.p, 1.0};  // in λ2
-  const Bi B1 = Bi::InX(b1), C1 = Bi::InX(c1), B2 = Bi::InY(b2), C2 = Bi::InY(c2);
+  // E13 and E23 as monic quadratics in λ3: λ3² + B λ3 + C, B linear and C a
+  // monic quadratic in λ1 (E13) or λ2 (E23).
+  const Lin b1{-2 * e13.q, -2 * e13.c}, b2{-2 * e23.q, -2 * e23.c};
+  const MonicQuad c1{e13.r, 2 * e13.p}, c2{e23.r, 2 * e23.p};
+  Bi B1, C1, B2, C2;
+  B1.c[0][0] = b1.b0, B1.c[1][0] = b1.b1;
+  C1.c[0][0] = c1.c0, C1.c[1][0] = c1.c1, C1.c[2][0] = 1;
+  B2.c[0][0] = b2.b0, B2.c[0][1] = b2.b1;
+  C2.c[0][0] = c2.c0, C2.c[0][1] = c2.c1, C2.c[0][2] = 1;
   // Resultant in λ3: (C2 − C1)² + (B2 − B1)[(B2 − B1) C1 − B1 (C2 − C1)].
   const Bi dB = B2 - B1, dC = C2 - C1;
   const Bi f = dC * dC + dB * (dB * C1 - B1 * dC);
   // Reduce f modulo E12 = λ2² + b λ2 + c (b, c in λ1): f ≡ G1 λ2 + G0.
-  const Poly b = {-2 * e12.q, -2 * e12.c}, c = {e12.r, 2 * e12.p, 1.0};
-  std::array<Poly, 5> g;
-  for (int j = 0; j < 5; ++j) {
-    g[j].resize(5);
+  // g[j] (the coefficient of λ2^j) has degree ≤ 4 − j in λ1, and stays so.
+  const Lin b{-2 * e12.q, -2 * e12.c};
+  const MonicQuad c{e12.r, 2 * e12.p};
+  std::array<std::array<double, 5>, 5> g;
+  for (int j = 0; j < 5; ++j)
     for (int i = 0; i < 5; ++i) g[j][i] = f.c[i][j];
-  }
   for (int j = 4; j >= 2; --j) {
-    g[j - 1] = poly::Sub(g[j - 1], poly::Mul(b, g[j]));
-    g[j - 2] = poly::Sub(g[j - 2], poly::Mul(c, g[j]));
+    for (int i = 0; i + j <= 4; ++i) {
+      const double gi = g[j][i];
+      g[j - 1][i] -= b.b0 * gi;
+      g[j - 1][i + 1] -= b.b1 * gi;
+      g[j - 2][i] -= c.c0 * gi;
+      g[j - 2][i + 1] -= c.c1 * gi;
+      g[j - 2][i + 2] -= gi;
+    }
   }
-  const Poly& g0 = g[0];
-  const Poly& g1 = g[1];
-  const Poly univariate = poly::Add(
-      poly::Sub(poly::Mul(g0, g0), poly::Mul(b, poly::Mul(g0, g1))), poly::Mul(c, poly::Mul(g1, g1)));
-  std::vector<double> roots1;
-  poly::SturmRealRoots(univariate, &roots1);
+  const std::array<double, 5>& g0 = g[0];
+  const std::array<double, 5>& g1 = g[1];
+  const auto eval4 = [](const std::array<double, 5>& p, double x) {
+    return (((p[4] * x + p[3]) * x + p[2]) * x + p[1]) * x + p[0];
+  };
+  // G0² − b G0 G1 + c G1², degree 8 in λ1.
+  double g00[9] = {}, g01[9] = {}, g11[9] = {}, univariate[9] = {};
+  for (int i = 0; i < 5; ++i)
+    for (int k = 0; k < 5; ++k) {
+      g00[i + k] += g0[i] * g0[k];
+      if (i + k < 8) g01[i + k] += g0[i] * g1[k];
+      if (i + k < 7) g11[i + k] += g1[i] * g1[k];
+    }
+  for (int i = 0; i < 9; ++i) {
+    univariate[i] = g00[i] - b.b0 * g01[i] + c.c0 * g11[i];
+    if (i >= 1) univariate[i] += -b.b1 * g01[i - 1] + c.c1 * g11[i - 1];
+    if (i >= 2) univariate[i] += g11[i - 2];
+  }
+  double roots1[8];
+  const int num_roots1 = poly::SturmRealRoots(univariate, 8, roots1);
 
-  std::vector<Eigen::Vector3d> depths;
-  for (const double l1 : roots1) {
+  std::array<Eigen::Vector3d, 8> depths;
+  int num_depths = 0;
+  for (int r1 = 0; r1 < num_roots1; ++r1) {
+    const double l1 = roots1[r1];
     double l2s[2];
     int n2;
-    const double g1v = poly::Eval(g1, l1);
-    if (std::abs(g1v) > 1e-10 * (std::abs(poly::Eval(g0, l1)) + 1e-300)) {
-      l2s[0] = -poly::Eval(g0, l1) / g1v;
+    const double g1v = eval4(g1, l1), g0v = eval4(g0, l1);
+    if (std::abs(g1v) > 1e-10 * (std::abs(g0v) + 1e-300)) {
+      l2s[0] = -g0v / g1v;
       n2 = 1;
     } else {
-      n2 = Quadratic(poly::Eval(b, l1), poly::Eval(c, l1), l2s);
+      n2 = Quadratic(b(l1), c(l1), l2s);
     }
     for (int k2 = 0; k2 < n2; ++k2) {
       const double l2 = l2s[k2];
       double l3s[2];
       int n3;
-      const double den = poly::Eval(b1, l1) - poly::Eval(b2, l2);
-      const double num = poly::Eval(c1, l1) - poly::Eval(c2, l2);
+      const double den = b1(l1) - b2(l2);
+      const double num = c1(l1) - c2(l2);
       if (std::abs(den) > 1e-10 * (std::abs(num) + 1e-300)) {
         l3s[0] = -num / den;
         n3 = 1;
       } else {
-        n3 = Quadratic(poly::Eval(b1, l1), poly::Eval(c1, l1), l3s);
+        n3 = Quadratic(b1(l1), c1(l1), l3s);
       }
       for (int k3 = 0; k3 < n3; ++k3) {
         Eigen::Vector3d lam(l1, l2, l3s[k3]);
-        // Gauss–Newton polish on the three distance equations.
+        // Newton polish on the three distance equations (Cramer's rule).
         for (int it = 0; it < 8; ++it) {
           const Eigen::Vector3d res(e12.Eval(lam[0], lam[1]), e13.Eval(lam[0], lam[2]),
                                     e23.Eval(lam[1], lam[2]));
-          Eigen::Matrix3d jac;
-          jac << e12.DLi(lam[0], lam[1]), e12.DLj(lam[0], lam[1]), 0,
-              e13.DLi(lam[0], lam[2]), 0, e13.DLj(lam[0], lam[2]),
-              0, e23.DLi(lam[1], lam[2]), e23.DLj(lam[1], lam[2]);
-          const Eigen::Vector3d step = jac.partialPivLu().solve(res);
+          if (res.cwiseAbs().maxCoeff() <= 1e-15) break;
+          const double j00 = e12.DLi(lam[0], lam[1]), j01 = e12.DLj(lam[0], lam[1]);
+          const double j10 = e13.DLi(lam[0], lam[2]), j12 = e13.DLj(lam[0], lam[2]);
+          const double j21 = e23.DLi(lam[1], lam[2]), j22 = e23.DLj(lam[1], lam[2]);
+          // J = [j00 j01 0; j10 0 j12; 0 j21 j22]; step = adj(J) res / det J.
+          const double det = -j00 * j12 * j21 - j01 * j10 * j22;
+          const Eigen::Vector3d step =
+              Eigen::Vector3d(-j12 * j21 * res[0] - j01 * j22 * res[1] + j01 * j12 * res[2],
+                              -j10 * j22 * res[0] + j00 * j22 * res[1] - j00 * j12 * res[2],
+                              j10 * j21 * res[0] - j00 * j21 * res[1] - j01 * j10 * res[2]) /
+              det;
           if (!step.allFinite()) break;
           lam -= step;
           if (step.norm() < 1e-15 * (1.0 + lam.norm())) break;
@@ -177,15 +208,16 @@ int m_p3p(std::span<const Eigen::Vector3d> origins,
         if (!(residual < 1e-9) || !lam.allFinite()) continue;
         if (positive_depths && !(lam.array() > 0).all()) continue;
         bool duplicate = false;
-        for (const Eigen::Vector3d& other : depths) {
-          duplicate |= (other - lam).norm() < 1e-9 * (1 + lam.norm());
+        for (int d = 0; d < num_depths; ++d) {
+          duplicate |= (depths[d] - lam).norm() < 1e-9 * (1 + lam.norm());
         }
-        if (!duplicate) depths.push_back(lam);
+        if (!duplicate && num_depths < static_cast<int>(depths.size())) depths[num_depths++] = lam;
       }
     }
   }
 
-  for (const Eigen::Vector3d& lam : depths) {
+  for (int k = 0; k < num_depths; ++k) {
+    const Eigen::Vector3d& lam = depths[k];
     std::array<Eigen::Vector3d, 3> p;
     for (int i = 0; i < 3; ++i) p[i] = o[i] + lam[i] * d[i];
     Eigen::Matrix3d r;

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <Eigen/Eigenvalues>
 
@@ -46,6 +47,13 @@ double EvalDerivative(const Poly& p, double x) {
 namespace {
 constexpr int kMaxCompanion = 24;
 
+// The smallest e with a^(1/k) ≤ 2^e (up to one ulp: a < 2^(ilogb(a)+1)), for
+// a > 0, k ≥ 1: root bounds as powers of two, without pow.
+int RootBoundExponent(double a, int k) {
+  const int e = std::ilogb(a) + 1;
+  return e >= 0 ? (e + k - 1) / k : -((-e) / k);
+}
+
 // Degree of c[0..degree] after dropping leading coefficients that only
 // carry roots "at infinity". Scale-invariant: in the variable x / ρ, with ρ
 // Fujiwara's bound on the roots of the polynomial without its leading term,
@@ -58,18 +66,19 @@ int EffectiveDegree(const double* c, int degree) {
   while (n >= 1) {
     const double top = std::abs(c[n - 1]);
     if (!(top > 0)) break;  // the next term vanishes: keep c[n]
-    double rho = 0;
+    // ρ = 2^rho_exponent, within a factor 4 of Fujiwara's bound.
+    int rho_exponent = std::numeric_limits<int>::min();
     for (int k = 0; k < n - 1; ++k) {
       const double a = std::abs(c[k]) / top;
-      if (a > 0) rho = std::max(rho, std::pow(a, 1.0 / (n - 1 - k)));
+      if (a > 0) rho_exponent = std::max(rho_exponent, RootBoundExponent(a, n - 1 - k));
     }
-    rho = rho > 0 ? 2 * rho : 1.0;
+    rho_exponent = rho_exponent == std::numeric_limits<int>::min() ? 0 : rho_exponent + 1;
     // Scaled coefficients |c_k| ρ^k, relative to |c_{n−1}| ρ^(n−1).
     double largest = 1;
     for (int k = 0; k < n - 1; ++k) {
-      largest = std::max(largest, std::abs(c[k]) / top * std::pow(rho, k - (n - 1)));
+      largest = std::max(largest, std::ldexp(std::abs(c[k]) / top, rho_exponent * (k - (n - 1))));
     }
-    if (std::abs(c[n]) / top * rho > 1e-14 * largest) break;
+    if (std::ldexp(std::abs(c[n]) / top, rho_exponent) > 1e-14 * largest) break;
     --n;
     while (n >= 0 && c[n] == 0) --n;
   }
@@ -303,8 +312,12 @@ void BuildSturm(const double* monic, int n, SturmSequence* s) {
   }
 }
 
-// The single root of p in (a, b] (Sturm count 1): Newton steps kept inside a
-// shrinking bracket, bisection when a step leaves it.
+// The single root of p in (a, b] (Sturm count 1), where p changes sign:
+// Newton steps safeguarded as in "rtsafe" (Press et al., Numerical Recipes,
+// §9.4) — a step that would leave the bracket, or that does not at least halve
+// the previous one, is replaced by a bisection (geometric while the bracket
+// spans orders of magnitude: far from its roots a degree-n polynomial makes
+// Newton advance by only ~1/n of the distance per step).
 double PolishRoot(const double* p, int n, double a, double b) {
   const auto eval = [&](double x, double* derivative) {
     double f = p[n], df = 0;
@@ -315,14 +328,23 @@ double PolishRoot(const double* p, int n, double a, double b) {
     *derivative = df;
     return f;
   };
-  double d;
-  double fa = eval(a, &d);
-  const double fb = eval(b, &d);
-  // Start from the secant (regula falsi) point of the bracket.
-  double x = a - fa * (b - a) / (fb - fa);
-  if (!(x > a && x < b)) x = 0.5 * (a + b);
-  for (int iteration = 0; iteration < 100; ++iteration) {
-    double df;
+  const auto split = [](double lo, double hi) {
+    if (lo > 0 && hi > 8 * lo) return std::sqrt(lo * hi);
+    if (hi < 0 && lo < 8 * hi) return -std::sqrt(lo * hi);
+    return 0.5 * (lo + hi);
+  };
+  double df;
+  double fa = eval(a, &df);
+  const double fb = eval(b, &df);
+  // Start from the secant (regula falsi) point of a narrow bracket.
+  double x = split(a, b);
+  if (b - a < std::max(std::abs(a), std::abs(b))) {
+    const double secant = a - fa * (b - a) / (fb - fa);
+    if (secant > a && secant < b) x = secant;
+  }
+  double previous_step = b - a, step = previous_step;
+  double last_newton = 0;  // the previous iteration's Newton step, 0 after a bisection
+  for (int iteration = 0; iteration < 200; ++iteration) {
     const double f = eval(x, &df);
     if (f == 0) return x;
     // Keep the sign change inside [a, b].
@@ -332,14 +354,34 @@ double PolishRoot(const double* p, int n, double a, double b) {
     } else {
       b = x;
     }
-    double next = x - f / df;
+    const double newton = x - f / df;
+    const double delta = newton - x;
+    const double scale = std::max(1.0, std::abs(x));
     // Converged when a Newton step is at rounding level (the result is then
-    // as good as double allows; one more step would only oscillate). Tested
-    // before the bracket check: x is itself an end of the updated bracket.
-    if (std::abs(next - x) <= 2e-15 * std::max(1.0, std::abs(x))) return next;
-    if (!(next > a && next < b)) next = 0.5 * (a + b);
-    if (b - a <= 4e-16 * std::max(1.0, std::abs(x))) return next;
-    x = next;
+    // as good as double allows; one more step would only oscillate), or when
+    // the steps shrink quadratically (|δₖ| ≈ C δₖ₋₁²) and the next one,
+    // C δₖ² = δₖ³ / δₖ₋₁², would be. Tested before the bracket check: x is
+    // itself an end of the updated bracket.
+    if (std::abs(delta) <= 2e-15 * scale) return newton;
+    if (last_newton != 0 && std::abs(delta) < 1e-3 * std::abs(last_newton) &&
+        std::abs(delta * delta * delta) <= 1e-16 * scale * last_newton * last_newton &&
+        newton > a && newton < b) {
+      return newton;
+    }
+    if (newton > a && newton < b && 2 * std::abs(delta) <= std::abs(previous_step)) {
+      previous_step = step;
+      step = delta;
+      last_newton = delta;
+      x = newton;
+    } else {
+      const double mid = split(a, b);
+      previous_step = step;
+      step = mid - x;
+      last_newton = 0;
+      x = mid;
+    }
+    const double tolerance = 2e-15 * scale;
+    if (b - a <= 2 * tolerance) return x;
   }
   return x;
 }
@@ -375,17 +417,19 @@ int SturmRealRoots(const double* coefficients, int degree, double* roots) {
   int lowest = 0;
   while (lowest < n && monic[lowest] == 0) ++lowest;
   const int exponent = static_cast<int>(std::lround(
-      std::log2(std::abs(monic[lowest])) / static_cast<double>(n - lowest)));
+      std::ilogb(monic[lowest]) / static_cast<double>(n - lowest)));
   if (exponent != 0) {
     for (int i = 0; i < n; ++i) monic[i] = std::ldexp(monic[i], -exponent * (n - i));
   }
-  // Fujiwara's bound (as in MonotoneRealRoots).
-  double bound = 0;
+  // Fujiwara's bound (as in MonotoneRealRoots), rounded up to a power of two.
+  int bound_exponent = std::numeric_limits<int>::min();
   for (int k = 1; k <= n; ++k) {
     const double a = std::abs(monic[n - k]) * (k == n ? 0.5 : 1.0);
-    if (a > 0) bound = std::max(bound, std::pow(a, 1.0 / k));
+    if (a > 0) bound_exponent = std::max(bound_exponent, RootBoundExponent(a, k));
   }
-  bound = 2.0 * bound * (1.0 + 1e-12) + 1e-300;
+  const double bound = bound_exponent == std::numeric_limits<int>::min()
+                           ? 1e-300
+                           : std::ldexp(1.0, bound_exponent + 1) * (1.0 + 1e-12);
   SturmSequence sturm;
   BuildSturm(monic, n, &sturm);
   struct Interval {

@@ -18,14 +18,17 @@ inline Eigen::Vector3d B(const Eigen::Vector3d& x) { return {x.z(), 0.0, -x.x()}
 inline Eigen::Vector3d D(const Eigen::Vector3d& x) { return {0.0, x.y(), 0.0}; }
 
 inline Eigen::Quaterniond RotationY(double c, double s) {
-  // Half-angle quaternion of the rotation with cos θ = c, sin θ = s.
-  const double norm = std::hypot(c, s);
-  c /= norm;
-  s /= norm;
-  // cos(θ/2), sin(θ/2) stably from (c, s).
-  const double half_cos = std::sqrt(std::max(0.0, 0.5 * (1.0 + c)));
-  const double half_sin = std::sqrt(std::max(0.0, 0.5 * (1.0 - c)));
-  return Eigen::Quaterniond(half_cos, 0.0, s >= 0 ? half_sin : -half_sin, 0.0);
+  // Unit quaternion of the rotation with (cos θ, sin θ) ∝ (c, s) (any positive
+  // scale). With r = |(c, s)|, (cos θ/2, sin θ/2) ∝ (r + c, s) ∝ (s, r − c):
+  // the form without cancellation is taken, then normalised (two square roots).
+  const double r = std::sqrt(c * c + s * s);
+  double w = c >= 0 ? r + c : s, y = c >= 0 ? s : r - c;
+  if (w < 0) {
+    w = -w;
+    y = -y;
+  }
+  const double inv = 1 / std::sqrt(w * w + y * y);
+  return Eigen::Quaterniond(w * inv, 0.0, y * inv, 0.0);
 }
 
 // Orthonormal u1, u2 spanning the plane orthogonal to a non-zero d.
