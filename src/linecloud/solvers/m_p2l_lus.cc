@@ -11,10 +11,8 @@ int m_p2l_lus(std::span<const PluckerLine> lines,
               std::vector<Rigid3d>* out) {
   const std::array<Eigen::Vector3d, 2> anchors = {lines[0].Anchor(), lines[1].Anchor()};
   const std::array<Eigen::Vector3d, 2> directions = {lines[0].v, lines[1].v};
-  std::vector<Rigid3d> world_from_local;
-  m_p2p_u(anchors, directions, points_local, &world_from_local);
-  out->clear();
-  for (const Rigid3d& pose : world_from_local) out->push_back(pose.Inverse());
+  m_p2p_u(anchors, directions, points_local, out);
+  for (Rigid3d& pose : *out) pose = pose.Inverse();  // local_from_world
   return static_cast<int>(out->size());
 }
 

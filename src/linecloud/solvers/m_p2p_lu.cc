@@ -16,9 +16,9 @@ int m_p2p_lu(std::span<const Eigen::Vector3d> points_local,
   // The rotation does not depend on the scale: solve the rigid case on the
   // scaled map points, then fold the scale back in.
   const std::array<Eigen::Vector3d, 2> scaled = {scale * points[0], scale * points[1]};
-  std::vector<Rigid3d> rigid;
-  if (m_p2p_lus(points_local, scaled, &rigid) == 0) return 0;
-  out->emplace_back(scale, rigid[0].rotation, rigid[0].translation);
+  Rigid3d rigid;
+  if (!m_p2p_lus(points_local, scaled, &rigid)) return 0;
+  out->emplace_back(scale, rigid.rotation, rigid.translation);
   return 1;
 }
 

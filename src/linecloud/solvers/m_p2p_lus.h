@@ -18,4 +18,8 @@ namespace linecloud {
 int m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
               std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out);
 
+// The same solution without a container; false for a degenerate sample.
+bool m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
+               std::span<const Eigen::Vector3d> points, Rigid3d* local_from_world);
+
 }  // namespace linecloud

@@ -13,11 +13,9 @@ int m_p3l_ls(std::span<const PluckerLine> lines,
     anchors[i] = lines[i].Anchor();
     directions[i] = lines[i].v;
   }
-  std::vector<Rigid3d> world_from_local;
-  m_p3p(anchors, directions, points_local, &world_from_local,
+  m_p3p(anchors, directions, points_local, out,
         /*positive_depths=*/false);  // lines have no orientation
-  out->clear();
-  for (const Rigid3d& pose : world_from_local) out->push_back(pose.Inverse());
+  for (Rigid3d& pose : *out) pose = pose.Inverse();  // local_from_world
   return static_cast<int>(out->size());
 }
 
