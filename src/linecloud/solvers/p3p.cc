@@ -9,9 +9,9 @@
 namespace linecloud {
 namespace {
 
-// One real root of c3 x³ + c2 x² + c1 x + c0 with |c3| ≥ |c0| > 0 or c3 ≠ 0
-// (a real cubic always has one): Cardano when the root is unique, the largest
-// of three otherwise; Newton-polished.
+// One real root of c3 x³ + c2 x² + c1 x + c0, c3 ≠ 0 (a real cubic always has
+// one): Cardano when the root is unique, the smallest of three otherwise;
+// Newton-polished.
 double OneRealCubicRoot(double c3, double c2, double c1, double c0) {
   const double a = c2 / c3, b = c1 / c3, c = c0 / c3;
   const double q = (a * a - 3 * b) * (1.0 / 9);
