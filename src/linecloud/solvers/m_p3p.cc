@@ -40,7 +40,7 @@ Bi operator+(const Bi& a, const Bi& b) {
   return r;
 }
 
-// Quadratic q0 + q1 x + x² and linear b0 + b1 x in one variable.
+// Linear b0 + b1 x and monic quadratic c0 + c1 x + x² in one variable.
 struct Lin {
   double b0, b1;
   double operator()(double x) const { return b0 + b1 * x; }

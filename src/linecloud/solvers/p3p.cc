@@ -144,7 +144,7 @@ int p3p(std::span<const Eigen::Vector3d> bearings,
       Eigen::Vector3d lam = std::sqrt(asum / denom) * ray;
       if (lam.sum() < 0) lam = -lam;
       if (!(lam.array() > 0).all()) continue;
-      // Gauss–Newton on the three inhomogeneous equations (Cramer's rule).
+      // Newton steps on the three inhomogeneous equations (Cramer's rule).
       for (int it = 0; it < 3; ++it) {
         const double l0 = lam[0], l1 = lam[1], l2 = lam[2];
         const Eigen::Vector3d r(l0 * l0 + l1 * l1 + b12 * l0 * l1 - a12,

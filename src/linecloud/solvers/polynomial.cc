@@ -357,12 +357,13 @@ double PolishRoot(const double* p, int n, double a, double b) {
     const double newton = x - f / df;
     const double delta = newton - x;
     const double scale = std::max(1.0, std::abs(x));
+    const double tolerance = 2e-15 * scale;
     // Converged when a Newton step is at rounding level (the result is then
     // as good as double allows; one more step would only oscillate), or when
     // the steps shrink quadratically (|δₖ| ≈ C δₖ₋₁²) and the next one,
     // C δₖ² = δₖ³ / δₖ₋₁², would be. Tested before the bracket check: x is
     // itself an end of the updated bracket.
-    if (std::abs(delta) <= 2e-15 * scale) return newton;
+    if (std::abs(delta) <= tolerance) return newton;
     if (last_newton != 0 && std::abs(delta) < 1e-3 * std::abs(last_newton) &&
         std::abs(delta * delta * delta) <= 1e-16 * scale * last_newton * last_newton &&
         newton > a && newton < b) {
@@ -380,7 +381,6 @@ double PolishRoot(const double* p, int n, double a, double b) {
       last_newton = 0;
       x = mid;
     }
-    const double tolerance = 2e-15 * scale;
     if (b - a <= 2 * tolerance) return x;
   }
   return x;
