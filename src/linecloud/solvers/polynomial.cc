@@ -55,30 +55,28 @@ int RootBoundExponent(double a, int k) {
 }
 
 // Degree of c[0..degree] after dropping leading coefficients that only
-// carry roots "at infinity". Scale-invariant: in the variable x / ρ, with ρ
-// Fujiwara's bound on the roots of the polynomial without its leading term,
-// that term must be below 1e-14 of the largest coefficient. (Comparing raw
-// coefficients would drop the leading term of, e.g., a degree-8 polynomial
-// whose roots are all near 100: its constant term is ~10¹⁶ times larger.)
+// carry roots "at infinity": c_n is negligible when |c_n| ρ ≤ 1e-14 |c_{n−1}|,
+// i.e. when the root it adds, near −c_{n−1} / c_n, lies beyond 10¹⁴ ρ, with ρ
+// (≥ 1) Fujiwara's bound on the roots of the polynomial without its leading
+// term. Comparing raw coefficients would drop the leading term of, e.g., a
+// degree-8 polynomial whose roots are all near 100 (its constant term is
+// ~10¹⁶ times larger); ρ ≥ 1 keeps the root −1 of (x + 1)(x + 10⁻²⁰), whose
+// other root alone would make ρ tiny.
 int EffectiveDegree(const double* c, int degree) {
   int n = degree;
   while (n >= 0 && c[n] == 0) --n;
   while (n >= 1) {
     const double top = std::abs(c[n - 1]);
     if (!(top > 0)) break;  // the next term vanishes: keep c[n]
-    // ρ = 2^rho_exponent, within a factor 4 of Fujiwara's bound.
-    int rho_exponent = std::numeric_limits<int>::min();
+    const double lead = std::abs(c[n]) / top;
+    if (lead > 1e-14) break;  // kept whatever ρ ≥ 1 is
+    // ρ = 2^rho_exponent, within a factor 4 of Fujiwara's bound, at least 1.
+    int rho_exponent = -1;
     for (int k = 0; k < n - 1; ++k) {
       const double a = std::abs(c[k]) / top;
       if (a > 0) rho_exponent = std::max(rho_exponent, RootBoundExponent(a, n - 1 - k));
     }
-    rho_exponent = rho_exponent == std::numeric_limits<int>::min() ? 0 : rho_exponent + 1;
-    // Scaled coefficients |c_k| ρ^k, relative to |c_{n−1}| ρ^(n−1).
-    double largest = 1;
-    for (int k = 0; k < n - 1; ++k) {
-      largest = std::max(largest, std::ldexp(std::abs(c[k]) / top, rho_exponent * (k - (n - 1))));
-    }
-    if (std::ldexp(std::abs(c[n]) / top, rho_exponent) > 1e-14 * largest) break;
+    if (std::ldexp(lead, rho_exponent + 1) > 1e-14) break;
     --n;
     while (n >= 0 && c[n] == 0) --n;
   }
@@ -253,18 +251,38 @@ struct SturmSequence {
   int degree[kMaxSturm + 1];
   int size = 0;
 
-  // Sign changes along the sequence at x (zeros skipped).
-  int SignChanges(double x) const {
+  // Sign changes along the sequence at x (zeros skipped); p₀(x) in *value.
+  int SignChanges(double x, double* value) const {
     int changes = 0;
     double previous = 0;
     for (int k = 0; k < size; ++k) {
       double v = p[k][degree[k]];
       for (int i = degree[k] - 1; i >= 0; --i) v = v * x + p[k][i];
+      if (k == 0) *value = v;
       if (v == 0) continue;
       if (previous != 0 && (v > 0) != (previous > 0)) ++changes;
       previous = v;
     }
     return changes;
+  }
+
+  // Sign changes at +∞ (direction 1) or −∞ (direction −1), from the leading
+  // coefficients; equal to those at ±bound, beyond which p has no root.
+  int SignChangesAtInfinity(int direction) const {
+    int changes = 0;
+    bool previous_positive = false;
+    for (int k = 0; k < size; ++k) {
+      const bool positive = (p[k][degree[k]] > 0) != (direction < 0 && degree[k] % 2 == 1);
+      if (k > 0 && positive != previous_positive) ++changes;
+      previous_positive = positive;
+    }
+    return changes;
+  }
+
+  double Value(double x) const {
+    double v = p[0][degree[0]];
+    for (int i = degree[0] - 1; i >= 0; --i) v = v * x + p[0][i];
+    return v;
   }
 };
 
@@ -274,7 +292,8 @@ bool Normalise(double* c, int* degree, double reference) {
   double largest = 0;
   for (int i = 0; i <= *degree; ++i) largest = std::max(largest, std::abs(c[i]));
   if (!(largest > 1e-13 * reference)) return false;
-  for (int i = 0; i <= *degree; ++i) c[i] /= largest;
+  const double inverse = 1.0 / largest;
+  for (int i = 0; i <= *degree; ++i) c[i] *= inverse;
   while (*degree > 0 && std::abs(c[*degree]) < 1e-14) --*degree;
   return true;
 }
@@ -290,52 +309,47 @@ void BuildSturm(const double* monic, int n, SturmSequence* s) {
   Normalise(s->p[0], &s->degree[0], reference);
   Normalise(s->p[1], &s->degree[1], 1.0);
   while (s->degree[s->size - 1] > 0 && s->size <= kMaxSturm) {
-    // r = a mod b, then the next member is −r.
+    // r = a mod b, computed in the next member's place.
     const double* b = s->p[s->size - 1];
     const int db = s->degree[s->size - 1];
-    double r[kMaxSturm + 1];
+    const double inverse_lead = 1.0 / b[db];
+    double* r = s->p[s->size];
     int dr = s->degree[s->size - 2];
     std::copy(s->p[s->size - 2], s->p[s->size - 2] + dr + 1, r);
     while (dr >= db) {
-      const double q = r[dr] / b[db];
-      for (int i = 0; i <= db; ++i) r[dr - db + i] -= q * b[i];
-      r[dr] = 0;
+      const double q = r[dr] * inverse_lead;
+      for (int i = 0; i < db; ++i) r[dr - db + i] -= q * b[i];
       --dr;
     }
     if (dr < 0) break;
-    for (int i = 0; i <= dr; ++i) r[i] = -r[i];
-    while (dr > 0 && std::abs(r[dr]) == 0) --dr;
-    if (!Normalise(r, &dr, 1.0)) break;  // gcd reached: multiple roots
-    std::copy(r, r + dr + 1, s->p[s->size]);
+    // The next member is −r / max|r| (a positive scale keeps the signs);
+    // a remainder at rounding level means the gcd was reached (multiple roots).
+    double largest = 0;
+    for (int i = 0; i <= dr; ++i) largest = std::max(largest, std::abs(r[i]));
+    if (!(largest > 1e-13)) break;
+    const double scale = -1.0 / largest;
+    for (int i = 0; i <= dr; ++i) r[i] *= scale;
+    while (dr > 0 && std::abs(r[dr]) < 1e-14) --dr;
     s->degree[s->size] = dr;
     ++s->size;
   }
 }
 
-// The single root of p in (a, b] (Sturm count 1), where p changes sign:
-// Newton steps safeguarded as in "rtsafe" (Press et al., Numerical Recipes,
-// §9.4) — a step that would leave the bracket, or that does not at least halve
-// the previous one, is replaced by a bisection (geometric while the bracket
-// spans orders of magnitude: far from its roots a degree-n polynomial makes
-// Newton advance by only ~1/n of the distance per step).
-double PolishRoot(const double* p, int n, double a, double b) {
-  const auto eval = [&](double x, double* derivative) {
-    double f = p[n], df = 0;
-    for (int i = n - 1; i >= 0; --i) {
-      df = df * x + f;
-      f = f * x + p[i];
-    }
-    *derivative = df;
-    return f;
-  };
+// The single root of p in (a, b), where p changes sign (p(a) = fa, p(b) = fb):
+// Halley steps, x − f / (f′ − f f″ / (2 f′)), cubically convergent, safeguarded
+// as Newton is in "rtsafe" (Press et al., Numerical Recipes, §9.4) — a step
+// that would leave the bracket, or that does not at least halve the previous
+// one, is replaced by a bisection (geometric while the bracket spans orders of
+// magnitude: far from its roots a degree-n polynomial makes Newton advance by
+// only ~1/n of the distance per step). f, f′ and f″ / 2 come from one Horner
+// pass whose three chains run side by side, so a Halley step costs little more
+// than a Newton step and saves about two of them per root.
+double PolishRoot(const double* p, int n, double a, double b, double fa, double fb) {
   const auto split = [](double lo, double hi) {
     if (lo > 0 && hi > 8 * lo) return std::sqrt(lo * hi);
     if (hi < 0 && lo < 8 * hi) return -std::sqrt(lo * hi);
     return 0.5 * (lo + hi);
   };
-  double df;
-  double fa = eval(a, &df);
-  const double fb = eval(b, &df);
   // Start from the secant (regula falsi) point of a narrow bracket.
   double x = split(a, b);
   if (b - a < std::max(std::abs(a), std::abs(b))) {
@@ -343,9 +357,14 @@ double PolishRoot(const double* p, int n, double a, double b) {
     if (secant > a && secant < b) x = secant;
   }
   double previous_step = b - a, step = previous_step;
-  double last_newton = 0;  // the previous iteration's Newton step, 0 after a bisection
+  double last_halley = 0;  // the previous iteration's Halley step, 0 after a bisection
   for (int iteration = 0; iteration < 200; ++iteration) {
-    const double f = eval(x, &df);
+    double f = p[n], d1 = 0, d2 = 0;  // p(x), p′(x), p″(x) / 2
+    for (int i = n - 1; i >= 0; --i) {
+      d2 = d2 * x + d1;
+      d1 = d1 * x + f;
+      f = f * x + p[i];
+    }
     if (f == 0) return x;
     // Keep the sign change inside [a, b].
     if ((f > 0) == (fa > 0)) {
@@ -354,31 +373,31 @@ double PolishRoot(const double* p, int n, double a, double b) {
     } else {
       b = x;
     }
-    const double newton = x - f / df;
-    const double delta = newton - x;
+    const double delta = -f * d1 / (d1 * d1 - f * d2);
+    const double halley = x + delta;
     const double scale = std::max(1.0, std::abs(x));
     const double tolerance = 2e-15 * scale;
-    // Converged when a Newton step is at rounding level (the result is then
-    // as good as double allows; one more step would only oscillate), or when
-    // the steps shrink quadratically (|δₖ| ≈ C δₖ₋₁²) and the next one,
-    // C δₖ² = δₖ³ / δₖ₋₁², would be. Tested before the bracket check: x is
-    // itself an end of the updated bracket.
-    if (std::abs(delta) <= tolerance) return newton;
-    if (last_newton != 0 && std::abs(delta) < 1e-3 * std::abs(last_newton) &&
-        std::abs(delta * delta * delta) <= 1e-16 * scale * last_newton * last_newton &&
-        newton > a && newton < b) {
-      return newton;
+    // Converged when a step is at rounding level (the result is then as good
+    // as double allows; one more step would only oscillate), or when the
+    // steps shrink cubically (|δₖ| ≈ C |δₖ₋₁|³) and the next one,
+    // C |δₖ|³ = |δₖ|⁴ / |δₖ₋₁|³, would be. Tested before the bracket check: x
+    // is itself an end of the updated bracket.
+    if (std::abs(delta) <= tolerance) return halley;
+    if (last_halley != 0 && std::abs(delta) < 1e-3 * std::abs(last_halley) &&
+        halley > a && halley < b) {
+      const double ratio = delta / last_halley;
+      if (std::abs(delta) * ratio * ratio * ratio <= 1e-16 * scale) return halley;
     }
-    if (newton > a && newton < b && 2 * std::abs(delta) <= std::abs(previous_step)) {
+    if (halley > a && halley < b && 2 * std::abs(delta) <= std::abs(previous_step)) {
       previous_step = step;
       step = delta;
-      last_newton = delta;
-      x = newton;
+      last_halley = delta;
+      x = halley;
     } else {
       const double mid = split(a, b);
       previous_step = step;
       step = mid - x;
-      last_newton = 0;
+      last_halley = 0;
       x = mid;
     }
     if (b - a <= 2 * tolerance) return x;
@@ -404,7 +423,9 @@ int SturmRealRoots(const double* coefficients, int degree, double* roots) {
     return static_cast<int>(found.size());
   }
   double monic[kMaxSturm + 1];
-  for (int i = 0; i <= n; ++i) monic[i] = coefficients[i] / coefficients[n];
+  const double inverse_lead = 1.0 / coefficients[n];
+  for (int i = 0; i < n; ++i) monic[i] = coefficients[i] * inverse_lead;
+  monic[n] = 1;
   if (n == 1) {
     roots[0] = -monic[0];
     return 1;
@@ -419,7 +440,18 @@ int SturmRealRoots(const double* coefficients, int degree, double* roots) {
   const int exponent = static_cast<int>(std::lround(
       std::ilogb(monic[lowest]) / static_cast<double>(n - lowest)));
   if (exponent != 0) {
-    for (int i = 0; i < n; ++i) monic[i] = std::ldexp(monic[i], -exponent * (n - i));
+    // a_i σ^(i−n), by exact multiplications with 2^−exponent (one ldexp each
+    // only where a power could leave double's range).
+    if (std::abs(exponent) * n < 900) {
+      const double factor = std::ldexp(1.0, -exponent);
+      double power = 1;
+      for (int i = n - 1; i >= 0; --i) {
+        power *= factor;
+        monic[i] *= power;
+      }
+    } else {
+      for (int i = 0; i < n; ++i) monic[i] = std::ldexp(monic[i], -exponent * (n - i));
+    }
   }
   // Fujiwara's bound (as in MonotoneRealRoots), rounded up to a power of two.
   int bound_exponent = std::numeric_limits<int>::min();
@@ -435,23 +467,24 @@ int SturmRealRoots(const double* coefficients, int degree, double* roots) {
   struct Interval {
     double a, b;
     int changes_a, changes_b;
+    double fa, fb;  // p at a and at b
   };
   Interval stack[2 * kMaxSturm + 64];
   int top = 0;
-  stack[top++] = {-bound, bound, sturm.SignChanges(-bound), sturm.SignChanges(bound)};
+  stack[top++] = {-bound, bound, sturm.SignChangesAtInfinity(-1), sturm.SignChangesAtInfinity(1),
+                  sturm.Value(-bound), sturm.Value(bound)};
   int count = 0;
   while (top > 0 && count < n) {
     const Interval iv = stack[--top];
     const int inside = iv.changes_a - iv.changes_b;
     if (inside <= 0) continue;
     if (inside == 1) {
-      const auto value = [&](double x) {
-        double f = monic[n];
-        for (int i = n - 1; i >= 0; --i) f = f * x + monic[i];
-        return f;
-      };
-      if ((value(iv.a) > 0) != (value(iv.b) > 0)) {
-        roots[count++] = PolishRoot(monic, n, iv.a, iv.b);
+      if (iv.fb == 0) {  // the one root of (a, b] is b
+        roots[count++] = iv.b;
+        continue;
+      }
+      if (iv.fa != 0 && (iv.fa > 0) != (iv.fb > 0)) {
+        roots[count++] = PolishRoot(sturm.p[0], sturm.degree[0], iv.a, iv.b, iv.fa, iv.fb);
         continue;
       }
       // No sign change: a root of even multiplicity; bisect on the counts.
@@ -459,7 +492,8 @@ int SturmRealRoots(const double* coefficients, int degree, double* roots) {
       int changes_a = iv.changes_a;
       for (int step = 0; step < 200 && b - a > 1e-14 * std::max(1.0, std::abs(a)); ++step) {
         const double mid = 0.5 * (a + b);
-        const int changes_mid = sturm.SignChanges(mid);
+        double unused = 0;
+        const int changes_mid = sturm.SignChanges(mid, &unused);
         if (changes_a - changes_mid >= 1) {
           b = mid;
         } else {
@@ -489,12 +523,18 @@ int SturmRealRoots(const double* coefficients, int degree, double* roots) {
       continue;
     }
     if (top + 2 > static_cast<int>(std::size(stack))) break;
-    const int changes_mid = sturm.SignChanges(mid);
-    stack[top++] = {iv.a, mid, iv.changes_a, changes_mid};
-    stack[top++] = {mid, iv.b, changes_mid, iv.changes_b};
+    double f_mid = 0;
+    const int changes_mid = sturm.SignChanges(mid, &f_mid);
+    stack[top++] = {iv.a, mid, iv.changes_a, changes_mid, iv.fa, f_mid};
+    stack[top++] = {mid, iv.b, changes_mid, iv.changes_b, f_mid, iv.fb};
   }
   if (exponent != 0) {
-    for (int i = 0; i < count; ++i) roots[i] = std::ldexp(roots[i], exponent);
+    if (std::abs(exponent) < 1000) {
+      const double sigma = std::ldexp(1.0, exponent);
+      for (int i = 0; i < count; ++i) roots[i] *= sigma;
+    } else {
+      for (int i = 0; i < count; ++i) roots[i] = std::ldexp(roots[i], exponent);
+    }
   }
   return count;
 }

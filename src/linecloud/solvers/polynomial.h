@@ -32,7 +32,7 @@ void MonotoneRealRoots(const Poly& p, std::vector<double>* roots);
 // The same roots by Sturm sequences (fixed-size arrays, degree up to 16): the
 // sequence p, p', −rem(·, ·), … counts the real roots in any interval; the
 // Fujiwara-bounded interval is bisected until each piece holds one root,
-// which bracketed Newton steps then polish to full precision. Multiple roots
+// which bracketed Halley steps then polish to full precision. Multiple roots
 // are reported once. Writes the roots to `roots` (room for `degree` values)
 // and returns how many; `coefficients` has degree + 1 entries, constant first.
 int SturmRealRoots(const double* coefficients, int degree, double* roots);

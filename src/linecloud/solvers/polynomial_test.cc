@@ -78,6 +78,19 @@ TEST(Polynomial, LargeRootsKeepTheLeadingTermAndRootsAtInfinityAreDropped) {
   }
 }
 
+// A root near zero next to a root of size one: (x + 1)(x + 10⁻²⁰). The
+// polynomial without its leading term has its root near 10⁻²⁰, but the root
+// −1 is not "at infinity" and must not be dropped with the leading term.
+TEST(Polynomial, ATinyRootDoesNotMakeTheLeadingTermNegligible) {
+  const Poly p = Mul(Poly{1.0, 1.0}, Poly{1e-20, 1.0});
+  for (int method = 0; method < 3; ++method) {
+    const std::vector<double> roots = SortedRoots(method, p);
+    ASSERT_EQ(roots.size(), 2u) << "method " << method;
+    EXPECT_NEAR(roots[0], -1.0, 1e-14) << "method " << method;
+    EXPECT_NEAR(roots[1], -1e-20, 1e-30) << "method " << method;
+  }
+}
+
 TEST(Polynomial, SturmDegenerateInputs) {
   std::vector<double> roots;
   SturmRealRoots(Poly{}, &roots);
@@ -98,6 +111,14 @@ TEST(Polynomial, SturmDegenerateInputs) {
   ASSERT_EQ(roots.size(), 2u);
   EXPECT_NEAR(roots[0], -2.0, 1e-12);
   EXPECT_NEAR(roots[1], 1.0, 1e-6);
+  // x (x − 1)(x + 2): the root 0 lies on the first split point, exactly.
+  roots.clear();
+  SturmRealRoots(Mul(Mul(Poly{0.0, 1.0}, Poly{-1.0, 1.0}), Poly{2.0, 1.0}), &roots);
+  std::sort(roots.begin(), roots.end());
+  ASSERT_EQ(roots.size(), 3u);
+  EXPECT_NEAR(roots[0], -2.0, 1e-14);
+  EXPECT_EQ(roots[1], 0.0);
+  EXPECT_NEAR(roots[2], 1.0, 1e-14);
 }
 
 TEST(Polynomial, DegenerateInputs) {
