@@ -115,6 +115,203 @@ const Eigen::Matrix3d& PreRotation() {
   return r;
 }
 
+// Normal forms modulo three quadrics, by hand-derived reduction rules instead
+// of the elimination template (the same Gröbner basis, graded reverse
+// lexicographic order x > y > z, whose leading monomials are x², xy, y², xz²,
+// yz², z⁴ and whose standard monomials are the basis β):
+//   1. Solving the quadrics for x², xy, y² gives x² ≡ A₁, xy ≡ A₂, y² ≡ A₃
+//      with Aᵢ on the standard monomials (1, x, y, z, xz, yz, z²).
+//   2. x·A₂ − y·A₁ and x·A₃ − y·A₂ (the S-polynomials y·q₁ − x·q₂ and
+//      x·q₃ − y·q₂, reduced by step 1) are two relations on (xz², yz², z³,
+//      xz, yz, z², x, y, z, 1); solved for xz² and yz².
+//   3. The S-pairs (x², xz²) and (y², yz²), reduced by steps 1–2, are
+//      relations between z⁴ and β (the better-conditioned one is used).
+// The three rows of the action of z that are not unit rows are the normal
+// forms of z·z³ = z⁴, z·xz = xz², z·yz = yz². Each step solves a small
+// linear system (3 × 3, 2 × 2, 1 × 1); false when one of them is singular.
+namespace normal_form {
+
+// Monomials x^a y^b z^c of degree ≤ 4.
+constexpr int kCount = 35;
+struct Table {
+  int index[5][5][5];
+  int a[kCount], b[kCount], c[kCount];
+  // Reduction order: total degree descending, then a + b descending. Every
+  // rule rewrites a monomial into monomials later in this order, so one pass
+  // reaches the normal form.
+  int order[kCount];
+};
+
+const Table& Monomials() {
+  static const Table table = [] {
+    Table t{};
+    int next = 0;
+    for (int d = 0; d <= 4; ++d) {
+      for (int a = d; a >= 0; --a) {
+        for (int b = d - a; b >= 0; --b) {
+          const int c = d - a - b;
+          t.index[a][b][c] = next;
+          t.a[next] = a;
+          t.b[next] = b;
+          t.c[next] = c;
+          ++next;
+        }
+      }
+    }
+    std::array<int, kCount> order;
+    for (int i = 0; i < kCount; ++i) order[i] = i;
+    std::stable_sort(order.begin(), order.end(), [&](int i, int j) {
+      const int di = t.a[i] + t.b[i] + t.c[i], dj = t.a[j] + t.b[j] + t.c[j];
+      if (di != dj) return di > dj;
+      return t.a[i] + t.b[i] > t.a[j] + t.b[j];
+    });
+    std::copy(order.begin(), order.end(), t.order);
+    return t;
+  }();
+  return table;
+}
+
+using Poly = std::array<double, kCount>;
+
+int Index(int a, int b, int c) { return Monomials().index[a][b][c]; }
+
+// The supports of the rules: Aᵢ on (1, x, y, z, xz, yz, z²), Eᵢ on β.
+constexpr std::array<Exponent, 7> kQuadricRest = {{
+    {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 0, 1}, {0, 1, 1}, {0, 0, 2}}};
+struct Rule {
+  const Exponent* support;
+  int size;
+  double coefficient[kBasis];
+};
+
+// out += factor · x^da y^db z^dc · rule (degrees stay ≤ 4 by construction).
+void AddShifted(const Rule& rule, int da, int db, int dc, double factor, Poly* out) {
+  const Table& t = Monomials();
+  for (int j = 0; j < rule.size; ++j) {
+    const Exponent e = rule.support[j];
+    (*out)[t.index[e.x + da][e.y + db][e.z + dc]] += factor * rule.coefficient[j];
+  }
+}
+
+struct Rules {
+  Rule a[3];  // x², xy, y² ≡ A₁, A₂, A₃
+  Rule e[2];  // xz², yz² ≡ E₁, E₂
+  bool with_e = false;
+};
+
+// One pass in reduction order, rewriting every monomial a known rule applies to.
+void Reduce(const Rules& rules, Poly* p) {
+  const Table& t = Monomials();
+  for (int k = 0; k < kCount; ++k) {
+    const int m = t.order[k];
+    const double coefficient = (*p)[m];
+    if (coefficient == 0) continue;
+    const int a = t.a[m], b = t.b[m], c = t.c[m];
+    const Rule* rule = nullptr;
+    int da = 0, db = 0, dc = 0;
+    if (a >= 2) {
+      rule = &rules.a[0], da = a - 2, db = b, dc = c;
+    } else if (a >= 1 && b >= 1) {
+      rule = &rules.a[1], da = a - 1, db = b - 1, dc = c;
+    } else if (b >= 2) {
+      rule = &rules.a[2], da = a, db = b - 2, dc = c;
+    } else if (rules.with_e && a + b == 1 && c >= 2) {
+      rule = &rules.e[a == 1 ? 0 : 1], dc = c - 2;
+    }
+    if (rule == nullptr) continue;
+    (*p)[m] = 0;
+    AddShifted(*rule, da, db, dc, coefficient, p);
+  }
+}
+
+double MaxAbs(const Poly& p) {
+  double largest = 0;
+  for (double v : p) largest = std::max(largest, std::abs(v));
+  return largest;
+}
+
+// The action rows for the basis β = (z³, xz, yz, z², x, y, z, 1).
+bool ActionRows(const Eigen::Matrix<double, 3, 10>& quadrics, double rows[3][8]) {
+  // Quadric columns: 1, x, y, z, x², xy, xz, y², yz, z².
+  constexpr int kLeading[3] = {4, 5, 7};
+  constexpr int kRest[7] = {0, 1, 2, 3, 6, 8, 9};
+  Eigen::Matrix3d leading;
+  Eigen::Matrix<double, 3, 7> rest;
+  for (int i = 0; i < 3; ++i) {
+    for (int j = 0; j < 3; ++j) leading(i, j) = quadrics(i, kLeading[j]);
+    for (int j = 0; j < 7; ++j) rest(i, j) = quadrics(i, kRest[j]);
+  }
+  // Step 1: leading · (x², xy, y²) + rest · (…) = 0. The thresholds of the
+  // three steps send the ~0.1 % worst-conditioned instances to the template.
+  const double det = leading.determinant();
+  const double hadamard =
+      leading.row(0).norm() * leading.row(1).norm() * leading.row(2).norm();
+  if (!(std::abs(det) > 1e-6 * hadamard)) return false;
+  const Eigen::Matrix<double, 3, 7> solved = -(leading.inverse() * rest);
+  Rules rules;
+  for (int i = 0; i < 3; ++i) {
+    rules.a[i].support = kQuadricRest.data();
+    rules.a[i].size = 7;
+    for (int j = 0; j < 7; ++j) rules.a[i].coefficient[j] = solved(i, j);
+  }
+  // Step 2.
+  Poly s[2];
+  for (int k = 0; k < 2; ++k) {
+    s[k].fill(0);
+    AddShifted(rules.a[k + 1], 1, 0, 0, 1.0, &s[k]);   // x·A₂, x·A₃
+    AddShifted(rules.a[k], 0, 1, 0, -1.0, &s[k]);      // −y·A₁, −y·A₂
+    Reduce(rules, &s[k]);
+  }
+  const int xz2 = Index(1, 0, 2), yz2 = Index(0, 1, 2);
+  const Eigen::Matrix2d m2 = (Eigen::Matrix2d() << s[0][xz2], s[0][yz2], s[1][xz2], s[1][yz2])
+                                 .finished();
+  if (!(std::abs(m2.determinant()) > 1e-6 * MaxAbs(s[0]) * MaxAbs(s[1]))) return false;
+  const Eigen::Matrix2d m2_inverse = m2.inverse();
+  int basis[kBasis];
+  for (int j = 0; j < kBasis; ++j) {
+    const Exponent e = kBasisMonomials[j];
+    basis[j] = Index(e.x, e.y, e.z);
+  }
+  for (int k = 0; k < 2; ++k) {
+    rules.e[k].support = kBasisMonomials.data();
+    rules.e[k].size = kBasis;
+    for (int j = 0; j < kBasis; ++j) {
+      rules.e[k].coefficient[j] =
+          -(m2_inverse(k, 0) * s[0][basis[j]] + m2_inverse(k, 1) * s[1][basis[j]]);
+    }
+  }
+  rules.with_e = true;
+  // Step 3: the S-pairs of x² ≡ A₁ with xz² ≡ E₁ and of y² ≡ A₃ with
+  // yz² ≡ E₂ (lcm x²z², y²z²): z²A₁ − xE₁ and z²A₃ − yE₂, reduced, relate z⁴
+  // to β. The one whose z⁴ coefficient survives the reduction best (relative
+  // to the pair's own coefficients) is used.
+  const int z4 = Index(0, 0, 4);
+  Poly best{};
+  double best_ratio = 0;
+  for (int k = 0; k < 2; ++k) {
+    Poly r{};
+    AddShifted(rules.a[2 * k], 0, 0, 2, 1.0, &r);             // z²A₁, z²A₃
+    AddShifted(rules.e[k], k == 0 ? 1 : 0, k, 0, -1.0, &r);   // −xE₁, −yE₂
+    const double input_scale = MaxAbs(r);
+    Reduce(rules, &r);
+    const double ratio = std::abs(r[z4]) / input_scale;
+    if (ratio > best_ratio) {
+      best_ratio = ratio;
+      best = r;
+    }
+  }
+  if (!(best_ratio > 1e-6)) return false;
+  // Rows: z·z³ = z⁴, z·xz = xz², z·yz = yz².
+  for (int j = 0; j < kBasis; ++j) {
+    rows[0][j] = -best[basis[j]] / best[z4];
+    rows[1][j] = rules.e[0].coefficient[j];
+    rows[2][j] = rules.e[1].coefficient[j];
+  }
+  return true;
+}
+
+}  // namespace normal_form
+
 // Newton steps on the three quadrics (until the step is negligible, at most
 // 4): the eigenvectors of the action matrix carry its conditioning; Newton
 // restores full precision.
@@ -135,19 +332,22 @@ void PolishRoot(const Eigen::Matrix<double, 3, 10>& quadrics, Eigen::Vector3d* x
     d.row(9) << 0, 0, 2 * z;
     const Eigen::Vector3d f = quadrics * mono;
     const Eigen::Matrix3d jacobian = quadrics * d;
-    const Eigen::PartialPivLU<Eigen::Matrix3d> lu(jacobian);
-    const Eigen::Vector3d step = lu.solve(f);
+    // Cramer's rule: J⁻¹ f = adj(J) f / det J, with adj(J)'s rows the cross
+    // products of J's columns.
+    const Eigen::Vector3d j0 = jacobian.col(0), j1 = jacobian.col(1), j2 = jacobian.col(2);
+    const Eigen::Vector3d r0 = j1.cross(j2);
+    const double det = j0.dot(r0);
+    const Eigen::Vector3d step = Eigen::Vector3d(r0.dot(f), j2.cross(j0).dot(f), j0.cross(j1).dot(f)) / det;
     if (!step.allFinite()) return;
     *xyz -= step;
     if (step.norm() < 1e-14 * std::max(1.0, xyz->norm())) return;
   }
 }
 
-}  // namespace
-
-int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
-                           std::vector<Eigen::Vector3d>* out) {
-  out->clear();
+// The same action rows from the 26 × 34 elimination template (Gaussian
+// elimination with partial pivoting): the fallback for the rare quadrics whose
+// hand-derived reduction meets a singular pivot.
+bool TemplateActionRows(const Eigen::Matrix<double, 3, 10>& quadrics, double rows[3][8]) {
   const TemplateLayout& layout = Layout();
   // Row-major template; Gaussian elimination with partial pivoting on its
   // first kRows columns (in place, on the whole rows), then back substitution
@@ -160,15 +360,13 @@ int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
       t[r][layout.column[r][k]] = quadrics(kTemplateRows[r].equation, k);
     }
   }
-  if (!quadrics.allFinite()) return 0;
   const double scale = quadrics.cwiseAbs().maxCoeff();
-  if (!(scale > 0)) return 0;
   for (int k = 0; k < kRows; ++k) {
     int pivot = k;
     for (int r = k + 1; r < kRows; ++r) {
       if (std::abs(t[r][k]) > std::abs(t[pivot][k])) pivot = r;
     }
-    if (!(std::abs(t[pivot][k]) > 1e-14 * scale)) return 0;  // singular template
+    if (!(std::abs(t[pivot][k]) > 1e-14 * scale)) return false;  // singular template
     if (pivot != k) std::swap(t[pivot], t[k]);
     const double inverse = 1.0 / t[k][k];
     for (int r = k + 1; r < kRows; ++r) {
@@ -177,7 +375,6 @@ int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
       for (int c = k + 1; c < kCols; ++c) t[r][c] -= factor * t[k][c];
     }
   }
-  Eigen::Matrix<double, kBasis, kBasis> action = Eigen::Matrix<double, kBasis, kBasis>::Zero();
   for (int j = 0; j < kBasis; ++j) {
     double x[kReducible];
     for (int i = kReducible - 1; i >= 0; --i) {
@@ -186,15 +383,31 @@ int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
       for (int c = i + 1; c < kReducible; ++c) v -= t[r][kEliminated + c] * x[c];
       x[i] = v / t[r][r];
     }
-    for (int i = 0; i < kReducible; ++i) action(i, j) = -x[i];
+    for (int i = 0; i < kReducible; ++i) rows[i][j] = -x[i];
   }
-  // z·z² = z³, z·x = xz, z·y = yz, z·z = z², z·1 = z.
-  action(3, 0) = 1;
-  action(4, 1) = 1;
-  action(5, 2) = 1;
-  action(6, 3) = 1;
-  action(7, 6) = 1;
-  if (!action.allFinite()) return 0;
+  return true;
+}
+
+}  // namespace
+
+int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
+                           std::vector<Eigen::Vector3d>* out) {
+  out->clear();
+  if (!quadrics.allFinite()) return 0;
+  if (!(quadrics.cwiseAbs().maxCoeff() > 0)) return 0;
+  // The rows of the action of z (multiplication by z on the basis
+  // β = (z³, xz, yz, z², x, y, z, 1)) that are not unit rows: the normal forms
+  // of z⁴, xz², yz². Its unit rows restate z·z² = z³, z·x = xz, z·y = yz,
+  // z·z = z², z·1 = z.
+  double action[3][8];
+  if (!normal_form::ActionRows(quadrics, action) && !TemplateActionRows(quadrics, action)) {
+    return 0;
+  }
+  for (const auto& row : action) {
+    for (double v : row) {
+      if (!std::isfinite(v)) return 0;
+    }
+  }
   // Eigenvalues of the action without an eigen-decomposition. At a root the
   // basis monomials β = (z³, xz, yz, z², x, y, z, 1) satisfy action·β = z·β;
   // its five unit rows only restate β, and the three others are linear in
@@ -206,9 +419,9 @@ int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
   std::array<std::array<double, 3>, 3> px{}, py{};
   std::array<std::array<double, 5>, 3> pc{};
   for (int b = 0; b < 3; ++b) {
-    px[b] = {action(b, 4), action(b, 1), b == 1 ? -1.0 : 0.0};
-    py[b] = {action(b, 5), action(b, 2), b == 2 ? -1.0 : 0.0};
-    pc[b] = {action(b, 7), action(b, 6), action(b, 3), action(b, 0), b == 0 ? -1.0 : 0.0};
+    px[b] = {action[b][4], action[b][1], b == 1 ? -1.0 : 0.0};
+    py[b] = {action[b][5], action[b][2], b == 2 ? -1.0 : 0.0};
+    pc[b] = {action[b][7], action[b][6], action[b][3], action[b][0], b == 0 ? -1.0 : 0.0};
   }
   // Y_i C_j − Y_j C_i (degree 6), then the expansion along the X column.
   const auto minor = [&](int i, int j) {
@@ -237,11 +450,16 @@ int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
       m(b, 1) = (py[b][2] * z + py[b][1]) * z + py[b][0];
       rhs[b] = -((((pc[b][4] * z + pc[b][3]) * z + pc[b][2]) * z + pc[b][1]) * z + pc[b][0]);
     }
-    // Rank < 2: (x, y) not determined by this root (a solution at infinity
-    // or a degenerate configuration).
-    const Eigen::ColPivHouseholderQR<Eigen::Matrix<double, 3, 2>> qr(m);
-    if (qr.rank() < 2) continue;
-    const Eigen::Vector2d xy = qr.solve(rhs);
+    // (x, y) from the consistent 3 × 2 system m (x, y)ᵀ = rhs: with n the
+    // cross product of m's columns, x = (rhs × m₁)·n / |n|², y = (m₀ × rhs)·n
+    // / |n|² (exact when rhs lies in their span, the least-squares solution
+    // otherwise). Rank < 2: (x, y) not determined by this root (a solution at
+    // infinity or a degenerate configuration).
+    const Eigen::Vector3d c0 = m.col(0), c1 = m.col(1);
+    const Eigen::Vector3d n = c0.cross(c1);
+    const double n2 = n.squaredNorm();
+    if (!(n2 > 1e-24 * c0.squaredNorm() * c1.squaredNorm())) continue;
+    const Eigen::Vector2d xy(rhs.cross(c1).dot(n) / n2, c0.cross(rhs).dot(n) / n2);
     Eigen::Vector3d xyz(xy.x(), xy.y(), z);
     PolishRoot(quadrics, &xyz);
     if (xyz.allFinite()) out->push_back(xyz);
