@@ -17,9 +17,10 @@ namespace linecloud {
 // Find R = R_y(θ), t with, for i = 1, 2 (ray i: origin o_i, direction d_i,
 // both in the rig frame):
 //     R X_i + t = o_i + λ_i d_i        (λ_i of any sign)
-// Projecting onto u ⟂ d_i gives four equations linear in (cos θ, sin θ, t);
-// eliminating t with the left null vector of their t-block leaves one line
-// α c + β s + γ = 0 on the unit circle: up to 2 solutions. rig_from_world.
+// Subtracting the two removes t; the component of the difference along
+// d₁ × d₂ removes λ₁, λ₂ and leaves one line α c + β s + γ = 0 on the unit
+// circle (c = cos θ, s = sin θ): up to 2 solutions, each meeting both rays
+// exactly (λ₁ by a cross product, then t). rig_from_world.
 int m_p2p_u(std::span<const Eigen::Vector3d> origins,
             std::span<const Eigen::Vector3d> directions,
             std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out);
