@@ -337,7 +337,8 @@ void PolishRoot(const Eigen::Matrix<double, 3, 10>& quadrics, Eigen::Vector3d* x
     const Eigen::Vector3d j0 = jacobian.col(0), j1 = jacobian.col(1), j2 = jacobian.col(2);
     const Eigen::Vector3d r0 = j1.cross(j2);
     const double det = j0.dot(r0);
-    const Eigen::Vector3d step = Eigen::Vector3d(r0.dot(f), j2.cross(j0).dot(f), j0.cross(j1).dot(f)) / det;
+    const Eigen::Vector3d step =
+        Eigen::Vector3d(r0.dot(f), j2.cross(j0).dot(f), j0.cross(j1).dot(f)) / det;
     if (!step.allFinite()) return;
     *xyz -= step;
     if (step.norm() < 1e-14 * std::max(1.0, xyz->norm())) return;
@@ -346,7 +347,7 @@ void PolishRoot(const Eigen::Matrix<double, 3, 10>& quadrics, Eigen::Vector3d* x
 
 // The same action rows from the 26 × 34 elimination template (Gaussian
 // elimination with partial pivoting): the fallback for the rare quadrics whose
-// hand-derived reduction meets a singular pivot.
+// hand-derived reduction meets a poorly conditioned pivot.
 bool TemplateActionRows(const Eigen::Matrix<double, 3, 10>& quadrics, double rows[3][8]) {
   const TemplateLayout& layout = Layout();
   // Row-major template; Gaussian elimination with partial pivoting on its
