@@ -246,10 +246,17 @@ namespace {
 
 constexpr int kMaxSturm = 16;
 
+// A Sturm sequence of any shape: members of falling degree, each scaled to
+// unit largest coefficient; a member may drop more than one degree, and the
+// sequence ends early at a common factor (a multiple root).
 struct SturmSequence {
+  static constexpr int kFixedDegree = 0;  // degree known only at run time
   double p[kMaxSturm + 1][kMaxSturm + 1];  // p[k][i]: coefficient i of member k
   int degree[kMaxSturm + 1];
   int size = 0;
+
+  const double* Polynomial() const { return p[0]; }
+  int Degree() const { return degree[0]; }
 
   // Sign changes along the sequence at x (zeros skipped); p₀(x) in *value.
   int SignChanges(double x, double* value) const {
@@ -335,16 +342,159 @@ void BuildSturm(const double* monic, int n, SturmSequence* s) {
   }
 }
 
+// The generic Sturm sequence of a degree-N polynomial — N + 1 members of
+// degrees N, N − 1, …, 0 — with the degrees known at compile time, so that
+// evaluating it is straight-line code (the members' Horner chains run side by
+// side) and counting sign changes has no branches. Same arithmetic and
+// thresholds as BuildSturm; Build() reports false for any other shape (a
+// degree drop, an early common factor), which the general sequence handles.
+template <int N>
+struct FixedSturmSequence {
+  static constexpr int kFixedDegree = N;
+  double m[N + 1][N + 1];  // m[k][i]: coefficient i of member k (degree N − k)
+
+  const double* Polynomial() const { return m[0]; }
+  int Degree() const { return N; }
+
+  bool Build(const double* monic) {
+    double largest = 0;
+    for (int i = 0; i <= N; ++i) largest = std::max(largest, std::abs(monic[i]));
+    double inverse = 1.0 / largest;
+    for (int i = 0; i <= N; ++i) m[0][i] = monic[i] * inverse;
+    largest = 0;
+    for (int i = 1; i <= N; ++i) largest = std::max(largest, i * std::abs(m[0][i]));
+    if (!(largest > 1e-13)) return false;
+    inverse = 1.0 / largest;
+    for (int i = 1; i <= N; ++i) m[1][i - 1] = i * m[0][i] * inverse;
+    if (std::abs(m[1][N - 1]) < 1e-14) return false;
+#pragma GCC unroll 16
+    for (int k = 1; k < N; ++k) {
+      // −rem(m[k − 1], m[k]): two steps of long division by a member of
+      // degree db = N − k, leaving a remainder of degree db − 1.
+      const double* a = m[k - 1];
+      const double* b = m[k];
+      const int db = N - k;
+      double r[N + 1];
+      for (int i = 0; i <= db + 1; ++i) r[i] = a[i];
+      const double inverse_lead = 1.0 / b[db];
+      double q = r[db + 1] * inverse_lead;
+      for (int i = 0; i < db; ++i) r[i + 1] -= q * b[i];
+      q = r[db] * inverse_lead;
+      for (int i = 0; i < db; ++i) r[i] -= q * b[i];
+      largest = 0;
+      for (int i = 0; i < db; ++i) largest = std::max(largest, std::abs(r[i]));
+      if (!(largest > 1e-13)) return false;
+      const double scale = -1.0 / largest;
+      for (int i = 0; i < db; ++i) m[k + 1][i] = r[i] * scale;
+      if (std::abs(m[k + 1][db - 1]) < 1e-14) return false;
+    }
+    return true;
+  }
+
+  // As SturmSequence::SignChanges. A member k ≥ 1 that vanishes at x may
+  // count as either sign (its neighbours have opposite signs there); only
+  // p₀(x) = 0 must be left out.
+  int SignChanges(double x, double* value) const {
+    double v[N + 1];
+#pragma GCC unroll 16
+    for (int k = 0; k <= N; ++k) {
+      double s = m[k][N - k];
+#pragma GCC unroll 16
+      for (int i = N - k - 1; i >= 0; --i) s = s * x + m[k][i];
+      v[k] = s;
+    }
+    *value = v[0];
+    int changes = v[0] != 0 && std::signbit(v[0]) != std::signbit(v[1]);
+#pragma GCC unroll 16
+    for (int k = 1; k < N; ++k) changes += std::signbit(v[k]) != std::signbit(v[k + 1]);
+    return changes;
+  }
+
+  int SignChangesAtInfinity(int direction) const {
+    int changes = 0;
+    for (int k = 0; k < N; ++k) {
+      // Leading coefficients of degrees N − k and N − k − 1: their signs
+      // at −∞ differ by one extra factor −1.
+      const bool a = m[k][N - k] > 0, b = m[k + 1][N - k - 1] > 0;
+      changes += (a != b) != (direction < 0);
+    }
+    return changes;
+  }
+
+  double Value(double x) const {
+    double v = m[0][N];
+#pragma GCC unroll 16
+    for (int i = N - 1; i >= 0; --i) v = v * x + m[0][i];
+    return v;
+  }
+};
+
+// Σ c_i x^i for i = 0..D by Estrin's scheme: pairs c_{2j} + c_{2j+1} x, then
+// pairs of those with x², x⁴, …: a dependency chain of ~log₂ D
+// multiply-adds instead of Horner's D (the three chains of a Halley step are
+// then short enough to overlap).
+template <int D>
+inline double Estrin(const double* c, double x) {
+  double t[D + 1];
+#pragma GCC unroll 16
+  for (int i = 0; i <= D; ++i) t[i] = c[i];
+  double power = x;
+#pragma GCC unroll 8
+  for (int n = D + 1; n > 1; n = (n + 1) / 2) {
+#pragma GCC unroll 8
+    for (int j = 0; j < n / 2; ++j) t[j] = t[2 * j] + t[2 * j + 1] * power;
+    if (n % 2) t[n / 2] = t[n - 1];
+    power *= power;
+  }
+  return t[0];
+}
+
+// p(x), p′(x) and p″(x) / 2 of p (degree n, or N when N > 0; then `dp` and
+// `ddp` hold the coefficients of p′ and p″ / 2).
+template <int N>
+struct PolishEvaluator {
+  double dp[N], ddp[N - 1];
+  const double* p;
+  explicit PolishEvaluator(const double* coefficients, int) : p(coefficients) {
+    for (int i = 0; i < N; ++i) dp[i] = (i + 1) * p[i + 1];
+    for (int i = 0; i < N - 1; ++i) ddp[i] = 0.5 * (i + 1) * (i + 2) * p[i + 2];
+  }
+  void operator()(double x, double* f, double* d1, double* d2) const {
+    *f = Estrin<N>(p, x);
+    *d1 = Estrin<N - 1>(dp, x);
+    *d2 = Estrin<N - 2>(ddp, x);
+  }
+};
+template <>
+struct PolishEvaluator<0> {
+  const double* p;
+  int n;
+  PolishEvaluator(const double* coefficients, int degree) : p(coefficients), n(degree) {}
+  // One Horner pass whose three chains run side by side.
+  void operator()(double x, double* f, double* d1, double* d2) const {
+    double v = p[n], e1 = 0, e2 = 0;
+    for (int i = n - 1; i >= 0; --i) {
+      e2 = e2 * x + e1;
+      e1 = e1 * x + v;
+      v = v * x + p[i];
+    }
+    *f = v;
+    *d1 = e1;
+    *d2 = e2;
+  }
+};
+
 // The single root of p in (a, b), where p changes sign (p(a) = fa, p(b) = fb):
 // Halley steps, x − f / (f′ − f f″ / (2 f′)), cubically convergent, safeguarded
 // as Newton is in "rtsafe" (Press et al., Numerical Recipes, §9.4) — a step
 // that would leave the bracket, or that does not at least halve the previous
 // one, is replaced by a bisection (geometric while the bracket spans orders of
 // magnitude: far from its roots a degree-n polynomial makes Newton advance by
-// only ~1/n of the distance per step). f, f′ and f″ / 2 come from one Horner
-// pass whose three chains run side by side, so a Halley step costs little more
-// than a Newton step and saves about two of them per root.
-double PolishRoot(const double* p, int n, double a, double b, double fa, double fb) {
+// only ~1/n of the distance per step). f, f′ and f″ / 2 are evaluated
+// together, so a Halley step costs little more than a Newton step and saves
+// about two of them per root.
+template <typename Evaluator>
+double PolishRoot(const Evaluator& evaluate, double a, double b, double fa, double fb) {
   const auto split = [](double lo, double hi) {
     if (lo > 0 && hi > 8 * lo) return std::sqrt(lo * hi);
     if (hi < 0 && lo < 8 * hi) return -std::sqrt(lo * hi);
@@ -359,12 +509,8 @@ double PolishRoot(const double* p, int n, double a, double b, double fa, double 
   double previous_step = b - a, step = previous_step;
   double last_halley = 0;  // the previous iteration's Halley step, 0 after a bisection
   for (int iteration = 0; iteration < 200; ++iteration) {
-    double f = p[n], d1 = 0, d2 = 0;  // p(x), p′(x), p″(x) / 2
-    for (int i = n - 1; i >= 0; --i) {
-      d2 = d2 * x + d1;
-      d1 = d1 * x + f;
-      f = f * x + p[i];
-    }
+    double f, d1, d2;  // p(x), p′(x), p″(x) / 2
+    evaluate(x, &f, &d1, &d2);
     if (f == 0) return x;
     // Keep the sign change inside [a, b].
     if ((f > 0) == (fa > 0)) {
@@ -403,6 +549,91 @@ double PolishRoot(const double* p, int n, double a, double b, double fa, double 
     if (b - a <= 2 * tolerance) return x;
   }
   return x;
+}
+
+// The real roots of the sequence's first member in [−bound, bound]: the
+// interval is bisected on the sign-change counts until each piece holds one
+// root, which PolishRoot then finds. Returns how many were written to
+// `roots`, or −1 when a fixed sequence meets a root of even multiplicity
+// (left to the general sequence).
+template <typename Sequence>
+int IsolateRoots(const Sequence& sturm, double bound, double* roots) {
+  const PolishEvaluator<Sequence::kFixedDegree> evaluate(sturm.Polynomial(), sturm.Degree());
+  const int n = sturm.Degree();
+  struct Interval {
+    double a, b;
+    int changes_a, changes_b;
+    double fa, fb;  // p at a and at b
+  };
+  Interval stack[2 * kMaxSturm + 64];
+  int top = 0;
+  stack[top++] = {-bound, bound, sturm.SignChangesAtInfinity(-1), sturm.SignChangesAtInfinity(1),
+                  sturm.Value(-bound), sturm.Value(bound)};
+  int count = 0;
+  while (top > 0 && count < n) {
+    const Interval iv = stack[--top];
+    const int inside = iv.changes_a - iv.changes_b;
+    if (inside <= 0) continue;
+    if (inside == 1) {
+      if (iv.fb == 0) {  // the one root of (a, b] is b
+        roots[count++] = iv.b;
+        continue;
+      }
+      if (iv.fa != 0 && (iv.fa > 0) != (iv.fb > 0)) {
+        roots[count++] = PolishRoot(evaluate, iv.a, iv.b, iv.fa, iv.fb);
+        continue;
+      }
+      if constexpr (Sequence::kFixedDegree > 0) return -1;
+      // No sign change: a root of even multiplicity; bisect on the counts.
+      double a = iv.a, b = iv.b;
+      int changes_a = iv.changes_a;
+      for (int step = 0; step < 200 && b - a > 1e-14 * std::max(1.0, std::abs(a)); ++step) {
+        const double mid = 0.5 * (a + b);
+        double unused = 0;
+        const int changes_mid = sturm.SignChanges(mid, &unused);
+        if (changes_a - changes_mid >= 1) {
+          b = mid;
+        } else {
+          a = mid;
+          changes_a = changes_mid;
+        }
+      }
+      roots[count++] = 0.5 * (a + b);
+      continue;
+    }
+    // Split at 0 first, then geometrically while the interval spans orders
+    // of magnitude (the Fujiwara bound is often far beyond the roots), else
+    // in the middle.
+    double mid = 0.5 * (iv.a + iv.b);
+    if (iv.a < 0 && iv.b > 0) {
+      mid = 0;
+    } else {
+      const double lo = std::min(std::abs(iv.a), std::abs(iv.b));
+      const double hi = std::max(std::abs(iv.a), std::abs(iv.b));
+      if (hi > 8 * std::max(lo, 1e-3)) {
+        const double geometric = std::sqrt(std::max(lo, 1e-3) * hi);
+        mid = iv.a >= 0 ? geometric : -geometric;
+      }
+    }
+    if (iv.b - iv.a <= 1e-14 * std::max(1.0, std::abs(mid))) {
+      roots[count++] = mid;  // a cluster or multiple root: reported once
+      continue;
+    }
+    if (top + 2 > static_cast<int>(std::size(stack))) break;
+    double f_mid = 0;
+    const int changes_mid = sturm.SignChanges(mid, &f_mid);
+    stack[top++] = {iv.a, mid, iv.changes_a, changes_mid, iv.fa, f_mid};
+    stack[top++] = {mid, iv.b, changes_mid, iv.changes_b, f_mid, iv.fb};
+  }
+  return count;
+}
+
+// Fixed-degree path for n = N, −1 when the sequence is not generic.
+template <int N>
+int FixedSturmRoots(const double* monic, double bound, double* roots) {
+  FixedSturmSequence<N> sturm;
+  if (!sturm.Build(monic)) return -1;
+  return IsolateRoots(sturm, bound, roots);
 }
 
 }  // namespace
@@ -462,71 +693,20 @@ int SturmRealRoots(const double* coefficients, int degree, double* roots) {
   const double bound = bound_exponent == std::numeric_limits<int>::min()
                            ? 1e-300
                            : std::ldexp(1.0, bound_exponent + 1) * (1.0 + 1e-12);
-  SturmSequence sturm;
-  BuildSturm(monic, n, &sturm);
-  struct Interval {
-    double a, b;
-    int changes_a, changes_b;
-    double fa, fb;  // p at a and at b
-  };
-  Interval stack[2 * kMaxSturm + 64];
-  int top = 0;
-  stack[top++] = {-bound, bound, sturm.SignChangesAtInfinity(-1), sturm.SignChangesAtInfinity(1),
-                  sturm.Value(-bound), sturm.Value(bound)};
-  int count = 0;
-  while (top > 0 && count < n) {
-    const Interval iv = stack[--top];
-    const int inside = iv.changes_a - iv.changes_b;
-    if (inside <= 0) continue;
-    if (inside == 1) {
-      if (iv.fb == 0) {  // the one root of (a, b] is b
-        roots[count++] = iv.b;
-        continue;
-      }
-      if (iv.fa != 0 && (iv.fa > 0) != (iv.fb > 0)) {
-        roots[count++] = PolishRoot(sturm.p[0], sturm.degree[0], iv.a, iv.b, iv.fa, iv.fb);
-        continue;
-      }
-      // No sign change: a root of even multiplicity; bisect on the counts.
-      double a = iv.a, b = iv.b;
-      int changes_a = iv.changes_a;
-      for (int step = 0; step < 200 && b - a > 1e-14 * std::max(1.0, std::abs(a)); ++step) {
-        const double mid = 0.5 * (a + b);
-        double unused = 0;
-        const int changes_mid = sturm.SignChanges(mid, &unused);
-        if (changes_a - changes_mid >= 1) {
-          b = mid;
-        } else {
-          a = mid;
-          changes_a = changes_mid;
-        }
-      }
-      roots[count++] = 0.5 * (a + b);
-      continue;
-    }
-    // Split at 0 first, then geometrically while the interval spans orders
-    // of magnitude (the Fujiwara bound is often far beyond the roots), else
-    // in the middle.
-    double mid = 0.5 * (iv.a + iv.b);
-    if (iv.a < 0 && iv.b > 0) {
-      mid = 0;
-    } else {
-      const double lo = std::min(std::abs(iv.a), std::abs(iv.b));
-      const double hi = std::max(std::abs(iv.a), std::abs(iv.b));
-      if (hi > 8 * std::max(lo, 1e-3)) {
-        const double geometric = std::sqrt(std::max(lo, 1e-3) * hi);
-        mid = iv.a >= 0 ? geometric : -geometric;
-      }
-    }
-    if (iv.b - iv.a <= 1e-14 * std::max(1.0, std::abs(mid))) {
-      roots[count++] = mid;  // a cluster or multiple root: reported once
-      continue;
-    }
-    if (top + 2 > static_cast<int>(std::size(stack))) break;
-    double f_mid = 0;
-    const int changes_mid = sturm.SignChanges(mid, &f_mid);
-    stack[top++] = {iv.a, mid, iv.changes_a, changes_mid, iv.fa, f_mid};
-    stack[top++] = {mid, iv.b, changes_mid, iv.changes_b, f_mid, iv.fb};
+  // The solvers' degrees get a fixed-size generic sequence; anything it
+  // cannot represent goes to the general one.
+  int count = -1;
+  switch (n) {
+    case 3: count = FixedSturmRoots<3>(monic, bound, roots); break;
+    case 4: count = FixedSturmRoots<4>(monic, bound, roots); break;
+    case 6: count = FixedSturmRoots<6>(monic, bound, roots); break;
+    case 8: count = FixedSturmRoots<8>(monic, bound, roots); break;
+    default: break;
+  }
+  if (count < 0) {
+    SturmSequence sturm;
+    BuildSturm(monic, n, &sturm);
+    count = IsolateRoots(sturm, bound, roots);
   }
   if (exponent != 0) {
     if (std::abs(exponent) < 1000) {

@@ -121,6 +121,50 @@ TEST(Polynomial, SturmDegenerateInputs) {
   EXPECT_NEAR(roots[2], 1.0, 1e-14);
 }
 
+// Degree 8 (the solvers' degree) takes a fixed-size Sturm sequence when the
+// sequence has all nine members, the general one otherwise; both shapes and
+// a root on a split point must give the same answers.
+TEST(Polynomial, SturmDegreeEightInBothSequenceShapes) {
+  const auto roots_of = [](const Poly& p) {
+    std::vector<double> roots;
+    SturmRealRoots(p, &roots);
+    std::sort(roots.begin(), roots.end());
+    return roots;
+  };
+  const Poly complex_pairs = Mul(Poly{1.0, 0.0, 1.0}, Poly{4.0, 2.0, 1.0});
+  // Generic: six simple real roots, one of them 0 (the first split point).
+  Poly p = {1.0, 0.0, 1.0};
+  for (double r : {0.0, 1.0, -2.0, 3.0, -4.0, 5.0}) p = Mul(p, Poly{-r, 1.0});
+  std::vector<double> roots = roots_of(p);
+  ASSERT_EQ(roots.size(), 6u);
+  const double expected[6] = {-4.0, -2.0, 0.0, 1.0, 3.0, 5.0};
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(roots[i], expected[i], 1e-12) << i;
+  ASSERT_EQ(p.size(), 9u);
+  // A double root: the sequence ends at the common factor (general path).
+  p = Mul(complex_pairs, Mul(Mul(Poly{-1.0, 1.0}, Poly{-1.0, 1.0}), Poly{2.0, 1.0}));
+  p = Mul(p, Poly{-3.0, 1.0});
+  ASSERT_EQ(p.size(), 9u);
+  roots = roots_of(p);
+  ASSERT_EQ(roots.size(), 3u);
+  EXPECT_NEAR(roots[0], -2.0, 1e-12);
+  EXPECT_NEAR(roots[1], 1.0, 1e-6);
+  EXPECT_NEAR(roots[2], 3.0, 1e-12);
+  // x⁸ − 1: the members drop several degrees at once (general path).
+  roots = roots_of(Poly{-1.0, 0, 0, 0, 0, 0, 0, 0, 1.0});
+  ASSERT_EQ(roots.size(), 2u);
+  EXPECT_NEAR(roots[0], -1.0, 1e-14);
+  EXPECT_NEAR(roots[1], 1.0, 1e-14);
+  // A close pair (10⁻⁵ apart) among four real roots: both found (10⁻⁶
+  // apart they merge: the remainder falls below the common-factor threshold).
+  p = complex_pairs;
+  for (double r : {0.5, 0.50001, -1.5, 2.5}) p = Mul(p, Poly{-r, 1.0});
+  ASSERT_EQ(p.size(), 9u);
+  roots = roots_of(p);
+  ASSERT_EQ(roots.size(), 4u);
+  EXPECT_NEAR(roots[1], 0.5, 1e-9);
+  EXPECT_NEAR(roots[2], 0.50001, 1e-9);
+}
+
 TEST(Polynomial, DegenerateInputs) {
   std::vector<double> roots;
   MonotoneRealRoots({}, &roots);
