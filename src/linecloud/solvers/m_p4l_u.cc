@@ -3,15 +3,13 @@
 #include <array>
 #include <cmath>
 
-#include <Eigen/Cholesky>
+#include <Eigen/Geometry>
 
 #include "linecloud/solvers/polynomial.h"
 #include "linecloud/solvers/upright.h"
 
 namespace linecloud {
 namespace {
-
-using poly::Poly;
 
 // Quadratic (3 coefficients) and quartic (5) polynomials in x, fixed size.
 using Quad = std::array<double, 3>;
@@ -26,7 +24,7 @@ Quartic MulQuad(const Quad& a, const Quad& b) {
 
 // det of a 4 x 4 matrix of quadratics by Laplace expansion along rows (0, 1)
 // with complementary 2 x 2 minors of rows (2, 3): a degree-8 polynomial.
-Poly Determinant(const std::array<std::array<Quad, 4>, 4>& m) {
+std::array<double, 9> Determinant(const std::array<std::array<Quad, 4>, 4>& m) {
   static constexpr int kPairs[6][2] = {{0, 1}, {0, 2}, {0, 3}, {1, 2}, {1, 3}, {2, 3}};
   const auto minor = [&](int r0, int r1, int c0, int c1) {
     Quartic a = MulQuad(m[r0][c0], m[r1][c1]);
@@ -34,7 +32,7 @@ Poly Determinant(const std::array<std::array<Quad, 4>, 4>& m) {
     for (int i = 0; i < 5; ++i) a[i] -= b[i];
     return a;
   };
-  Poly det(9, 0.0);
+  std::array<double, 9> det{};
   for (int k = 0; k < 6; ++k) {
     const int c0 = kPairs[k][0], c1 = kPairs[k][1];
     const int d0 = kPairs[5 - k][0], d1 = kPairs[5 - k][1];  // complement
@@ -55,7 +53,7 @@ int m_p4l_u(std::span<const Eigen::Vector3d> origins,
   out->clear();
   // Per equation: coefficients of c, s, 1 for (t_x, t_y, t_z, constant).
   std::array<std::array<Eigen::Vector4d, 3>, 4> coef;
-  double norm = 0;
+  double squared_norm = 0;
   for (int i = 0; i < 4; ++i) {
     const Eigen::Vector3d& d = directions[i];
     const Eigen::Vector3d m = origins[i].cross(d);
@@ -66,34 +64,56 @@ int m_p4l_u(std::span<const Eigen::Vector3d> origins,
     coef[i][0] << av.cross(d), d.dot(upright::A(w)) + m.dot(av);
     coef[i][1] << bv.cross(d), d.dot(upright::B(w)) + m.dot(bv);
     coef[i][2] << dv.cross(d), d.dot(upright::D(w)) + m.dot(dv);
-    norm = std::max({norm, coef[i][0].norm(), coef[i][1].norm(), coef[i][2].norm()});
+    squared_norm = std::max({squared_norm, coef[i][0].squaredNorm(), coef[i][1].squaredNorm(),
+                             coef[i][2].squaredNorm()});
   }
-  if (!(norm > 0)) return 0;
+  if (!(squared_norm > 0)) return 0;
+  const double inverse_norm = 1 / std::sqrt(squared_norm);
   // Entries times (1 + x²): c → 1 − x², s → 2x, 1 → 1 + x².
   std::array<std::array<Quad, 4>, 4> pm;
   for (int i = 0; i < 4; ++i) {
     for (int j = 0; j < 4; ++j) {
-      const double kc = coef[i][0][j] / norm, ks = coef[i][1][j] / norm, k1 = coef[i][2][j] / norm;
+      const double kc = coef[i][0][j] * inverse_norm, ks = coef[i][1][j] * inverse_norm;
+      const double k1 = coef[i][2][j] * inverse_norm;
       pm[i][j] = {kc + k1, 2 * ks, k1 - kc};
     }
   }
-  const Poly det = Determinant(pm);
+  const std::array<double, 9> det = Determinant(pm);
   double roots[8];
   const int num_roots = poly::SturmRealRoots(det.data(), 8, roots);
   for (int r = 0; r < num_roots; ++r) {
     const double x = roots[r];
     const double c = (1 - x * x) / (1 + x * x), s = 2 * x / (1 + x * x);
-    Eigen::Matrix<double, 4, 3> g;
-    Eigen::Vector4d k;
+    std::array<Eigen::Vector3d, 4> g;  // row i: g_i · t + k_i = 0
+    std::array<double, 4> k;
     for (int i = 0; i < 4; ++i) {
       const Eigen::Vector4d row = c * coef[i][0] + s * coef[i][1] + coef[i][2];
-      g.row(i) = row.head<3>().transpose();
+      g[i] = row.head<3>();
       k[i] = row[3];
     }
-    const Eigen::Matrix3d normal = g.transpose() * g;
-    const Eigen::LDLT<Eigen::Matrix3d> ldlt(normal);
-    if (ldlt.info() != Eigen::Success) continue;
-    const Eigen::Vector3d t = ldlt.solve(-g.transpose() * k);
+    // The 4 × 4 system [g | k] is singular at a root: t solves the three
+    // rows whose 3 × 3 determinant is largest, by Cramer's rule — with
+    // rows (a, b, c), det = g_a · (g_b × g_c) and
+    // t = −(k_a g_b × g_c + k_b g_c × g_a + k_c g_a × g_b) / det.
+    const Eigen::Vector3d c01 = g[0].cross(g[1]), c02 = g[0].cross(g[2]);
+    const Eigen::Vector3d c03 = g[0].cross(g[3]), c12 = g[1].cross(g[2]);
+    const Eigen::Vector3d c13 = g[1].cross(g[3]), c23 = g[2].cross(g[3]);
+    // Triples (1,2,3), (0,2,3), (0,1,3), (0,1,2); their determinants.
+    const std::array<double, 4> dets = {g[1].dot(c23), g[0].dot(c23), g[0].dot(c13),
+                                        g[0].dot(c12)};
+    int drop = 0;
+    for (int j = 1; j < 4; ++j) {
+      if (std::abs(dets[j]) > std::abs(dets[drop])) drop = j;
+    }
+    if (!(std::abs(dets[drop]) > 0)) continue;
+    Eigen::Vector3d weighted;
+    switch (drop) {
+      case 0: weighted = k[1] * c23 - k[2] * c13 + k[3] * c12; break;  // rows 1, 2, 3
+      case 1: weighted = k[0] * c23 - k[2] * c03 + k[3] * c02; break;  // rows 0, 2, 3
+      case 2: weighted = k[0] * c13 - k[1] * c03 + k[3] * c01; break;  // rows 0, 1, 3
+      default: weighted = k[0] * c12 - k[1] * c02 + k[2] * c01; break;  // rows 0, 1, 2
+    }
+    const Eigen::Vector3d t = -weighted / dets[drop];
     if (!t.allFinite()) continue;
     out->emplace_back(upright::RotationY(c, s), t);
   }

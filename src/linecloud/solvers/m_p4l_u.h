@@ -19,8 +19,9 @@ namespace linecloud {
 //     d_iᵀ R w_i + m_iᵀ R v_i + tᵀ (R v_i × d_i) = 0,   i = 1..4.
 // With R v = c A(v) + s B(v) + D(v) each equation is row_i(c, s)·[t; 1] = 0,
 // rows linear in (c, s, 1). det[row_i] = 0 with c = (1 − x²)/(1 + x²),
-// s = 2x/(1 + x²) is a polynomial of degree 8 in x = tan(θ/2); t follows by
-// least squares. Up to 8 solutions; no sign is imposed along the lines.
+// s = 2x/(1 + x²) is a polynomial of degree 8 in x = tan(θ/2); t follows from
+// the best-conditioned three of the four rows (Cramer's rule). Up to 8
+// solutions; no sign is imposed along the lines.
 int m_p4l_u(std::span<const Eigen::Vector3d> origins,
             std::span<const Eigen::Vector3d> directions,
             std::span<const PluckerLine> lines, std::vector<Rigid3d>* out);
