@@ -11,32 +11,39 @@
 namespace linecloud {
 namespace {
 
-// Bivariate polynomial in (λ1, λ2) of total degree ≤ 4: c[i][j] λ1^i λ2^j.
+// Bivariate polynomial in (λ1, λ2) of total degree ≤ D: c[i][j] λ1^i λ2^j
+// (entries with i + j > D stay zero). The degrees are template arguments so
+// the products below are straight-line code over the non-zero terms only.
+template <int D>
 struct Bi {
-  std::array<std::array<double, 5>, 5> c{};
+  std::array<std::array<double, D + 1>, D + 1> c{};
 };
 
-Bi operator-(const Bi& a, const Bi& b) {
-  Bi r;
-  for (int i = 0; i < 5; ++i)
-    for (int j = 0; i + j < 5; ++j) r.c[i][j] = a.c[i][j] - b.c[i][j];
+template <int A, int B>
+Bi<std::max(A, B)> operator-(const Bi<A>& a, const Bi<B>& b) {
+  Bi<std::max(A, B)> r;
+  for (int i = 0; i <= A; ++i)
+    for (int j = 0; i + j <= A; ++j) r.c[i][j] = a.c[i][j];
+  for (int i = 0; i <= B; ++i)
+    for (int j = 0; i + j <= B; ++j) r.c[i][j] -= b.c[i][j];
   return r;
 }
-// Product truncated to total degree 4 (the factors used here never exceed it).
-Bi operator*(const Bi& a, const Bi& b) {
-  Bi r;
-  for (int i = 0; i < 5; ++i)
-    for (int j = 0; i + j < 5; ++j) {
-      if (a.c[i][j] == 0) continue;
-      for (int k = 0; i + j + k < 5; ++k)
-        for (int l = 0; i + j + k + l < 5; ++l) r.c[i + k][j + l] += a.c[i][j] * b.c[k][l];
-    }
+template <int A, int B>
+Bi<std::max(A, B)> operator+(const Bi<A>& a, const Bi<B>& b) {
+  Bi<std::max(A, B)> r;
+  for (int i = 0; i <= A; ++i)
+    for (int j = 0; i + j <= A; ++j) r.c[i][j] = a.c[i][j];
+  for (int i = 0; i <= B; ++i)
+    for (int j = 0; i + j <= B; ++j) r.c[i][j] += b.c[i][j];
   return r;
 }
-Bi operator+(const Bi& a, const Bi& b) {
-  Bi r;
-  for (int i = 0; i < 5; ++i)
-    for (int j = 0; i + j < 5; ++j) r.c[i][j] = a.c[i][j] + b.c[i][j];
+template <int A, int B>
+Bi<A + B> operator*(const Bi<A>& a, const Bi<B>& b) {
+  Bi<A + B> r;
+  for (int i = 0; i <= A; ++i)
+    for (int j = 0; i + j <= A; ++j)
+      for (int k = 0; k <= B; ++k)
+        for (int l = 0; k + l <= B; ++l) r.c[i + k][j + l] += a.c[i][j] * b.c[k][l];
   return r;
 }
 
@@ -110,14 +117,16 @@ int m_p3p(std::span<const Eigen::Vector3d> origins,
   // monic quadratic in λ1 (E13) or λ2 (E23).
   const Lin b1{-2 * e13.q, -2 * e13.c}, b2{-2 * e23.q, -2 * e23.c};
   const MonicQuad c1{e13.r, 2 * e13.p}, c2{e23.r, 2 * e23.p};
-  Bi B1, C1, B2, C2;
+  Bi<1> B1, B2;
+  Bi<2> C1, C2;
   B1.c[0][0] = b1.b0, B1.c[1][0] = b1.b1;
   C1.c[0][0] = c1.c0, C1.c[1][0] = c1.c1, C1.c[2][0] = 1;
   B2.c[0][0] = b2.b0, B2.c[0][1] = b2.b1;
   C2.c[0][0] = c2.c0, C2.c[0][1] = c2.c1, C2.c[0][2] = 1;
   // Resultant in λ3: (C2 − C1)² + (B2 − B1)[(B2 − B1) C1 − B1 (C2 − C1)].
-  const Bi dB = B2 - B1, dC = C2 - C1;
-  const Bi f = dC * dC + dB * (dB * C1 - B1 * dC);
+  const Bi<1> dB = B2 - B1;
+  const Bi<2> dC = C2 - C1;
+  const Bi<4> f = dC * dC + dB * (dB * C1 - B1 * dC);
   // Reduce f modulo E12 = λ2² + b λ2 + c (b, c in λ1): f ≡ G1 λ2 + G0.
   // g[j] (the coefficient of λ2^j) has degree ≤ 4 − j in λ1, and stays so.
   const Lin b{-2 * e12.q, -2 * e12.c};
