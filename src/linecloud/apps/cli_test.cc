@@ -275,10 +275,16 @@ TEST(Cli, BenchSolversReportsEveryRequestedMethod) {
       ours.insert(row["method"].get<std::string>());
       EXPECT_EQ(row["found_percent"].get<double>(), 100.0) << row.dump();
       EXPECT_GT(row["us_per_call"].get<double>(), 0.0);
+      EXPECT_GT(row["api_us_per_call"].get<double>(), 0.0);
       EXPECT_LT(row["median_log10_rotation_error"].get<double>(), -10.0);
     }
   }
   EXPECT_EQ(ours, (std::set<std::string>{"p3P", "m-P3P+l+s", "m-P2L+l+u+s"}));
+  for (const auto& row : j["rows"]) {
+    if (row["solver"] != "linecloud") {
+      EXPECT_FALSE(row.contains("api_us_per_call")) << row.dump();
+    }
+  }
   ExpectError(RunCli({"bench", "solvers", "--methods", "p9P"}), "unknown method 'p9P'");
 }
 

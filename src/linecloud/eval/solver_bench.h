@@ -22,7 +22,8 @@ struct SolverBenchOptions {
 struct SolverBenchRow {
   std::string method;
   std::string solver;          // "linecloud" or the peer's name
-  double us_per_call = 0;
+  double us_per_call = 0;      // ours: the solver on prepared inputs
+  double api_us_per_call = 0;  // ours: through SolveMinimal (0 for peers)
   double mean_solutions = 0;
   double found_percent = 0;    // true pose among the solutions
   double median_log10_rotation_error = 0;  // best solution per instance

@@ -44,19 +44,6 @@ constexpr std::array<MethodInfo, 16> kMethods = {{
 
 bool UsesBearings(const MethodInfo& m) { return !m.local_points; }
 
-// Rays of the bearings in the rig frame: origin = camera centre, direction =
-// R_cᵀ f.
-void RigRays(const MinimalSample& s, std::vector<Eigen::Vector3d>* origins,
-             std::vector<Eigen::Vector3d>* directions) {
-  origins->clear();
-  directions->clear();
-  for (size_t i = 0; i < s.bearings.size(); ++i) {
-    const Rigid3d& cam_from_rig = s.cam_from_rig[s.camera_index[i]];
-    origins->push_back(cam_from_rig.Center());
-    directions->push_back(cam_from_rig.rotation.inverse() * s.bearings[i]);
-  }
-}
-
 template <typename Pose>
 int Collect(const std::vector<Pose>& poses, std::vector<Sim3d>* out) {
   out->clear();
@@ -125,66 +112,53 @@ void CheckSample(const MethodInfo& m, const MinimalSample& s, std::string_view s
   }
 }
 
+PreparedSample::PreparedSample(const MethodInfo& method, const MinimalSample& sample)
+    : method_(&method), sample_(&sample) {
+  if (!method.multi || !UsesBearings(method)) return;
+  if (sample.bearings.size() > static_cast<size_t>(kMaxSize)) {
+    Fail("method {}: {} bearings, a minimal sample has at most {}", method.name,
+         sample.bearings.size(), kMaxSize);
+  }
+  num_rays_ = static_cast<int>(sample.bearings.size());
+  for (int i = 0; i < num_rays_; ++i) {
+    const Rigid3d& cam_from_rig = sample.cam_from_rig[sample.camera_index[i]];
+    origins_[i] = cam_from_rig.Center();
+    directions_[i] = cam_from_rig.rotation.inverse() * sample.bearings[i];
+  }
+}
+
+int PreparedSample::Solve(std::vector<Rigid3d>* rigid, std::vector<Sim3d>* sim) const {
+  const MinimalSample& s = *sample_;
+  const std::span<const Eigen::Vector3d> origins(origins_.data(), num_rays_);
+  const std::span<const Eigen::Vector3d> directions(directions_.data(), num_rays_);
+  switch (method_->id) {
+    case MethodId::kP3P: return p3p(s.bearings, s.points, rigid);
+    case MethodId::kP2PU: return p2p_u(s.bearings, s.points, rigid);
+    case MethodId::kMP3P: return m_p3p(origins, directions, s.points, rigid);
+    case MethodId::kMP2PU: return m_p2p_u(origins, directions, s.points, rigid);
+    case MethodId::kMP3PL: return m_p3p_l(s.points_local, s.points, sim);
+    case MethodId::kMP2PLU: return m_p2p_lu(s.points_local, s.points, sim);
+    case MethodId::kMP3PLS: return m_p3p_ls(s.points_local, s.points, rigid);
+    case MethodId::kMP2PLUS: return m_p2p_lus(s.points_local, s.points, rigid);
+    case MethodId::kP4LU: return p4l_u(s.bearings, s.lines, rigid);
+    case MethodId::kMP4LU: return m_p4l_u(origins, directions, s.lines, rigid);
+    case MethodId::kMP4LL: return m_p4l_l(s.lines, s.points_local, sim);
+    case MethodId::kMP3LLU: return m_p3l_lu(s.lines, s.points_local, sim);
+    case MethodId::kMP3LLS: return m_p3l_ls(s.lines, s.points_local, rigid);
+    case MethodId::kMP2LLUS: return m_p2l_lus(s.lines, s.points_local, rigid);
+    case MethodId::kP6L: return p6l(s.bearings, s.lines, rigid);
+    case MethodId::kMP6L: return m_p6l(origins, directions, s.lines, rigid);
+  }
+  Fail("method {} has no minimal solver in this build yet", method_->name);
+}
+
 int SolveMinimal(const MethodInfo& m, const MinimalSample& s, std::vector<Sim3d>* out) {
   // Scratch buffers reused across calls (RANSAC calls this in a hot loop).
   thread_local std::vector<Rigid3d> rigid;
   thread_local std::vector<Sim3d> sim;
-  thread_local std::vector<Eigen::Vector3d> origins, directions;
-  switch (m.id) {
-    case MethodId::kP3P:
-      p3p(s.bearings, s.points, &rigid);
-      return Collect(rigid, out);
-    case MethodId::kP2PU:
-      p2p_u(s.bearings, s.points, &rigid);
-      return Collect(rigid, out);
-    case MethodId::kMP3P:
-      RigRays(s, &origins, &directions);
-      m_p3p(origins, directions, s.points, &rigid);
-      return Collect(rigid, out);
-    case MethodId::kMP2PU:
-      RigRays(s, &origins, &directions);
-      m_p2p_u(origins, directions, s.points, &rigid);
-      return Collect(rigid, out);
-    case MethodId::kMP3PL:
-      m_p3p_l(s.points_local, s.points, &sim);
-      return Collect(sim, out);
-    case MethodId::kMP2PLU:
-      m_p2p_lu(s.points_local, s.points, &sim);
-      return Collect(sim, out);
-    case MethodId::kMP3PLS:
-      m_p3p_ls(s.points_local, s.points, &rigid);
-      return Collect(rigid, out);
-    case MethodId::kMP2PLUS:
-      m_p2p_lus(s.points_local, s.points, &rigid);
-      return Collect(rigid, out);
-    case MethodId::kP4LU:
-      p4l_u(s.bearings, s.lines, &rigid);
-      return Collect(rigid, out);
-    case MethodId::kMP4LU:
-      RigRays(s, &origins, &directions);
-      m_p4l_u(origins, directions, s.lines, &rigid);
-      return Collect(rigid, out);
-    case MethodId::kMP4LL:
-      m_p4l_l(s.lines, s.points_local, &sim);
-      return Collect(sim, out);
-    case MethodId::kMP3LLU:
-      m_p3l_lu(s.lines, s.points_local, &sim);
-      return Collect(sim, out);
-    case MethodId::kMP3LLS:
-      m_p3l_ls(s.lines, s.points_local, &rigid);
-      return Collect(rigid, out);
-    case MethodId::kMP2LLUS:
-      m_p2l_lus(s.lines, s.points_local, &rigid);
-      return Collect(rigid, out);
-    case MethodId::kP6L:
-      p6l(s.bearings, s.lines, &rigid);
-      return Collect(rigid, out);
-    case MethodId::kMP6L:
-      RigRays(s, &origins, &directions);
-      m_p6l(origins, directions, s.lines, &rigid);
-      return Collect(rigid, out);
-  }
-  Fail("method {} has no minimal solver in this build yet", m.name);
+  const PreparedSample prepared(m, s);
+  prepared.Solve(&rigid, &sim);
+  return m.similarity() ? Collect(sim, out) : Collect(rigid, out);
 }
 
 double MaxResidual(const MethodInfo& m, const MinimalSample& s, const Sim3d& pose) {

@@ -4,6 +4,7 @@
 // and conventions: ../shared/METHODS.md.
 #pragma once
 
+#include <array>
 #include <span>
 #include <string_view>
 #include <vector>
@@ -53,6 +54,29 @@ struct MinimalSample {
 // the method (missing field, wrong count, bad camera index, non-finite value).
 void CheckSample(const MethodInfo& method, const MinimalSample& sample,
                  std::string_view source);
+
+// A checked sample in the form its solver takes: for m- methods with
+// bearings, the rays in the rig frame (origin = camera centre c_i, direction
+// R_cᵀ f_i), computed once. SolveMinimal builds one per call; `linecloud bench
+// solvers` builds them before timing, so its µs/call is the solver alone — as
+// PoseLib's benchmark times its solvers on prepared inputs. `sample` must
+// outlive it.
+class PreparedSample {
+ public:
+  static constexpr int kMaxSize = 6;  // the largest minimal sample (p6L)
+
+  PreparedSample(const MethodInfo& method, const MinimalSample& sample);
+
+  // The method's solver. Sim3 methods (method.similarity()) write *sim, the
+  // others *rigid; returns the number of solutions (query_from_world).
+  int Solve(std::vector<Rigid3d>* rigid, std::vector<Sim3d>* sim) const;
+
+ private:
+  const MethodInfo* method_;
+  const MinimalSample* sample_;
+  std::array<Eigen::Vector3d, kMaxSize> origins_, directions_;
+  int num_rays_ = 0;
+};
 
 // Runs the method's minimal solver on a checked sample: every real solution
 // as query_from_world (cam_from_world, rig_from_world or local_from_world),
