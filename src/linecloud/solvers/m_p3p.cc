@@ -1,5 +1,6 @@
 #include "linecloud/solvers/m_p3p.h"
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 
