@@ -30,8 +30,9 @@ namespace linecloud {
 // the ~0.1 % worst-conditioned instances fall back to a 26 × 34 elimination
 // template, tools/elimination_template.py three_quadrics_z). Only its real
 // eigenvalues are needed: the action's three non-trivial rows are linear in
-// (x, y) for fixed z, so its characteristic polynomial is a 3 × 3 determinant of degree 8 in z, whose real roots come
-// from Sturm sequences (no eigen-decomposition). Real solutions with s > 0
+// (x, y) for fixed z, so its characteristic polynomial is a 3 × 3
+// determinant of degree 8 in z, whose real roots come from Sturm sequences
+// (no eigen-decomposition). Real solutions with s > 0
 // are ranked by the residual of the unused eighth equation and kept while
 // within 100× of the best one (for exact data: exactly the solutions of all
 // eight equations). No sign is imposed along the lines. local_from_world,
