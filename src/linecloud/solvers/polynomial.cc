@@ -1,6 +1,7 @@
 #include "linecloud/solvers/polynomial.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <limits>
 
@@ -429,24 +430,33 @@ struct FixedSturmSequence {
   }
 };
 
-// Σ c_i x^i for i = 0..D by Estrin's scheme: pairs c_{2j} + c_{2j+1} x, then
-// pairs of those with x², x⁴, …: a dependency chain of ~log₂ D
-// multiply-adds instead of Horner's D (the three chains of a Halley step are
-// then short enough to overlap).
+// x^K for K a power of two, by squaring.
+template <int K>
+inline double PowerOfTwoPower(double x) {
+  if constexpr (K == 1) {
+    return x;
+  } else {
+    const double half = PowerOfTwoPower<K / 2>(x);
+    return half * half;
+  }
+}
+
+// Σ c_i x^i for i = 0..D by Estrin's scheme: with K the largest power of two
+// ≤ D, p = (c_0 + … + c_{K−1} x^{K−1}) + x^K (c_K + … + c_D x^{D−K}), both
+// halves split the same way — pairs c_{2j} + c_{2j+1} x, then pairs of those
+// with x², x⁴, …: a dependency chain of ~log₂ D multiply-adds instead of
+// Horner's D (the three chains of a Halley step are then short enough to
+// overlap).
 template <int D>
 inline double Estrin(const double* c, double x) {
-  double t[D + 1];
-#pragma GCC unroll 16
-  for (int i = 0; i <= D; ++i) t[i] = c[i];
-  double power = x;
-#pragma GCC unroll 8
-  for (int n = D + 1; n > 1; n = (n + 1) / 2) {
-#pragma GCC unroll 8
-    for (int j = 0; j < n / 2; ++j) t[j] = t[2 * j] + t[2 * j + 1] * power;
-    if (n % 2) t[n / 2] = t[n - 1];
-    power *= power;
+  if constexpr (D == 0) {
+    return c[0];
+  } else if constexpr (D == 1) {
+    return c[0] + c[1] * x;
+  } else {
+    constexpr int kHalf = static_cast<int>(std::bit_floor(static_cast<unsigned>(D)));
+    return Estrin<kHalf - 1>(c, x) + PowerOfTwoPower<kHalf>(x) * Estrin<D - kHalf>(c + kHalf, x);
   }
-  return t[0];
 }
 
 // p(x), p′(x) and p″(x) / 2 of p (degree n, or N when N > 0; then `dp` and
