@@ -247,6 +247,13 @@ namespace {
 
 constexpr int kMaxSturm = 16;
 
+// Thresholds shared by both Sturm sequence builders below (members scaled to
+// unit largest coefficient): a remainder no larger than kSturmCommonFactor
+// means the common factor of p and p′ was reached (a multiple root), and a
+// leading coefficient below kSturmNegligibleLead is dropped.
+constexpr double kSturmCommonFactor = 1e-13;
+constexpr double kSturmNegligibleLead = 1e-14;
+
 // A Sturm sequence of any shape: members of falling degree, each scaled to
 // unit largest coefficient; a member may drop more than one degree, and the
 // sequence ends early at a common factor (a multiple root).
@@ -299,10 +306,10 @@ struct SturmSequence {
 bool Normalise(double* c, int* degree, double reference) {
   double largest = 0;
   for (int i = 0; i <= *degree; ++i) largest = std::max(largest, std::abs(c[i]));
-  if (!(largest > 1e-13 * reference)) return false;
+  if (!(largest > kSturmCommonFactor * reference)) return false;
   const double inverse = 1.0 / largest;
   for (int i = 0; i <= *degree; ++i) c[i] *= inverse;
-  while (*degree > 0 && std::abs(c[*degree]) < 1e-14) --*degree;
+  while (*degree > 0 && std::abs(c[*degree]) < kSturmNegligibleLead) --*degree;
   return true;
 }
 
@@ -334,10 +341,10 @@ void BuildSturm(const double* monic, int n, SturmSequence* s) {
     // a remainder at rounding level means the gcd was reached (multiple roots).
     double largest = 0;
     for (int i = 0; i <= dr; ++i) largest = std::max(largest, std::abs(r[i]));
-    if (!(largest > 1e-13)) break;
+    if (!(largest > kSturmCommonFactor)) break;
     const double scale = -1.0 / largest;
     for (int i = 0; i <= dr; ++i) r[i] *= scale;
-    while (dr > 0 && std::abs(r[dr]) < 1e-14) --dr;
+    while (dr > 0 && std::abs(r[dr]) < kSturmNegligibleLead) --dr;
     s->degree[s->size] = dr;
     ++s->size;
   }
@@ -364,10 +371,10 @@ struct FixedSturmSequence {
     for (int i = 0; i <= N; ++i) m[0][i] = monic[i] * inverse;
     largest = 0;
     for (int i = 1; i <= N; ++i) largest = std::max(largest, i * std::abs(m[0][i]));
-    if (!(largest > 1e-13)) return false;
+    if (!(largest > kSturmCommonFactor)) return false;
     inverse = 1.0 / largest;
     for (int i = 1; i <= N; ++i) m[1][i - 1] = i * m[0][i] * inverse;
-    if (std::abs(m[1][N - 1]) < 1e-14) return false;
+    if (std::abs(m[1][N - 1]) < kSturmNegligibleLead) return false;
 #pragma GCC unroll 16
     for (int k = 1; k < N; ++k) {
       // −rem(m[k − 1], m[k]): two steps of long division by a member of
@@ -384,10 +391,10 @@ struct FixedSturmSequence {
       for (int i = 0; i < db; ++i) r[i] -= q * b[i];
       largest = 0;
       for (int i = 0; i < db; ++i) largest = std::max(largest, std::abs(r[i]));
-      if (!(largest > 1e-13)) return false;
+      if (!(largest > kSturmCommonFactor)) return false;
       const double scale = -1.0 / largest;
       for (int i = 0; i < db; ++i) m[k + 1][i] = r[i] * scale;
-      if (std::abs(m[k + 1][db - 1]) < 1e-14) return false;
+      if (std::abs(m[k + 1][db - 1]) < kSturmNegligibleLead) return false;
     }
     return true;
   }
@@ -703,16 +710,10 @@ int SturmRealRoots(const double* coefficients, int degree, double* roots) {
   const double bound = bound_exponent == std::numeric_limits<int>::min()
                            ? 1e-300
                            : std::ldexp(1.0, bound_exponent + 1) * (1.0 + 1e-12);
-  // The solvers' degrees get a fixed-size generic sequence; anything it
-  // cannot represent goes to the general one.
-  int count = -1;
-  switch (n) {
-    case 3: count = FixedSturmRoots<3>(monic, bound, roots); break;
-    case 4: count = FixedSturmRoots<4>(monic, bound, roots); break;
-    case 6: count = FixedSturmRoots<6>(monic, bound, roots); break;
-    case 8: count = FixedSturmRoots<8>(monic, bound, roots); break;
-    default: break;
-  }
+  // The solvers' degree (8: m-p3P, p4L+u, m-p4L+u, m-P4L+l) gets a
+  // fixed-size generic sequence; other degrees, and shapes it cannot
+  // represent, go to the general one.
+  int count = n == 8 ? FixedSturmRoots<8>(monic, bound, roots) : -1;
   if (count < 0) {
     SturmSequence sturm;
     BuildSturm(monic, n, &sturm);

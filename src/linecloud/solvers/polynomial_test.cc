@@ -135,11 +135,11 @@ TEST(Polynomial, SturmDegreeEightInBothSequenceShapes) {
   // Generic: six simple real roots, one of them 0 (the first split point).
   Poly p = {1.0, 0.0, 1.0};
   for (double r : {0.0, 1.0, -2.0, 3.0, -4.0, 5.0}) p = Mul(p, Poly{-r, 1.0});
+  ASSERT_EQ(p.size(), 9u);
   std::vector<double> roots = roots_of(p);
   ASSERT_EQ(roots.size(), 6u);
   const double expected[6] = {-4.0, -2.0, 0.0, 1.0, 3.0, 5.0};
   for (int i = 0; i < 6; ++i) EXPECT_NEAR(roots[i], expected[i], 1e-12) << i;
-  ASSERT_EQ(p.size(), 9u);
   // A double root: the sequence ends at the common factor (general path).
   p = Mul(complex_pairs, Mul(Mul(Poly{-1.0, 1.0}, Poly{-1.0, 1.0}), Poly{2.0, 1.0}));
   p = Mul(p, Poly{-3.0, 1.0});
