@@ -288,6 +288,32 @@ TEST(Cli, BenchSolversReportsEveryRequestedMethod) {
   ExpectError(RunCli({"bench", "solvers", "--methods", "p9P"}), "unknown method 'p9P'");
 }
 
+// bench localize on a point method and its line counterpart: both localize
+// every query, refine to about their Cramér–Rao bound, and the line cloud's
+// bound is about √2 above the point model's on the same queries.
+TEST(Cli, BenchLocalizeReportsTheRotationBound) {
+  const CliResult r = RunCli({"bench", "localize", "--json", "--queries", "20", "--methods",
+                              "p2P+u,p4L+u"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json j = nlohmann::json::parse(r.out);
+  ASSERT_EQ(j["rows"].size(), 2u);
+  for (const auto& row : j["rows"]) {
+    EXPECT_EQ(row["localized"], 20) << row.dump();
+    const double bound = row["rotation_bound_deg"].get<double>();
+    const double refined = row["median_rotation_deg"]["refined"].get<double>();
+    ASSERT_GT(bound, 0.0) << row.dump();
+    // A median of |ω| sits ~0.9× below the RMS the bound gives; 20 queries.
+    EXPECT_GT(refined / bound, 0.6) << row.dump();
+    EXPECT_LT(refined / bound, 1.3) << row.dump();
+    const double ratio = bound / row["counterpart_rotation_bound_deg"].get<double>();
+    if (row["method"] == "p4L+u") {
+      EXPECT_EQ(row["counterpart"], "p2P+u");
+      EXPECT_GT(ratio, 1.25) << row.dump();
+      EXPECT_LT(ratio, 1.6) << row.dump();
+    }
+  }
+}
+
 }  // namespace
 }  // namespace linecloud
 

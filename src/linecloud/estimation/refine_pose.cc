@@ -4,7 +4,10 @@
 #include <cmath>
 #include <utility>
 
+#include <limits>
+
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include "linecloud/util/error.h"
@@ -124,6 +127,26 @@ RefineSummary RefinePose(const PoseData& data, std::span<const int> indices,
   }
   summary.final_cost = current.cost;
   return summary;
+}
+
+double RotationErrorBound(const PoseData& data, std::span<const int> indices,
+                          const Sim3d& query_from_world, double sigma_px, bool similarity) {
+  const PoseLinearization linearization(data, query_from_world);
+  Eigen::Matrix<double, 7, 7> fisher = Eigen::Matrix<double, 7, 7>::Zero();
+  Eigen::Vector2d r;
+  Eigen::Matrix<double, 2, 7> j;
+  for (const int i : indices) {
+    const int n = ReprojectionResidual(data, linearization, static_cast<size_t>(i), &r, &j);
+    for (int row = 0; row < n; ++row) fisher.noalias() += j.row(row).transpose() * j.row(row);
+  }
+  const int dim = similarity ? 7 : 6;
+  const Eigen::MatrixXd f = fisher.topLeftCorner(dim, dim);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(f);
+  const Eigen::VectorXd& values = eigen.eigenvalues();  // ascending
+  if (!(values[0] > 1e-12 * values[dim - 1])) return std::numeric_limits<double>::infinity();
+  const Eigen::MatrixXd covariance =
+      eigen.eigenvectors() * values.cwiseInverse().asDiagonal() * eigen.eigenvectors().transpose();
+  return sigma_px * std::sqrt(covariance.topLeftCorner<3, 3>().trace());
 }
 
 }  // namespace linecloud

@@ -30,6 +30,20 @@ struct RefineSummary {
 RefineSummary RefinePose(const PoseData& data, std::span<const int> indices,
                          const RefineOptions& options, Sim3d* query_from_world);
 
+// Cramér–Rao bound of the rotation on these correspondences. With independent
+// Gaussian noise of std. dev. sigma_px on every observation (both image axes),
+// the rotation error ω of any unbiased estimate of query_from_world (the left
+// perturbation of ReprojectionResidual, radians) has covariance
+//     Cov(ω) ⪰ σ² [F⁻¹]_ωω,   F = Σᵢ Jᵢᵀ Jᵢ over `indices`,
+// Jᵢ the residual Jacobian at the true pose `query_from_world`: two rows for a
+// point (eq. 2), one for a line (eq. 6 — a line measures only the
+// observation's offset across its projection). Translation (and with
+// `similarity` the scale) are nuisance parameters, hence the inverse before
+// taking the block. Returns √trace σ²[F⁻¹]_ωω: the smallest RMS rotation error
+// (radians) any estimator can reach; +∞ when F is singular.
+double RotationErrorBound(const PoseData& data, std::span<const int> indices,
+                          const Sim3d& query_from_world, double sigma_px, bool similarity);
+
 // Applies the left perturbation of ReprojectionResidual: (ω, δt, δσ).
 Sim3d PerturbPose(const Sim3d& pose, const Eigen::Matrix<double, 7, 1>& delta);
 

@@ -1,9 +1,14 @@
 #include "linecloud/eval/localization_bench.h"
 
 #include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <vector>
 
 #include <fmt/format.h>
 
+#include "linecloud/estimation/refine_pose.h"
+#include "linecloud/eval/statistics.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
@@ -25,6 +30,28 @@ std::string CounterpartMethod(const MethodInfo& method) {
   return "";
 }
 
+namespace {
+
+// RotationErrorBound of the true pose on the query's true inliers, in degrees.
+double RotationBoundDeg(const MethodInfo& method, const LocalizationInstance& inst,
+                        const LocalizationMap& map, double sigma_px) {
+  const PreparedQuery prepared = PrepareQuery(method, inst.query, map);
+  // The aligned frames' pose: query_from_world = query_from_aligned ∘ pose ∘
+  // aligned_from_map (identities unless +u).
+  const Sim3d aligned_truth =
+      Sim3d(1.0, prepared.aligned_from_query, Eigen::Vector3d::Zero()) * inst.truth *
+      Sim3d(1.0, prepared.aligned_from_map.inverse(), Eigen::Vector3d::Zero());
+  std::vector<int> inliers;
+  for (size_t i = 0; i < inst.is_inlier.size(); ++i) {
+    if (inst.is_inlier[i]) inliers.push_back(static_cast<int>(i));
+  }
+  return RotationErrorBound(prepared.data, inliers, aligned_truth, sigma_px,
+                            method.similarity()) *
+         180.0 / std::numbers::pi;
+}
+
+}  // namespace
+
 std::vector<LocalizationBenchRow> RunLocalizationBench(
     const LocalizationBenchOptions& options,
     const std::function<void(const std::string&)>& progress) {
@@ -40,6 +67,8 @@ std::vector<LocalizationBenchRow> RunLocalizationBench(
     progress(fmt::format("{} ({} queries)", method.name, options.queries));
     LocalizationTally tally(options.max_rotation_deg, options.max_position_rel);
     LocalizeOptions localize = options.localize;
+    const std::string counterpart = CounterpartMethod(method);
+    std::vector<double> bound, counterpart_bound;
     for (int k = 0; k < options.queries; ++k) {
       // Query k is the same for a method and its counterpart.
       std::mt19937_64 rng(options.seed * 1000003 + static_cast<uint64_t>(k));
@@ -48,11 +77,22 @@ std::vector<LocalizationBenchRow> RunLocalizationBench(
       const LocalizationMap map = method.lines ? LocalizationMap(inst.line_map)
                                                : LocalizationMap(inst.point_map);
       tally.Add(Localize(method, inst.query, map, localize), inst.truth, inst.scene_size);
+      if (options.instance.noise_px > 0) {
+        const LocalizationMap other = method.lines ? LocalizationMap(inst.point_map)
+                                                   : LocalizationMap(inst.line_map);
+        bound.push_back(RotationBoundDeg(method, inst, map, options.instance.noise_px));
+        if (!counterpart.empty()) {
+          counterpart_bound.push_back(RotationBoundDeg(FindMethod(counterpart), inst, other,
+                                                       options.instance.noise_px));
+        }
+      }
     }
     LocalizationBenchRow row;
     static_cast<LocalizationSummary&>(row) = tally.Summary();
     row.method = std::string(method.name);
-    row.counterpart = CounterpartMethod(method);
+    row.counterpart = counterpart;
+    if (!bound.empty()) row.rotation_bound_deg = Median(bound);
+    if (!counterpart_bound.empty()) row.counterpart_rotation_bound_deg = Median(counterpart_bound);
     rows.push_back(row);
   }
   return rows;

@@ -31,6 +31,13 @@ struct LocalizationBenchOptions {
 struct LocalizationBenchRow : LocalizationSummary {
   std::string method;             // median_position relative to the scene size
   std::string counterpart;        // the same problem with the other map kind
+  // Cramér–Rao bound of the refined rotation (RotationErrorBound at the true
+  // pose, on the query's true inliers, σ = the pixel noise), degrees, median
+  // over the queries: for this method's map and for the counterpart's map of
+  // the same queries. Their ratio is the least by which one map kind must
+  // trail the other, whatever the estimator.
+  double rotation_bound_deg = 0;
+  double counterpart_rotation_bound_deg = 0;
 };
 
 // The method with the same query data and model but the other map kind.
