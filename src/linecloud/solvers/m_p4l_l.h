@@ -20,23 +20,23 @@ namespace linecloud {
 // rotation matrix of an unnormalised quaternion q (s' = |q|²). Projected onto
 // u ⟂ v_i each line gives 2 equations, linear in t' and in the 10 monomials
 // q_a q_b. Seven of the eight equations are used (the last line contributes
-// one): eliminating t' leaves 4 equations G_j(q) = h_j with quadratic forms
-// G_j; dividing out the largest h_j gives 3 homogeneous quadrics in q, i.e.
-// 3 quadrics in (x, y, z) for q = (1, x, y, z) after a fixed generic
-// rotation of the problem (so no true pose has q_w = 0 by construction).
-// Their 8 intersections come from an 8 × 8 action matrix (multiplication by
-// z), its three non-unit rows the normal forms of z⁴, xz², yz² from
-// hand-derived Gröbner-basis reduction rules (3 × 3, 2 × 2 and 1 × 1 solves;
-// the ~0.1 % worst-conditioned instances fall back to a 26 × 34 elimination
-// template, tools/elimination_template.py three_quadrics_z). Only its real
-// eigenvalues are needed: the action's three non-trivial rows are linear in
-// (x, y) for fixed z, so its characteristic polynomial is a 3 × 3
-// determinant of degree 8 in z, whose real roots come from Sturm sequences
-// (no eigen-decomposition). Real solutions with s > 0
-// are ranked by the residual of the unused eighth equation and kept while
-// within 100× of the best one (for exact data: exactly the solutions of all
-// eight equations). No sign is imposed along the lines. local_from_world,
-// best first.
+// one): three of them (both rows of one line, one of the least parallel other
+// line) give t' by Cramer's rule; substituted into the other four they leave
+// G_j(q) = h_j with quadratic forms G_j; dividing out the largest h_j gives 3
+// homogeneous quadrics in q, i.e. 3 quadrics in (x, y, z) for q = (1, x, y, z)
+// after a fixed generic rotation of the problem (so no true pose has q_w = 0
+// by construction). Their 8 intersections: with z hidden, the quadrics solved
+// for (x², xy, y²) yield three relations linear in (x, y) whose determinant is
+// a degree-8 polynomial in z (IntersectThreeQuadrics; a block that is
+// ill-conditioned in these coordinates is retried after a fixed generic
+// rotation of (x, y, z), then by a 26 × 34 elimination template,
+// tools/elimination_template.py three_quadrics_z); its real roots come from
+// Sturm sequences (no eigen-decomposition), (x, y) from the relations, and
+// Newton steps on the quadrics polish them. Real solutions with s > 0 are
+// ranked by the residual of the unused eighth equation and kept while within
+// 100× of the best one (for exact data: exactly the solutions of all eight
+// equations). No sign is imposed along the lines. local_from_world, best
+// first.
 int m_p4l_l(std::span<const PluckerLine> lines,
             std::span<const Eigen::Vector3d> points_local, std::vector<Sim3d>* out);
 

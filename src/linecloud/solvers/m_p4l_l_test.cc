@@ -54,6 +54,50 @@ TEST(IntersectThreeQuadrics, FindsTheEightKnownIntersections) {
   }
 }
 
+// A quadric without x², xy, y² terms makes the hidden-variable elimination's
+// (x², xy, y²) block singular (so is the elimination template's): solved
+// after a generic rotation of (x, y, z), the eight intersections are found.
+TEST(IntersectThreeQuadrics, FindsTheIntersectionsWhenTheLeadingBlockIsSingular) {
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> n(0.0, 1.0);
+  int found_all = 0;
+  constexpr int kTrials = 100;
+  for (int trial = 0; trial < kTrials; ++trial) {
+    std::array<Eigen::Vector3d, 3> first, second;
+    std::array<std::array<double, 2>, 3> offset;
+    Eigen::Matrix<double, 3, 10> quadrics;
+    for (int k = 0; k < 3; ++k) {
+      first[k] = Eigen::Vector3d(n(rng), n(rng), n(rng));
+      second[k] = Eigen::Vector3d(n(rng), n(rng), n(rng));
+      offset[k] = {n(rng), n(rng) + 3.0};
+    }
+    first[0] = Eigen::Vector3d(0, 0, 1);  // (z − b)(c·p − d): no x², xy, y²
+    for (int k = 0; k < 3; ++k) {
+      quadrics.row(k) = ProductOfPlanes(first[k], offset[k][0], second[k], offset[k][1]);
+    }
+    quadrics.row(1) += 0.7 * quadrics.row(0);
+    quadrics.row(2) -= 0.4 * quadrics.row(0);
+    std::vector<Eigen::Vector3d> roots;
+    IntersectThreeQuadrics(quadrics, &roots);
+    int matched = 0;
+    for (int corner = 0; corner < 8; ++corner) {
+      Eigen::Matrix3d planes;
+      Eigen::Vector3d rhs;
+      for (int k = 0; k < 3; ++k) {
+        const bool use_second = (corner >> k) & 1;
+        planes.row(k) = (use_second ? second[k] : first[k]).transpose();
+        rhs[k] = offset[k][use_second ? 1 : 0];
+      }
+      const Eigen::Vector3d point = planes.lu().solve(rhs);
+      matched += std::any_of(roots.begin(), roots.end(), [&](const auto& r) {
+        return (r - point).norm() < 1e-7 * std::max(1.0, point.norm());
+      });
+    }
+    found_all += matched == 8;
+  }
+  EXPECT_GE(found_all, kTrials * 95 / 100);
+}
+
 // No real intersection: x² + 1 = 0 combined with anything.
 TEST(IntersectThreeQuadrics, ReturnsNothingWithoutRealIntersections) {
   Eigen::Matrix<double, 3, 10> quadrics;
