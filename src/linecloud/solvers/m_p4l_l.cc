@@ -160,7 +160,8 @@ struct HiddenZRelations {
 //      it lies in the span of S₁ and S₂ over k(z) — measured, det ≡ 0.)
 // det[S₁; S₂; x·S₂] has degree 2 + 2 + 4 = 8, the action matrix's
 // characteristic polynomial up to a constant factor. False when step 1's
-// 3 × 3 system is ill-conditioned (the elimination template takes over).
+// 3 × 3 system is ill-conditioned (IntersectThreeQuadrics then retries in
+// rotated variables, then takes the elimination template).
 bool HiddenZ(const Eigen::Matrix<double, 3, 10>& quadrics, HiddenZRelations* out) {
   // Quadric columns: 1, x, y, z, x², xy, xz, y², yz, z².
   Eigen::Matrix3d leading;
@@ -179,44 +180,38 @@ bool HiddenZ(const Eigen::Matrix<double, 3, 10>& quadrics, HiddenZRelations* out
     beta[i] = {rest(i, 2), rest(i, 8)};            // y, yz
     gamma[i] = {rest(i, 0), rest(i, 3), rest(i, 9)};  // 1, z, z²
   }
-  // A relation Σ cᵢAᵢ + dx·x + dy·y as (X, Y, C) = (Σ cᵢαᵢ + dx, Σ cᵢβᵢ + dy, Σ cᵢγᵢ).
+  // The relation Σ cᵢAᵢ + dx·x + dy·y as (X, Y, C) = (Σ cᵢαᵢ + dx, Σ cᵢβᵢ + dy,
+  // Σ cᵢγᵢ), written to slot b.
+  const auto relation = [&](int b, const auto& c, const ZPoly<4>& dx, const ZPoly<4>& dy) {
+    out->x[b] = dx;
+    out->y[b] = dy;
+    out->c[b] = {};
+    for (int i = 0; i < 3; ++i) {
+      AddScaled(Multiply(c[i], alpha[i]), 1, &out->x[b]);
+      AddScaled(Multiply(c[i], beta[i]), 1, &out->y[b]);
+      AddScaled(Multiply(c[i], gamma[i]), 1, &out->c[b]);
+    }
+  };
+  const auto pad = [](const auto& p) {
+    ZPoly<4> padded{};
+    for (size_t i = 0; i < std::min<size_t>(p.size(), 4); ++i) padded[i] = p[i];
+    return padded;
+  };
   for (int k = 0; k < 2; ++k) {
     // k = 0: S₁ (c = α₂, β₂ − α₁, −β₁; dx = γ₂, dy = −γ₁); k = 1: S₂ (indices + 1).
-    const ZPoly<2> c0 = alpha[k + 1];
-    const ZPoly<2> c1 = {beta[k + 1][0] - alpha[k][0], beta[k + 1][1] - alpha[k][1]};
-    const ZPoly<2> c2 = {-beta[k][0], -beta[k][1]};
-    ZPoly<4> x{}, y{};
-    ZPoly<5> c{};
-    AddScaled(Multiply(c0, alpha[0]), 1, &x);
-    AddScaled(Multiply(c1, alpha[1]), 1, &x);
-    AddScaled(Multiply(c2, alpha[2]), 1, &x);
-    AddScaled(gamma[k + 1], 1, &x);
-    AddScaled(Multiply(c0, beta[0]), 1, &y);
-    AddScaled(Multiply(c1, beta[1]), 1, &y);
-    AddScaled(Multiply(c2, beta[2]), 1, &y);
-    AddScaled(gamma[k], -1, &y);
-    AddScaled(Multiply(c0, gamma[0]), 1, &c);
-    AddScaled(Multiply(c1, gamma[1]), 1, &c);
-    AddScaled(Multiply(c2, gamma[2]), 1, &c);
-    out->x[k] = x;
-    out->y[k] = y;
-    out->c[k] = c;
+    const std::array<ZPoly<2>, 3> c = {
+        alpha[k + 1],
+        ZPoly<2>{beta[k + 1][0] - alpha[k][0], beta[k + 1][1] - alpha[k][1]},
+        ZPoly<2>{-beta[k][0], -beta[k][1]}};
+    const ZPoly<3> minus_gamma = {-gamma[k][0], -gamma[k][1], -gamma[k][2]};
+    relation(k, c, pad(gamma[k + 1]), pad(minus_gamma));
   }
-  // x·S₂: c = (X₁, Y₁, 0), dx = C₁ (S₂'s degrees are 2, 2 and 3).
-  const ZPoly<3> x1 = {out->x[1][0], out->x[1][1], out->x[1][2]};
-  const ZPoly<3> y1 = {out->y[1][0], out->y[1][1], out->y[1][2]};
-  ZPoly<4> x{}, y{};
-  ZPoly<5> c{};
-  AddScaled(Multiply(x1, alpha[0]), 1, &x);
-  AddScaled(Multiply(y1, alpha[1]), 1, &x);
-  AddScaled(ZPoly<4>{out->c[1][0], out->c[1][1], out->c[1][2], out->c[1][3]}, 1, &x);
-  AddScaled(Multiply(x1, beta[0]), 1, &y);
-  AddScaled(Multiply(y1, beta[1]), 1, &y);
-  AddScaled(Multiply(x1, gamma[0]), 1, &c);
-  AddScaled(Multiply(y1, gamma[1]), 1, &c);
-  out->x[2] = x;
-  out->y[2] = y;
-  out->c[2] = c;
+  // x·S₂: c = (X₁, Y₁, 0), dx = C₁ (S₂'s degrees are 2, 2 and 3, so the
+  // padding drops only zeros).
+  const std::array<ZPoly<3>, 3> c = {ZPoly<3>{out->x[1][0], out->x[1][1], out->x[1][2]},
+                                     ZPoly<3>{out->y[1][0], out->y[1][1], out->y[1][2]},
+                                     ZPoly<3>{}};
+  relation(2, c, pad(out->c[1]), ZPoly<4>{});
   return true;
 }
 
