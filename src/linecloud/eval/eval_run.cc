@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <random>
@@ -11,6 +12,7 @@
 
 #include <fmt/core.h>
 
+#include "linecloud/eval/localization_bench.h"
 #include "linecloud/eval/plot.h"
 #include "linecloud/eval/scene_localization.h"
 #include "linecloud/eval/statistics.h"
@@ -18,6 +20,7 @@
 #include "linecloud/io/json_util.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/lifting/lifting.h"
+#include "linecloud/estimation/refine_pose.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/synthetic/localization_instances.h"
 #include "linecloud/synthetic/scene.h"
@@ -88,6 +91,11 @@ struct QueryRecord {
   double position[2] = {1e9, 1e9};
   double reprojection_px[2] = {0, 0};
   double point_reprojection_px[2] = {0, 0};
+  // Observation noise σ̂ estimated at the ground truth (px), and the
+  // Cramér–Rao bound of the refined rotation on the method's inliers with it
+  // (°; +∞ when the inliers do not fix the pose).
+  double noise_px = 0;
+  double rotation_bound_deg = std::numeric_limits<double>::infinity();
   RansacStats stats;
   double refine_ms = 0;
 };
@@ -97,6 +105,9 @@ struct EvalQuery {
   Query query;
   Sim3d truth;
 };
+
+// JSON has no infinity: an unbounded value is written as null.
+json FiniteOrNull(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
 Sim3d ToSim3(const Rigid3d& p) { return Sim3d(1.0, p.rotation, p.translation); }
 
@@ -154,20 +165,46 @@ std::vector<EvalQuery> QueriesForMethod(const EvalWork& work, const MethodInfo& 
   return out;
 }
 
-// Mean reprojection error of the map's (secret) points over `inliers`.
-double PointReprojection(const Query& query, const PointMap& map, const Sim3d& pose,
-                         const std::vector<int>& inliers) {
-  double sum = 0;
-  int n = 0;
+// Reprojection errors (px) of the map's (secret) points over `inliers`;
+// points behind a camera are left out.
+std::vector<double> PointReprojections(const Query& query, const PointMap& map, const Sim3d& pose,
+                                       const std::vector<int>& inliers) {
+  std::vector<double> errors;
   for (int i : inliers) {
     const QueryObservation& o = query.observations[i];
     Eigen::Vector3d x = pose * map.points.at(o.id);
     if (!query.cam_from_rig.empty()) x = query.cam_from_rig[o.camera] * x;
     if (!(x.z() > 0)) continue;
-    sum += (query.cameras[o.camera].ImgFromCam(x) - o.xy).norm();
-    ++n;
+    errors.push_back((query.cameras[o.camera].ImgFromCam(x) - o.xy).norm());
   }
-  return n ? sum / n : 0;
+  return errors;
+}
+
+double PointReprojection(const Query& query, const PointMap& map, const Sim3d& pose,
+                         const std::vector<int>& inliers) {
+  const std::vector<double> errors = PointReprojections(query, map, pose, inliers);
+  double sum = 0;
+  for (double e : errors) sum += e;
+  return errors.empty() ? 0 : sum / errors.size();
+}
+
+// The noise the refinement faces and the best it can do with it: σ̂ from the
+// median reprojection error of the inliers' secret points at the ground truth
+// (the norm of a 2D Gaussian error is Rayleigh, median σ √(2 ln 2)), and the
+// Cramér–Rao bound of the rotation on the method's own residuals (eq. 2 for
+// points, eq. 6 for lines) at the ground truth, in the frames the refinement
+// works in.
+void BoundRotation(const MethodInfo& method, const EvalQuery& q, const LocalizationMap& map,
+                   const PointMap& points, const std::vector<int>& inliers, QueryRecord* r) {
+  const std::vector<double> errors = PointReprojections(q.query, points, q.truth, inliers);
+  if (errors.empty()) return;
+  r->noise_px = Median(errors) / std::sqrt(2 * std::numbers::ln2);
+  const PreparedQuery prepared = PrepareQuery(method, q.query, map, q.name);
+  // query_from_world = query_from_aligned ∘ aligned_pose ∘ aligned_from_map.
+  const Sim3d aligned_truth = Sim3d(1.0, prepared.aligned_from_query, Eigen::Vector3d::Zero()) * q.truth *
+                              Sim3d(1.0, prepared.aligned_from_map.inverse(), Eigen::Vector3d::Zero());
+  r->rotation_bound_deg =
+      kDeg * RotationErrorBound(prepared.data, inliers, aligned_truth, r->noise_px, method.similarity());
 }
 
 std::vector<QueryRecord> RunMethod(const EvalWork& work, const MethodInfo& method,
@@ -202,6 +239,7 @@ std::vector<QueryRecord> RunMethod(const EvalWork& work, const MethodInfo& metho
         }
         r.reprojection_px[0] = res.reprojection_initial_px;
         r.reprojection_px[1] = res.reprojection_refined_px;
+        BoundRotation(method, q, map, m.points, res.inliers, &r);
       } else {
         r.error = "RANSAC found no pose";
       }
@@ -219,6 +257,9 @@ json MethodReport(const std::vector<QueryRecord>& records) {
   double iterations = 0, inliers = 0, solutions = 0, solver_us = 0, ransac_ms = 0, refine_ms = 0;
   double reproj[2] = {0, 0}, point_reproj[2] = {0, 0};
   int localized = 0, successes = 0;
+  std::vector<double> bounds, noises;
+  double normalized_sq = 0;  // Σ (refined rotation error / its bound)²
+  int bounded = 0;
   json per_query = json::array();
   for (const QueryRecord& r : records) {
     for (int k = 0; k < 2; ++k) {
@@ -237,6 +278,12 @@ json MethodReport(const std::vector<QueryRecord>& records) {
         reproj[k] += r.reprojection_px[k];
         point_reproj[k] += r.point_reprojection_px[k];
       }
+      bounds.push_back(r.rotation_bound_deg);
+      noises.push_back(r.noise_px);
+      if (std::isfinite(r.rotation_bound_deg) && r.rotation_bound_deg > 0) {
+        normalized_sq += std::pow(r.rotation_deg[1] / r.rotation_bound_deg, 2);
+        ++bounded;
+      }
     }
     localized += r.rotation_deg[1] < 1.0 && r.position[1] < 0.1;
     json q = {{"group", r.group}, {"query", r.name}, {"correspondences", r.correspondences},
@@ -249,6 +296,10 @@ json MethodReport(const std::vector<QueryRecord>& records) {
               {"reprojection_px", {{"initial", r.reprojection_px[0]}, {"refined", r.reprojection_px[1]},
                                    {"point_initial", r.point_reprojection_px[0]},
                                    {"point_refined", r.point_reprojection_px[1]}}}};
+    if (r.success) {
+      q["noise_px"] = r.noise_px;
+      q["rotation_bound_deg"] = FiniteOrNull(r.rotation_bound_deg);
+    }
     if (!r.error.empty()) q["error"] = r.error;
     per_query.push_back(q);
   }
@@ -275,6 +326,10 @@ json MethodReport(const std::vector<QueryRecord>& records) {
           {"reprojection_px", {{"initial", reproj[0] / ns}, {"refined", reproj[1] / ns},
                                {"point_initial", point_reproj[0] / ns},
                                {"point_refined", point_reproj[1] / ns}}},
+          // Cramér–Rao check of the refined rotation (see BoundRotation).
+          {"median_noise_px", Median(noises)},
+          {"median_rotation_bound_deg", FiniteOrNull(Median(bounds))},
+          {"rms_rotation_error_over_bound", bounded ? json(std::sqrt(normalized_sq / bounded)) : json(nullptr)},
           {"per_query", per_query}};
 }
 
@@ -382,6 +437,30 @@ std::string ReportMarkdown(const EvalWork& work, const EvalRunOptions& options, 
                       m["mean_iterations"].get<double>(), 100 * m["inlier_ratio"].get<double>(),
                       m["mean_solutions"].get<double>(), m["solver_us"].get<double>(), reproj, paper,
                       paper_reproj);
+  }
+  md += "\n## Cramér–Rao check of the refined rotation\n\n"
+        "How close each method comes to the least rotation error any estimator could reach on its "
+        "inliers: σ̂ = the observation noise at the ground truth (median reprojection error of the "
+        "inliers' points / √(2 ln 2)), bound = √trace of the Cramér–Rao covariance of the rotation "
+        "at the ground truth with σ̂ (eq. 2 residuals for points, eq. 6 for lines: a line measures "
+        "only the offset across it), medians over the queries; RMS error / bound ≈ 1 for an "
+        "efficient estimator. The bound ratio is the least by which the line method must trail its "
+        "point twin on these queries.\n\n"
+        "| point / line method | σ̂ px | refined rot. ° point / line (ratio) | bound ° point / line (ratio) | "
+        "RMS error / bound point / line |\n|---|---|---|---|---|\n";
+  for (const MethodInfo& info : AllMethods()) {
+    const std::string name(info.name), twin = CounterpartMethod(info);
+    if (info.lines || !report["methods"].contains(name) || !report["methods"].contains(twin)) continue;
+    const json& p = report["methods"][name];
+    const json& l = report["methods"][twin];
+    const auto value = [](const json& v) { return v.is_number() ? v.get<double>() : NAN; };
+    const double rp = value(p["median_rotation_deg"]), rl = value(l["median_rotation_deg"]);
+    const double bp = value(p["median_rotation_bound_deg"]), bl = value(l["median_rotation_bound_deg"]);
+    md += fmt::format("| {} / {} | {} | {} / {} ({}×) | {} / {} ({}×) | {} / {} |\n", name, twin,
+                      Fixed(value(p["median_noise_px"]), 2), Fixed(rp, 4), Fixed(rl, 4), Fixed(rl / rp, 2),
+                      Fixed(bp, 4), Fixed(bl, 4), Fixed(bl / bp, 2),
+                      Fixed(value(p["rms_rotation_error_over_bound"]), 2),
+                      Fixed(value(l["rms_rotation_error_over_bound"]), 2));
   }
   if (report.contains("density")) {
     std::vector<std::string> columns;

@@ -11,6 +11,7 @@
 #include "linecloud/eval/dataset.h"
 #include "linecloud/eval/eval_prepare.h"
 #include "linecloud/eval/eval_run.h"
+#include "linecloud/eval/localization_bench.h"
 #include "linecloud/eval/eval_work.h"
 #include "linecloud/eval/plot.h"
 #include "linecloud/io/json_util.h"
@@ -303,6 +304,20 @@ TEST(EvalRun, SyntheticWorkLocalizesEveryQueryWithAllMethods) {
     // Line methods: the secret points reproject near the observations too.
     if (m.lines) {
       EXPECT_LT(r["reprojection_px"]["point_refined"].get<double>(), 2.0) << m.name;
+    }
+    // Cramér–Rao check: the noise estimated at the truth is the scene's
+    // 0.5 px, and the refinement comes near the bound (RMS error / bound is
+    // 1 for an efficient estimator; 4 or 2 queries leave room).
+    EXPECT_NEAR(r["median_noise_px"].get<double>(), 0.5, 0.1) << m.name;
+    const double bound = r["median_rotation_bound_deg"].get<double>();
+    EXPECT_GT(bound, 0) << m.name;
+    EXPECT_LT(r["rms_rotation_error_over_bound"].get<double>(), 3.0) << m.name;
+    EXPECT_GT(r["rms_rotation_error_over_bound"].get<double>(), 0.2) << m.name;
+    if (!m.lines) {
+      // A line measures one image coordinate where a point measures two.
+      const nlohmann::json& twin = report["methods"][CounterpartMethod(m)];
+      EXPECT_GT(twin["median_rotation_bound_deg"].get<double>(), 1.1 * bound) << m.name;
+      EXPECT_LT(twin["median_rotation_bound_deg"].get<double>(), 2.5 * bound) << m.name;
     }
   }
   EXPECT_TRUE(FileExists(tmp.Path("out/report.md")));
