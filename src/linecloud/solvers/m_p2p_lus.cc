@@ -6,8 +6,9 @@
 
 namespace linecloud {
 
-bool m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
-               std::span<const Eigen::Vector3d> points, Rigid3d* local_from_world) {
+bool UprightTwoPointAlignment(std::span<const Eigen::Vector3d> points_local,
+                              std::span<const Eigen::Vector3d> points, double scale,
+                              Eigen::Quaterniond* rotation, Eigen::Vector3d* translation) {
   const Eigen::Vector3d d = points[1] - points[0];
   const Eigen::Vector3d e = points_local[1] - points_local[0];
   // e^{iθ} = (e_z + i e_x) / (d_z + i d_x), normalised.
@@ -18,11 +19,23 @@ bool m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
   if (!(norm2 > 1e-24 * size * size) || !std::isfinite(norm2)) {
     return false;
   }
-  const Eigen::Quaterniond q = upright::RotationY(re, im);
-  const Eigen::Vector3d t = 0.5 * (points_local[0] + points_local[1]) -
-                            q * (0.5 * (points[0] + points[1]));
+  *rotation = upright::RotationY(re, im);
+  // R_y(θ) m = (c m_x + s m_z, m_y, −s m_x + c m_z), (c, s) from the half angle.
+  const double w = rotation->w(), y = rotation->y();
+  const double c = w * w - y * y, sn = 2 * w * y;
+  const Eigen::Vector3d m = 0.5 * scale * (points[0] + points[1]);
+  *translation = 0.5 * (points_local[0] + points_local[1]) -
+                 Eigen::Vector3d(c * m.x() + sn * m.z(), m.y(), c * m.z() - sn * m.x());
+  return translation->allFinite();
+}
+
+bool m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
+               std::span<const Eigen::Vector3d> points, Rigid3d* local_from_world) {
+  Eigen::Quaterniond q;
+  Eigen::Vector3d t;
+  if (!UprightTwoPointAlignment(points_local, points, 1.0, &q, &t)) return false;
   *local_from_world = Rigid3d(q, t);
-  return t.allFinite();
+  return true;
 }
 
 int m_p2p_lus(std::span<const Eigen::Vector3d> points_local,

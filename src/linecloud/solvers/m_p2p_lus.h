@@ -18,6 +18,12 @@ namespace linecloud {
 int m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
               std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out);
 
+// The rotation R = R_y(θ) and translation t of X̃_i = scale · R X_i + t for a
+// given scale (θ does not depend on it); false for a degenerate sample.
+bool UprightTwoPointAlignment(std::span<const Eigen::Vector3d> points_local,
+                              std::span<const Eigen::Vector3d> points, double scale,
+                              Eigen::Quaterniond* rotation, Eigen::Vector3d* translation);
+
 // The same solution without a container; false for a degenerate sample.
 bool m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
                std::span<const Eigen::Vector3d> points, Rigid3d* local_from_world);
