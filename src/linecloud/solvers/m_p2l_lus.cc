@@ -3,6 +3,7 @@
 #include <array>
 
 #include "linecloud/solvers/m_p2p_u.h"
+#include "linecloud/solvers/upright.h"
 
 namespace linecloud {
 
@@ -11,9 +12,17 @@ int m_p2l_lus(std::span<const PluckerLine> lines,
               std::vector<Rigid3d>* out) {
   const std::array<Eigen::Vector3d, 2> anchors = {lines[0].Anchor(), lines[1].Anchor()};
   const std::array<Eigen::Vector3d, 2> directions = {lines[0].v, lines[1].v};
-  m_p2p_u(anchors, directions, points_local, out);
-  for (Rigid3d& pose : *out) pose = pose.Inverse();  // local_from_world
-  return static_cast<int>(out->size());
+  out->clear();
+  UprightSolution solutions[2];
+  const int count = m_p2p_u(anchors, directions, points_local, solutions);
+  for (int k = 0; k < count; ++k) {
+    // local_from_world = (R_y(θ)ᵀ, −R_y(θ)ᵀ t), R_y(θ)ᵀ = R_y(−θ).
+    const double c = solutions[k].c, s = solutions[k].s;
+    const Eigen::Vector3d& t = solutions[k].t;
+    out->emplace_back(upright::RotationYUnit(c, -s),
+                      Eigen::Vector3d(s * t.z() - c * t.x(), -t.y(), -s * t.x() - c * t.z()));
+  }
+  return count;
 }
 
 }  // namespace linecloud

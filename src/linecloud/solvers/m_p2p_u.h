@@ -25,4 +25,14 @@ int m_p2p_u(std::span<const Eigen::Vector3d> origins,
             std::span<const Eigen::Vector3d> directions,
             std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out);
 
+// The same solutions as (cos θ, sin θ, t), for callers that build another pose
+// from them; returns how many (0–2).
+struct UprightSolution {
+  double c, s;
+  Eigen::Vector3d t;
+};
+int m_p2p_u(std::span<const Eigen::Vector3d> origins,
+            std::span<const Eigen::Vector3d> directions,
+            std::span<const Eigen::Vector3d> points, UprightSolution solutions[2]);
+
 }  // namespace linecloud

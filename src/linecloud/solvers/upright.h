@@ -31,6 +31,18 @@ inline Eigen::Quaterniond RotationY(double c, double s) {
   return Eigen::Quaterniond(w * inv, 0.0, y * inv, 0.0);
 }
 
+// The same for (c, s) already on the unit circle (to rounding): the half
+// angle from cos θ = 1 − 2 sin²(θ/2) = 2 cos²(θ/2) − 1 takes one square root;
+// the form without cancellation is taken.
+inline Eigen::Quaterniond RotationYUnit(double c, double s) {
+  if (c >= 0) {
+    const double w = std::sqrt(0.5 * (1 + c));
+    return Eigen::Quaterniond(w, 0.0, s / (2 * w), 0.0);
+  }
+  const double y = std::copysign(std::sqrt(0.5 * (1 - c)), s);
+  return Eigen::Quaterniond(s / (2 * y), 0.0, y, 0.0);
+}
+
 // Orthonormal u1, u2 spanning the plane orthogonal to a non-zero d.
 inline void OrthogonalBasis(const Eigen::Vector3d& d, Eigen::Vector3d* u1,
                             Eigen::Vector3d* u2) {
