@@ -23,9 +23,13 @@ bool UprightTwoPointAlignment(std::span<const Eigen::Vector3d> points_local,
   // R_y(θ) m = (c m_x + s m_z, m_y, −s m_x + c m_z), (c, s) from the half angle.
   const double w = rotation->w(), y = rotation->y();
   const double c = w * w - y * y, sn = 2 * w * y;
-  const Eigen::Vector3d m = 0.5 * scale * (points[0] + points[1]);
-  *translation = 0.5 * (points_local[0] + points_local[1]) -
-                 Eigen::Vector3d(c * m.x() + sn * m.z(), m.y(), c * m.z() - sn * m.x());
+  const double h = 0.5 * scale;
+  const double mx = h * (points[0].x() + points[1].x()), my = h * (points[0].y() + points[1].y()),
+               mz = h * (points[0].z() + points[1].z());
+  *translation = Eigen::Vector3d(
+      0.5 * (points_local[0].x() + points_local[1].x()) - (c * mx + sn * mz),
+      0.5 * (points_local[0].y() + points_local[1].y()) - my,
+      0.5 * (points_local[0].z() + points_local[1].z()) - (c * mz - sn * mx));
   return translation->allFinite();
 }
 
@@ -41,9 +45,10 @@ bool m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
 int m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
               std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out) {
   out->clear();
-  Rigid3d local_from_world;
-  if (!m_p2p_lus(points_local, points, &local_from_world)) return 0;
-  out->push_back(local_from_world);
+  Eigen::Quaterniond rotation;
+  Eigen::Vector3d translation;
+  if (!UprightTwoPointAlignment(points_local, points, 1.0, &rotation, &translation)) return 0;
+  out->emplace_back(rotation, translation);
   return 1;
 }
 
