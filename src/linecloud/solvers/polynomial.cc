@@ -588,7 +588,11 @@ int IsolateRoots(const Sequence& sturm, double bound, double* roots) {
                   sturm.Value(-bound), sturm.Value(bound)};
   int count = 0;
   while (top > 0 && count < n) {
-    const Interval iv = stack[--top];
+    // Fields read one by one (a whole-struct copy here stalled on store
+    // forwarding: the pushes below write the same slots).
+    --top;
+    const Interval iv{stack[top].a,         stack[top].b,  stack[top].changes_a,
+                      stack[top].changes_b, stack[top].fa, stack[top].fb};
     const int inside = iv.changes_a - iv.changes_b;
     if (inside <= 0) continue;
     if (inside == 1) {
