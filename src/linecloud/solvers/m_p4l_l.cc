@@ -14,6 +14,13 @@
 namespace linecloud {
 namespace {
 
+// A 3-vector of scalars for the per-root arithmetic (kept in registers).
+using S3 = std::array<double, 3>;
+S3 Cross(const S3& a, const S3& b) {
+  return {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+}
+double Dot(const S3& a, const S3& b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
 // Elimination template for three quadrics, action = multiplication by z,
 // from tools/elimination_template.py three_quadrics_z. Monomials are exponent
 // triples (x, y, z) of degree ≤ 4.
@@ -219,32 +226,34 @@ bool HiddenZ(const Eigen::Matrix<double, 3, 10>& quadrics, HiddenZRelations* out
 // 4): the eigenvectors of the action matrix carry its conditioning; Newton
 // restores full precision.
 void PolishRoot(const Eigen::Matrix<double, 3, 10>& quadrics, Eigen::Vector3d* xyz) {
+  // Scalar 3-vectors (S3): Eigen temporaries filled entry by entry and read
+  // back as packets stalled on store forwarding here.
+  double x = xyz->x(), y = xyz->y(), z = xyz->z();
   for (int iteration = 0; iteration < 4; ++iteration) {
-    const double x = xyz->x(), y = xyz->y(), z = xyz->z();
-    // Columns: 1, x, y, z, x², xy, xz, y², yz, z².
-    Eigen::Vector3d f;
-    Eigen::Matrix3d jacobian;
+    // Columns: 1, x, y, z, x², xy, xz, y², yz, z². Row i: f_i and ∂f_i.
+    S3 f, jx, jy, jz;
     for (int i = 0; i < 3; ++i) {
       const auto q = quadrics.row(i);
       f[i] = q[0] + (q[1] + q[4] * x + q[5] * y + q[6] * z) * x +
              (q[2] + q[7] * y + q[8] * z) * y + (q[3] + q[9] * z) * z;
-      jacobian(i, 0) = q[1] + 2 * q[4] * x + q[5] * y + q[6] * z;
-      jacobian(i, 1) = q[2] + q[5] * x + 2 * q[7] * y + q[8] * z;
-      jacobian(i, 2) = q[3] + q[6] * x + q[8] * y + 2 * q[9] * z;
+      jx[i] = q[1] + 2 * q[4] * x + q[5] * y + q[6] * z;
+      jy[i] = q[2] + q[5] * x + 2 * q[7] * y + q[8] * z;
+      jz[i] = q[3] + q[6] * x + q[8] * y + 2 * q[9] * z;
     }
     // Cramer's rule: J⁻¹ f = adj(J) f / det J, with adj(J)'s rows the cross
     // products of J's columns.
-    const Eigen::Vector3d j0 = jacobian.col(0), j1 = jacobian.col(1), j2 = jacobian.col(2);
-    const Eigen::Vector3d r0 = j1.cross(j2);
-    const double det = j0.dot(r0);
-    const Eigen::Vector3d step =
-        Eigen::Vector3d(r0.dot(f), j2.cross(j0).dot(f), j0.cross(j1).dot(f)) / det;
-    if (!step.allFinite()) return;
-    *xyz -= step;
+    const S3 r0 = Cross(jy, jz);
+    const double inv_det = 1 / Dot(jx, r0);
+    const double sx = Dot(r0, f) * inv_det, sy = Dot(Cross(jz, jx), f) * inv_det,
+                 sz = Dot(Cross(jx, jy), f) * inv_det;
+    if (!std::isfinite(sx + sy + sz)) break;
+    x -= sx, y -= sy, z -= sz;
     // Newton converges quadratically: after a step of relative size δ the
     // error is O(δ²), so a step below 1e-7 leaves ~1e-14 and ends the loop.
-    if (step.norm() < 1e-7 * std::max(1.0, xyz->norm())) return;
+    const double size = std::max(1.0, x * x + y * y + z * z);
+    if (sx * sx + sy * sy + sz * sz < 1e-14 * size) break;
   }
+  *xyz = Eigen::Vector3d(x, y, z);
 }
 
 // The action of z from the 26 × 34 elimination template (Gaussian elimination
@@ -367,26 +376,25 @@ int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
   const int num_roots = poly::SturmRealRoots(det.data(), 8, z_roots);
   for (int k = 0; k < num_roots; ++k) {
     const double z = z_roots[k];
-    Eigen::Matrix<double, 3, 2> m;
-    Eigen::Vector3d rhs;
+    S3 m0, m1, rhs;
     for (int b = 0; b < 3; ++b) {
       const ZPoly<4>& x = rel.x[b];
       const ZPoly<4>& y = rel.y[b];
       const ZPoly<5>& c = rel.c[b];
-      m(b, 0) = ((x[3] * z + x[2]) * z + x[1]) * z + x[0];
-      m(b, 1) = ((y[3] * z + y[2]) * z + y[1]) * z + y[0];
+      m0[b] = ((x[3] * z + x[2]) * z + x[1]) * z + x[0];
+      m1[b] = ((y[3] * z + y[2]) * z + y[1]) * z + y[0];
       rhs[b] = -((((c[4] * z + c[3]) * z + c[2]) * z + c[1]) * z + c[0]);
     }
-    // (x, y) from the consistent 3 × 2 system m (x, y)ᵀ = rhs: with n the
-    // cross product of m's columns, x = (rhs × m₁)·n / |n|², y = (m₀ × rhs)·n
+    // (x, y) from the consistent 3 × 2 system [m₀ m₁] (x, y)ᵀ = rhs: with n the
+    // cross product of the columns, x = (rhs × m₁)·n / |n|², y = (m₀ × rhs)·n
     // / |n|² (exact when rhs lies in their span, the least-squares solution
     // otherwise). Rank < 2: (x, y) not determined by this root (a solution at
     // infinity or a degenerate configuration).
-    const Eigen::Vector3d c0 = m.col(0), c1 = m.col(1);
-    const Eigen::Vector3d n = c0.cross(c1);
-    const double n2 = n.squaredNorm();
-    if (!(n2 > 1e-24 * c0.squaredNorm() * c1.squaredNorm())) continue;
-    const Eigen::Vector2d xy(rhs.cross(c1).dot(n) / n2, c0.cross(rhs).dot(n) / n2);
+    const S3 n = Cross(m0, m1);
+    const double n2 = Dot(n, n);
+    if (!(n2 > 1e-24 * Dot(m0, m0) * Dot(m1, m1))) continue;
+    const double inv_n2 = 1 / n2;
+    const Eigen::Vector2d xy(Dot(Cross(rhs, m1), n) * inv_n2, Dot(Cross(m0, rhs), n) * inv_n2);
     Eigen::Vector3d xyz(xy.x(), xy.y(), z);
     if (rotated) xyz = FallbackRotation() * xyz;
     PolishRoot(quadrics, &xyz);
