@@ -28,7 +28,7 @@ double OneRealCubicRoot(double c3, double c2, double c1, double c0, bool* unique
     const double big_a = -std::copysign(std::cbrt(std::abs(r) + std::sqrt(r * r - q3)), r);
     x = (big_a == 0 ? 0 : big_a + q / big_a) - a / 3;
   }
-  for (int it = 0; it < 2; ++it) {
+  for (int it = 0; it < 1; ++it) {
     const double f = ((x + a) * x + b) * x + c;
     const double df = (3 * x + 2 * a) * x + b;
     const double step = f / df;
@@ -233,7 +233,7 @@ int p3p(std::span<const Eigen::Vector3d> bearings,
         const double r0 = l0 * l0 + l1 * l1 + b01 * l0 * l1 - a01;
         const double r1 = l0 * l0 + l2 * l2 + b02 * l0 * l2 - a02;
         const double r2 = l1 * l1 + l2 * l2 + b12 * l1 * l2 - a12;
-        if (std::max({std::abs(r0), std::abs(r1), std::abs(r2)}) <= 1e-15 * asum) break;
+        if (std::max({std::abs(r0), std::abs(r1), std::abs(r2)}) <= 1e-13 * asum) break;
         // J = [j00 j01 0; j10 0 j12; 0 j21 j22].
         const double j00 = 2 * l0 + b01 * l1, j01 = 2 * l1 + b01 * l0;
         const double j10 = 2 * l0 + b02 * l2, j12 = 2 * l2 + b02 * l0;
