@@ -33,7 +33,7 @@ int m_p2p_u(std::span<const Eigen::Vector3d> origins,
   const double inverse_norm = 1 / std::sqrt(n2);
   const double alpha = (n.x() * dx + n.z() * dz) * inverse_norm;           // nᵀA(ΔX)
   const double beta = (n.x() * dz - n.z() * dx) * inverse_norm;            // nᵀB(ΔX)
-  const double gamma = (n.y() * dy - n.dot(origins[0] - origins[1])) * inverse_norm;  // nᵀ(D(ΔX) − Δo)
+  const double gamma = (n.y() * dy - (n.x() * ox + n.y() * oy + n.z() * oz)) * inverse_norm;  // nᵀ(D(ΔX) − Δo)
   double cs[2][2];
   const int count = upright::IntersectLineUnitCircle(alpha, beta, gamma, cs);
   int num_solutions = 0;

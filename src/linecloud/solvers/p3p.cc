@@ -11,7 +11,7 @@ namespace {
 
 // One real root of c3 x³ + c2 x² + c1 x + c0, c3 ≠ 0 (a real cubic always has
 // one): Cardano when the root is unique, the smallest of three otherwise;
-// Newton-polished. *unique: the root is the only real one, with a margin
+// one Newton step. *unique: the root is the only real one, with a margin
 // (near a double root three real roots are assumed).
 double OneRealCubicRoot(double c3, double c2, double c1, double c0, bool* unique) {
   const double inv_c3 = 1 / c3;
@@ -28,13 +28,11 @@ double OneRealCubicRoot(double c3, double c2, double c1, double c0, bool* unique
     const double big_a = -std::copysign(std::cbrt(std::abs(r) + std::sqrt(r * r - q3)), r);
     x = (big_a == 0 ? 0 : big_a + q / big_a) - a / 3;
   }
-  for (int it = 0; it < 1; ++it) {
-    const double f = ((x + a) * x + b) * x + c;
-    const double df = (3 * x + 2 * a) * x + b;
-    const double step = f / df;
-    if (std::isfinite(step)) x -= step;
-  }
-  return x;
+  // One Newton step (the depths are polished again below).
+  const double f = ((x + a) * x + b) * x + c;
+  const double df = (3 * x + 2 * a) * x + b;
+  const double step = f / df;
+  return std::isfinite(step) ? x - step : x;
 }
 
 // A symmetric 3 × 3 matrix by its entries.
@@ -164,8 +162,9 @@ int p3p(std::span<const Eigen::Vector3d> bearings,
   const Sym3 c{alpha * m1.e00 + beta * m2.e00, alpha * m1.e01, beta * m2.e02,
                alpha * m1.e11 + beta * m2.e11, alpha * m1.e12 + beta * m2.e12,
                alpha * m1.e22 + beta * m2.e22};
-  // On a line of the member, αF1 + βF2 = 0: the conic with the larger share
-  // of the member is the one whose restriction carries no cancellation.
+  // On a line of the member αF1 + βF2 vanishes, so there F1 = −(β/α) F2: the
+  // conic with the smaller weight in the member is nearly zero along the line
+  // (cancellation); the line is cut with the other one.
   const Sym3& f = std::abs(alpha) >= std::abs(beta) ? m2 : m1;
 
   // Split C = l mᵀ + m lᵀ into its lines: adj(C) = −p pᵀ with p = l × m, and
