@@ -12,6 +12,7 @@
 
 #include <fmt/core.h>
 
+#include "linecloud/estimation/refine_pose.h"
 #include "linecloud/eval/localization_bench.h"
 #include "linecloud/eval/plot.h"
 #include "linecloud/eval/scene_localization.h"
@@ -20,7 +21,6 @@
 #include "linecloud/io/json_util.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/lifting/lifting.h"
-#include "linecloud/estimation/refine_pose.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/synthetic/localization_instances.h"
 #include "linecloud/synthetic/scene.h"

@@ -33,15 +33,6 @@ bool UprightTwoPointAlignment(std::span<const Eigen::Vector3d> points_local,
   return translation->allFinite();
 }
 
-bool m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
-               std::span<const Eigen::Vector3d> points, Rigid3d* local_from_world) {
-  Eigen::Quaterniond q;
-  Eigen::Vector3d t;
-  if (!UprightTwoPointAlignment(points_local, points, 1.0, &q, &t)) return false;
-  *local_from_world = Rigid3d(q, t);
-  return true;
-}
-
 int m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
               std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out) {
   out->clear();

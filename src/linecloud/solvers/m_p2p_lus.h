@@ -24,8 +24,4 @@ bool UprightTwoPointAlignment(std::span<const Eigen::Vector3d> points_local,
                               std::span<const Eigen::Vector3d> points, double scale,
                               Eigen::Quaterniond* rotation, Eigen::Vector3d* translation);
 
-// The same solution without a container; false for a degenerate sample.
-bool m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
-               std::span<const Eigen::Vector3d> points, Rigid3d* local_from_world);
-
 }  // namespace linecloud

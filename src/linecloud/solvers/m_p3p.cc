@@ -6,6 +6,7 @@
 
 #include <Eigen/LU>
 
+#include "linecloud/solvers/depth_newton.h"
 #include "linecloud/solvers/polynomial.h"
 #include "linecloud/solvers/triad.h"
 
@@ -192,21 +193,17 @@ int m_p3p(std::span<const Eigen::Vector3d> origins,
         n3 = Quadratic(b1(l1), c1(l1), l3s);
       }
       for (int k3 = 0; k3 < n3; ++k3) {
-        // Newton polish on the three distance equations (Cramer's rule), in
-        // scalars: residuals read back at once stall as Eigen temporaries.
+        // Newton polish on the three distance equations.
         double m0 = l1, m1 = l2, m2 = l3s[k3];
         for (int it = 0; it < 8; ++it) {
           const double r0 = e12.Eval(m0, m1), r1 = e13.Eval(m0, m2), r2 = e23.Eval(m1, m2);
           if (std::max({std::abs(r0), std::abs(r1), std::abs(r2)}) <= 1e-15) break;
-          const double j00 = e12.DLi(m0, m1), j01 = e12.DLj(m0, m1);
-          const double j10 = e13.DLi(m0, m2), j12 = e13.DLj(m0, m2);
-          const double j21 = e23.DLi(m1, m2), j22 = e23.DLj(m1, m2);
-          // J = [j00 j01 0; j10 0 j12; 0 j21 j22]; step = adj(J) res / det J.
-          const double inv_det = 1 / (-j00 * j12 * j21 - j01 * j10 * j22);
-          const double s0 = (-j12 * j21 * r0 - j01 * j22 * r1 + j01 * j12 * r2) * inv_det;
-          const double s1 = (-j10 * j22 * r0 + j00 * j22 * r1 - j00 * j12 * r2) * inv_det;
-          const double s2 = (j10 * j21 * r0 - j00 * j21 * r1 - j01 * j10 * r2) * inv_det;
-          if (!std::isfinite(s0 + s1 + s2)) break;
+          double s0, s1, s2;
+          if (!SolvePairwiseJacobian(e12.DLi(m0, m1), e12.DLj(m0, m1), e13.DLi(m0, m2),
+                                     e13.DLj(m0, m2), e23.DLi(m1, m2), e23.DLj(m1, m2), r0, r1,
+                                     r2, &s0, &s1, &s2)) {
+            break;
+          }
           m0 -= s0, m1 -= s1, m2 -= s2;
           const double step2 = s0 * s0 + s1 * s1 + s2 * s2;
           const double size = 1.0 + std::sqrt(m0 * m0 + m1 * m1 + m2 * m2);

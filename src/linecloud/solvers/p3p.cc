@@ -6,6 +6,8 @@
 
 #include <Eigen/Geometry>
 
+#include "linecloud/solvers/depth_newton.h"
+
 namespace linecloud {
 namespace {
 
@@ -224,25 +226,18 @@ int p3p(std::span<const Eigen::Vector3d> bearings,
                          : k == 1 ? CutLine<1>(nl, f, tri, rays.data())
                                   : CutLine<2>(nl, f, tri, rays.data());
     for (int r = 0; r < num_rays; ++r) {
-      // Newton steps on the three inhomogeneous equations, J δ = res by
-      // Cramer's rule (J has a zero in every row); scalar code, as the
-      // residual is read back as soon as it is written.
+      // Newton steps on the three inhomogeneous equations.
       double l0 = rays[r][0], l1 = rays[r][1], l2 = rays[r][2];
       for (int it = 0; it < 3; ++it) {
         const double r0 = l0 * l0 + l1 * l1 + b01 * l0 * l1 - a01;
         const double r1 = l0 * l0 + l2 * l2 + b02 * l0 * l2 - a02;
         const double r2 = l1 * l1 + l2 * l2 + b12 * l1 * l2 - a12;
         if (std::max({std::abs(r0), std::abs(r1), std::abs(r2)}) <= 1e-13 * asum) break;
-        // J = [j00 j01 0; j10 0 j12; 0 j21 j22].
         const double j00 = 2 * l0 + b01 * l1, j01 = 2 * l1 + b01 * l0;
         const double j10 = 2 * l0 + b02 * l2, j12 = 2 * l2 + b02 * l0;
         const double j21 = 2 * l1 + b12 * l2, j22 = 2 * l2 + b12 * l1;
-        const double inv_det = -1 / (j00 * j12 * j21 + j01 * j10 * j22);
-        const double m = r1 * j22 - j12 * r2;
-        const double s0 = (-r0 * j12 * j21 - j01 * m) * inv_det;
-        const double s1 = (j00 * m - r0 * j10 * j22) * inv_det;
-        const double s2 = (r0 * j10 * j21 - j00 * r1 * j21 - j01 * j10 * r2) * inv_det;
-        if (!std::isfinite(s0 + s1 + s2)) break;
+        double s0, s1, s2;
+        if (!SolvePairwiseJacobian(j00, j01, j10, j12, j21, j22, r0, r1, r2, &s0, &s1, &s2)) break;
         l0 -= s0, l1 -= s1, l2 -= s2;
       }
       const Eigen::Vector3d lam(l0, l1, l2);
