@@ -35,10 +35,10 @@ const LiftInput& Input() {
   return input;
 }
 
-LiftingKey BenchKey() {
+LiftingKey BenchKey(DirectionSet directions = DirectionSet::kSphere) {
   LiftingKey::Bytes b{};
   std::iota(b.begin(), b.end(), 7);
-  return LiftingKey(b);
+  return LiftingKey(b, directions);
 }
 
 void BM_LiftPlucker(benchmark::State& state) {
@@ -54,7 +54,7 @@ BENCHMARK(BM_LiftPlucker)->Unit(benchmark::kMillisecond);
 
 void BM_LiftCompact(benchmark::State& state) {
   const LiftInput& in = Input();
-  const LiftingKey key = BenchKey();
+  const LiftingKey key = BenchKey(DirectionSet::kCompact256);
   for (auto _ : state) {
     LineCloud cloud = LiftPoints(in.ids, in.points, key, {LineEncoding::kCompact});
     benchmark::DoNotOptimize(cloud.lines.data());

@@ -10,6 +10,9 @@
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/io/json_util.h"
+#include "linecloud/io/track_descriptors.h"
+#include "linecloud/lifting/lifting.h"
+#include "linecloud/privacy/two_key_attack.h"
 #include "linecloud/synthetic/minimal_instances.h"
 #include <nlohmann/json.hpp>
 #include "linecloud/testing/test_util.h"
@@ -48,55 +51,231 @@ void ExpectError(const CliResult& r, const std::string& needle) {
 
 const std::string kMaupertuis = "colmap-maupertuis/reconstruction";
 
-TEST(Cli, LiftIsPermanentPerKeyAndUnrelatedAcrossKeys) {
-  LINECLOUD_REQUIRE_DATA(kMaupertuis);
+// No test touches the user's key store: LINECLOUD_KEY_STORE points into a
+// temporary folder for the whole test binary (tests that check the store pass
+// --key-store explicitly).
+class KeyStoreEnvironment : public ::testing::Environment {
+ public:
+  void SetUp() override { ::setenv("LINECLOUD_KEY_STORE", dir_.Path("keys").c_str(), 1); }
+
+ private:
+  TempDir dir_;
+};
+[[maybe_unused]] ::testing::Environment* const kKeyStoreEnvironment =
+    ::testing::AddGlobalTestEnvironment(new KeyStoreEnvironment);
+
+// The secret points of a line cloud's lines, in file order, through the key.
+std::vector<Eigen::Vector3d> SecretPointsInFileOrder(const LineCloud& cloud, const LiftingKey& key,
+                                                     const Reconstruction& rec) {
+  std::vector<Eigen::Vector3d> out;
+  for (const uint64_t line_id : cloud.ids) out.push_back(rec.points3D.at(PointIdOfLine(key, line_id)).xyz);
+  return out;
+}
+
+// Every file the tool writes from one model, whatever the output path, run,
+// options or encoding: intersecting any two recovers no point.
+TEST(Cli, EveryFileLiftedFromOneModelGivesOneLinePerPoint) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
   TempDir tmp;
   const std::string model = SharedDataPath(kMaupertuis);
-  CliResult r = RunCli({"lift", "--model", model, "--out", tmp.Path("a.lcm")});
+  const std::string store = tmp.Path("keys");
+  const auto lift = [&](std::vector<std::string> extra) {
+    std::vector<std::string> args = {"lift", "--model", model, "--key-store", store};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return RunCli(args);
+  };
+  CliResult r = lift({"--out", tmp.Path("a.lcm")});
   ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("new key in the key store"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("Keep it secret"), std::string::npos);
-  ASSERT_TRUE(FileExists(tmp.Path("a.lcm.key")));
-  EXPECT_EQ(std::filesystem::status(tmp.Path("a.lcm.key")).permissions() &
-                std::filesystem::perms::all,
-            std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
-  r = RunCli({"lift", "--model", model, "--out", tmp.Path("b.lcm"), "--key-file",
-           tmp.Path("a.lcm.key")});
+  EXPECT_FALSE(FileExists(tmp.Path("a.lcm.key")));  // the key belongs to the model
+  // Another path, another run, descriptors: the model's key again.
+  r = lift({"--out", tmp.Path("b.lcm")});
   ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("(key store)"), std::string::npos) << r.out;
   EXPECT_EQ(ReadFileToString(tmp.Path("a.lcm")), ReadFileToString(tmp.Path("b.lcm")));
-
-  r = RunCli({"lift", "--model", model, "--out", tmp.Path("c.lcm")});  // new key
-  ASSERT_EQ(r.code, 0) << r.err;
-  const LineCloud a = ReadLineCloud(tmp.Path("a.lcm"));
-  const LineCloud c = ReadLineCloud(tmp.Path("c.lcm"));
-  ASSERT_EQ(a.size(), 1039u);
-  ASSERT_EQ(a.ids, c.ids);
-  const Reconstruction rec = ReadColmapModel(model);
-  for (size_t i = 0; i < a.size(); ++i) {
-    ASSERT_NE(a.lines[i].v, c.lines[i].v);
-    ASSERT_NE(a.lines[i].v, -c.lines[i].v);
-    const Eigen::Vector3d& x = rec.points3D.at(a.ids[i]).xyz;
-    ASSERT_LT(a.lines[i].DistanceTo(x) / x.norm(), 1e-9);
+  ASSERT_EQ(lift({"--out", tmp.Path("d.lcm"), "--database",
+                  SharedDataPath("colmap-maupertuis/colmap.db"), "--descriptor", "mean"})
+                .code,
+            0);
+  // The compact encoding would need other directions: refused, nothing written.
+  ExpectError(lift({"--out", tmp.Path("c.lcm"), "--compact"}), "second line through every point");
+  EXPECT_FALSE(FileExists(tmp.Path("c.lcm")));
+  // A new key file for a known model: refused, and not left behind.
+  ExpectError(lift({"--out", tmp.Path("e.lcm"), "--key-file", tmp.Path("new.key")}),
+              "was lifted before with the key");
+  EXPECT_FALSE(FileExists(tmp.Path("new.key")));
+  EXPECT_FALSE(FileExists(tmp.Path("e.lcm")));
+  // The store's subset test: a copy of the model without a quarter of its
+  // points (a map for evaluation) is the same model.
+  Reconstruction rec = ReadColmapModel(model);
+  Reconstruction subset = rec;
+  for (const uint64_t id : rec.SortedPoint3DIds()) {
+    if (id % 4 == 0) subset.points3D.erase(id);
   }
+  for (auto& [image_id, image] : subset.images) {
+    for (Point2D& p : image.points2D) {
+      if (p.point3D_id != kInvalidPoint3DId && !subset.points3D.count(p.point3D_id)) {
+        p.point3D_id = kInvalidPoint3DId;
+      }
+    }
+  }
+  WriteColmapModel(subset, tmp.Path("subset"), ModelFormat::kBinary);
+  r = RunCli({"lift", "--model", tmp.Path("subset"), "--key-store", store, "--out",
+              tmp.Path("s.lcm")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("(key store)"), std::string::npos) << r.out;
+
+  const std::vector<std::string> files = {"a.lcm", "b.lcm", "d.lcm", "s.lcm"};
+  for (size_t i = 0; i < files.size(); ++i) {
+    for (size_t j = i + 1; j < files.size(); ++j) {
+      const TwoLiftingsAttack attack = IntersectLinesOfEqualId(
+          ReadLineCloud(tmp.Path(files[i])), ReadLineCloud(tmp.Path(files[j])));
+      EXPECT_GT(attack.shared_ids, 700u) << files[i] << " x " << files[j];
+      EXPECT_EQ(attack.points.size(), 0u) << files[i] << " x " << files[j];
+    }
+  }
+
+  // Forced past every guard, a second key gives the points back: the attack
+  // above could have found them.
+  WriteKeyFile(tmp.Path("other.key"), LiftingKey::Generate());
+  ASSERT_EQ(lift({"--out", tmp.Path("forced.lcm"), "--key-file", tmp.Path("other.key"),
+                  "--force"})
+                .code,
+            0);
+  const LiftingKey first = ReadKeyFile(JoinPaths(store, ToHex(ReadLineCloud(tmp.Path("a.lcm")).key_fingerprint) + ".key"));
+  const LiftingKey other = ReadKeyFile(tmp.Path("other.key"));
+  // The attacker needs equal ids: relabel the forced file's lines with the
+  // first key's line ids (what an insider with both keys could publish).
+  LineCloud forced = ReadLineCloud(tmp.Path("forced.lcm"));
+  for (uint64_t& id : forced.ids) id = LineIdOfPoint(first, PointIdOfLine(other, id));
+  const LineCloud a = ReadLineCloud(tmp.Path("a.lcm"));
+  const TwoLiftingsAttack attack = IntersectLinesOfEqualId(a, forced);
+  ASSERT_EQ(attack.shared_ids, 1039u);
+  size_t exact = 0;
+  for (size_t k = 0; k < attack.ids.size(); ++k) {
+    const Eigen::Vector3d& x = rec.points3D.at(PointIdOfLine(first, attack.ids[k])).xyz;
+    exact += (attack.points[k] - x).norm() <= 1e-6 * std::max(1.0, x.norm());
+  }
+  EXPECT_GE(exact, 1038u);  // ≥ 99.9 %
   // No coordinate of the model in the file's bytes, as float64 or float32.
   std::vector<Eigen::Vector3d> xyz;
   for (const auto& [id, p] : rec.points3D) xyz.push_back(p.xyz);
   testing::ExpectNoCoordinates(ReadFileToString(tmp.Path("a.lcm")), xyz);
 }
 
-TEST(Cli, LiftRefusesToReplaceAMapLiftedWithAnotherKey) {
+// A model first lifted --compact has a compact256 key: its full and compact
+// files hold the same lines, bit for bit.
+TEST(Cli, ACompactKeyGivesTheSameLinesInBothEncodings) {
   LINECLOUD_REQUIRE_DATA(kMaupertuis);
   TempDir tmp;
   const std::string model = SharedDataPath(kMaupertuis);
-  ASSERT_EQ(RunCli({"lift", "--model", model, "--out", tmp.Path("m.lcm")}).code, 0);
+  const std::string key_file = tmp.Path("model.key");
+  CliResult r = RunCli({"lift", "--model", model, "--key-store", tmp.Path("keys"), "--key-file",
+                        key_file, "--out", tmp.Path("c.lcm"), "--compact"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("(new key file)"), std::string::npos) << r.out;
+  EXPECT_EQ(std::filesystem::status(key_file).permissions() & std::filesystem::perms::all,
+            std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  // Without --key-file, the store knows the model's key file.
+  r = RunCli({"lift", "--model", model, "--key-store", tmp.Path("keys"), "--out",
+              tmp.Path("f.lcm")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find(key_file), std::string::npos) << r.out;
+  const LineCloud c = ReadLineCloud(tmp.Path("c.lcm"));
+  const LineCloud f = ReadLineCloud(tmp.Path("f.lcm"));
+  EXPECT_EQ(c.encoding, LineEncoding::kCompact);
+  EXPECT_EQ(f.encoding, LineEncoding::kPlucker);
+  ASSERT_EQ(c.ids, f.ids);
+  for (size_t i = 0; i < c.size(); ++i) {
+    ASSERT_EQ(c.lines[i].v, f.lines[i].v);
+    ASSERT_EQ(c.lines[i].w, f.lines[i].w);
+  }
+  EXPECT_TRUE(IntersectLinesOfEqualId(c, f).points.empty());
+  const Reconstruction rec = ReadColmapModel(model);
+  const std::vector<Eigen::Vector3d> x = SecretPointsInFileOrder(c, ReadKeyFile(key_file), rec);
+  for (size_t i = 0; i < c.size(); ++i) ASSERT_LT(c.lines[i].DistanceTo(x[i]) / x[i].norm(), 1e-6);
+}
+
+// COLMAP numbers points in triangulation order, so consecutive point ids are
+// often neighbours in space; line ids and file order must not be.
+TEST(Cli, LineOrderCarriesNoNeighbourhoodSignal) {
+  LINECLOUD_REQUIRE_DATA(kMaupertuis);
+  TempDir tmp;
+  const std::string model = SharedDataPath(kMaupertuis);
+  ASSERT_EQ(RunCli({"lift", "--model", model, "--key-store", tmp.Path("keys"), "--key-file",
+                    tmp.Path("k.key"), "--out", tmp.Path("m.lcm")})
+                .code,
+            0);
+  const Reconstruction rec = ReadColmapModel(model);
+  const LineCloud cloud = ReadLineCloud(tmp.Path("m.lcm"));
+  // Rate at which item i+1 is among the 10 nearest neighbours of item i.
+  const auto successor_rate = [](const std::vector<Eigen::Vector3d>& x) {
+    size_t hits = 0;
+    for (size_t i = 0; i + 1 < x.size(); ++i) {
+      std::vector<double> d;
+      for (size_t j = 0; j < x.size(); ++j) {
+        if (j != i) d.push_back((x[j] - x[i]).squaredNorm());
+      }
+      std::nth_element(d.begin(), d.begin() + 9, d.end());
+      hits += (x[i + 1] - x[i]).squaredNorm() <= d[9];
+    }
+    return static_cast<double>(hits) / (x.size() - 1);
+  };
+  std::vector<Eigen::Vector3d> by_point_id;
+  for (const uint64_t id : rec.SortedPoint3DIds()) by_point_id.push_back(rec.points3D.at(id).xyz);
+  const double chance = 10.0 / (rec.points3D.size() - 1);
+  const double point_order = successor_rate(by_point_id);
+  const double line_order =
+      successor_rate(SecretPointsInFileOrder(cloud, ReadKeyFile(tmp.Path("k.key")), rec));
+  std::cout << "[ neighbour successors ] point-id order " << point_order << ", line order "
+            << line_order << ", chance " << chance << "\n";
+  EXPECT_GT(point_order, 5 * chance);  // the side channel exists in raw ids
+  EXPECT_LT(line_order, 2.5 * chance); // ~10 expected hits of 1038; 2.5× is > 4σ
+}
+
+TEST(Cli, LiftRefusesToReplaceAMapWithOtherLines) {
+  LINECLOUD_REQUIRE_DATA(kMaupertuis);
+  TempDir tmp;
+  const std::string model = SharedDataPath(kMaupertuis);
+  const std::string store = tmp.Path("keys");
+  ASSERT_EQ(RunCli({"lift", "--model", model, "--key-store", store, "--out", tmp.Path("m.lcm")})
+                .code,
+            0);
   const std::string before = ReadFileToString(tmp.Path("m.lcm"));
+  // Another key over the map: refused (the store knows the model too: --force
+  // passes that guard, not the map's).
   WriteKeyFile(tmp.Path("other.key"), LiftingKey::Generate());
-  ExpectError(RunCli({"lift", "--model", model, "--out", tmp.Path("m.lcm"), "--key-file",
-                   tmp.Path("other.key")}),
+  ExpectError(RunCli({"lift", "--model", model, "--key-store", tmp.Path("keys2"), "--out",
+                      tmp.Path("m.lcm"), "--key-file", tmp.Path("other.key")}),
               "another key");
   EXPECT_EQ(ReadFileToString(tmp.Path("m.lcm")), before);
-  // Re-lifting without --key-file reuses the key next to the map.
-  ASSERT_EQ(RunCli({"lift", "--model", model, "--out", tmp.Path("m.lcm")}).code, 0);
+  // Re-lifting without --key-file reuses the model's key: the same bytes.
+  ASSERT_EQ(RunCli({"lift", "--model", model, "--key-store", store, "--out", tmp.Path("m.lcm")})
+                .code,
+            0);
   EXPECT_EQ(ReadFileToString(tmp.Path("m.lcm")), before);
+
+  // A version-1 compact map lifted (before direction sets) under a sphere key:
+  // its lines differ from the key's full lines, so it is not replaced.
+  const Reconstruction rec = ReadColmapModel(model);
+  std::vector<uint64_t> ids = rec.SortedPoint3DIds();
+  std::vector<Eigen::Vector3d> xyz;
+  for (const uint64_t id : ids) xyz.push_back(rec.points3D.at(id).xyz);
+  const LiftingKey sphere = LiftingKey::Generate();
+  WriteKeyFile(tmp.Path("sphere.key"), sphere);
+  LiftingKey as_compact(sphere.bytes(), DirectionSet::kCompact256);
+  LineCloud old = LiftPoints(ids, xyz, as_compact, {LineEncoding::kCompact});
+  old.key_fingerprint = sphere.Fingerprint();
+  old.keyed_line_ids = false;
+  for (uint64_t& id : old.ids) id = PointIdOfLine(as_compact, id);
+  WriteLineCloud(old, tmp.Path("old.lcm"));
+  const std::string old_bytes = ReadFileToString(tmp.Path("old.lcm"));
+  ExpectError(RunCli({"lift", "--model", model, "--key-store", tmp.Path("keys3"), "--out",
+                      tmp.Path("old.lcm"), "--key-file", tmp.Path("sphere.key")}),
+              "other lines through the same points");
+  EXPECT_EQ(ReadFileToString(tmp.Path("old.lcm")), old_bytes);
+  EXPECT_EQ(ReadLineCloud(tmp.Path("old.lcm")).keyed_line_ids, false);  // version 1 still read
 }
 
 TEST(Cli, LiftWithDescriptorsCompactInfoAndExport) {
@@ -104,16 +283,28 @@ TEST(Cli, LiftWithDescriptorsCompactInfoAndExport) {
   TempDir tmp;
   const std::string model = SharedDataPath(kMaupertuis);
   CliResult r = RunCli({"lift", "--model", model, "--out", tmp.Path("d.lcm"), "--database",
-                     SharedDataPath("colmap-maupertuis/colmap.db"), "--compact"});
+                        SharedDataPath("colmap-maupertuis/colmap.db"), "--compact",
+                        "--key-store", tmp.Path("keys"), "--key-file", tmp.Path("d.key")});
   ASSERT_EQ(r.code, 0) << r.err;
   const LineCloud cloud = ReadLineCloud(tmp.Path("d.lcm"));
   EXPECT_EQ(cloud.encoding, LineEncoding::kCompact);
   EXPECT_EQ(cloud.descriptor_dim, 128);
   EXPECT_EQ(cloud.descriptor_aggregation, "medoid");
   const Reconstruction rec = ReadColmapModel(model);
+  const LiftingKey key = ReadKeyFile(tmp.Path("d.key"));
+  const std::vector<Eigen::Vector3d> x = SecretPointsInFileOrder(cloud, key, rec);
   for (size_t i = 0; i < cloud.size(); ++i) {
-    const Eigen::Vector3d& x = rec.points3D.at(cloud.ids[i]).xyz;
-    ASSERT_LT(cloud.lines[i].DistanceTo(x) / x.norm(), 1e-6);
+    ASSERT_LT(cloud.lines[i].DistanceTo(x[i]) / x[i].norm(), 1e-6);
+  }
+  // Descriptors follow their lines into line-id order.
+  const ColmapDatabase db(SharedDataPath("colmap-maupertuis/colmap.db"));
+  const std::vector<uint64_t> ids = rec.SortedPoint3DIds();
+  const PointDescriptors d = ComputePointDescriptors(rec, ids, db, DescriptorAggregation::kMedoid);
+  for (size_t k = 0; k < cloud.size(); k += 97) {
+    const uint64_t point_id = PointIdOfLine(key, cloud.ids[k]);
+    const size_t row = std::lower_bound(ids.begin(), ids.end(), point_id) - ids.begin();
+    ASSERT_TRUE(std::equal(cloud.descriptor(k).begin(), cloud.descriptor(k).end(),
+                           d.data.begin() + row * 128));
   }
   r = RunCli({"info", tmp.Path("d.lcm")});
   ASSERT_EQ(r.code, 0) << r.err;
@@ -195,21 +386,32 @@ TEST(Cli, BadInputGivesOneErrorLineAndNoOutput) {
   EXPECT_EQ(RunCli({"lift", "--help"}).code, 0);
 }
 
-TEST(Cli, DemoRunsAndReusesItsKey) {
+TEST(Cli, DemoIsReproducibleAndItsFilesDoNotIntersect) {
   TempDir tmp;
   CliResult r = RunCli({"demo", "--out", tmp.Path("demo"), "--points", "800", "--images", "8",
-                     "--queries", "2"});
+                        "--queries", "2"});
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("(new)"), std::string::npos);
+  EXPECT_NE(r.out.find("built-in public demo key"), std::string::npos);
+  EXPECT_NE(r.out.find("lines differing between the two files: 0"), std::string::npos) << r.out;
   const std::string first = ReadFileToString(tmp.Path("demo/map.lcm"));
-  r = RunCli({"demo", "--out", tmp.Path("demo"), "--points", "800", "--images", "8",
-           "--queries", "2"});
+  r = RunCli({"demo", "--out", tmp.Path("demo2"), "--points", "800", "--images", "8",
+              "--queries", "2"});
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_NE(r.out.find("(reused)"), std::string::npos);
-  EXPECT_EQ(ReadFileToString(tmp.Path("demo/map.lcm")), first);
+  EXPECT_EQ(ReadFileToString(tmp.Path("demo2/map.lcm")), first);  // same lines every run
   EXPECT_TRUE(FileExists(tmp.Path("demo/queries/query_001.json")));
   const Reconstruction rec = ReadColmapModel(tmp.Path("demo/model"));
   EXPECT_GT(rec.points3D.size(), 100u);
+  // Every pair of line clouds the demo writes, across both runs.
+  const std::vector<std::string> maps = {"demo/map.lcm", "demo/map_compact.lcm",
+                                         "demo2/map.lcm", "demo2/map_compact.lcm"};
+  for (size_t i = 0; i < maps.size(); ++i) {
+    for (size_t j = i + 1; j < maps.size(); ++j) {
+      const TwoLiftingsAttack attack =
+          IntersectLinesOfEqualId(ReadLineCloud(tmp.Path(maps[i])), ReadLineCloud(tmp.Path(maps[j])));
+      EXPECT_EQ(attack.shared_ids, rec.points3D.size());
+      EXPECT_EQ(attack.points.size(), 0u) << maps[i] << " x " << maps[j];
+    }
+  }
 }
 
 TEST(Cli, SolveReturnsTheTruePoseForEveryImplementedMethod) {
@@ -325,13 +527,7 @@ namespace {
 TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
   TempDir tmp;
   const std::string demo = tmp.Path("demo");
-  // A fixed lifting key (the demo reuses a key file next to its map): with a
-  // fresh random key the line directions, and so the p4L+u estimate, differ
-  // on every run (about one run in 60 landed just past 0.2°).
-  std::filesystem::create_directories(demo);
-  LiftingKey::Bytes key_bytes;
-  for (size_t i = 0; i < key_bytes.size(); ++i) key_bytes[i] = static_cast<uint8_t>(i);
-  WriteKeyFile(demo + "/map.lcm.key", LiftingKey(key_bytes));
+  // The demo lifts with its fixed public key: the same lines on every run.
   ASSERT_EQ(RunCli({"demo", "--out", demo, "--points", "1500", "--queries", "3"}).code, 0);
   const std::string query = demo + "/queries/query_000.json";
   const nlohmann::json file = ReadJsonFile(query);
@@ -351,8 +547,7 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
     EXPECT_GT(result["stats"]["inlier_ratio"].get<double>(), 0.9) << method;
     EXPECT_GT(result["inliers"].size(), 10u);
     // LM lowers its robust (Cauchy) cost, not necessarily the mean |residual|
-    // reported here, and the demo's fresh key gives other lines each run: check
-    // the refined error against the 1 px noise instead (mean |e| ≈ 0.8 px for
+    // reported here: check the refined error against the 1 px noise instead (mean |e| ≈ 0.8 px for
     // a 1D line residual, ≈ 1.25 px for a 2D point residual).
     EXPECT_LT(result["stats"]["reprojection_px"]["refined"].get<double>(), 1.6) << method;
   }

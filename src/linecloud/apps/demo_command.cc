@@ -28,12 +28,20 @@ struct DemoArgs {
 
 // A query file in the format of `linecloud localize` (SPEC.md), plus the
 // ground truth under "ground_truth" for evaluation.
-nlohmann::json QueryJson(const SyntheticQuery& q, const Eigen::Vector3d& gravity_world) {
+// Each observation carries the point id (for --model) and the line id (for
+// --map), as only the key's owner can write them.
+void AddLineIds(const LiftingKey& key, Query* query) {
+  for (QueryObservation& o : query->observations) o.line_id = LineIdOfPoint(key, o.id);
+}
+
+nlohmann::json QueryJson(const SyntheticQuery& q, const Eigen::Vector3d& gravity_world,
+                         const LiftingKey& key) {
   Query query;
   query.cameras = {q.camera};
   for (const SyntheticObservation& o : q.observations) {
-    query.observations.push_back({0, o.xy, o.point3D_id});
+    query.observations.push_back({0, o.xy, o.point3D_id, std::nullopt});
   }
+  AddLineIds(key, &query);
   query.gravity_query = q.gravity_in_cam;
   query.gravity_map = gravity_world;
   nlohmann::json j = QueryToJson(query);
@@ -50,12 +58,10 @@ void RunDemo(const DemoArgs& args) {
   const std::string model_dir = JoinPaths(args.out, "model");
   WriteColmapModel(model, model_dir, ModelFormat::kBinary);
 
-  // The demo map's key lives next to it and is reused on later runs.
+  // The demo's fixed public key (compact256 directions): the same lines on
+  // every run, and the full and compact maps hold identical lines.
   const std::string map_path = JoinPaths(args.out, "map.lcm");
-  const std::string key_path = map_path + ".key";
-  const bool new_key = !FileExists(key_path);
-  if (new_key) WriteKeyFile(key_path, LiftingKey::Generate());
-  const LiftingKey key = ReadKeyFile(key_path);
+  const LiftingKey key = DemoLiftingKey();
 
   // Lift from the model as written, exactly as `linecloud lift` would.
   const Reconstruction reread = ReadColmapModel(model_dir);
@@ -70,23 +76,32 @@ void RunDemo(const DemoArgs& args) {
   const std::string compact_path = JoinPaths(args.out, "map_compact.lcm");
   WriteLineCloud(LiftPoints(ids, points, key, {LineEncoding::kCompact}), compact_path);
 
-  // Verify what was written: every line passes through its point.
-  const auto max_relative_distance = [&](const LineCloud& c) {
+  // Verify what was written: every line passes through its point, and the
+  // two files hold the same line for every point.
+  const LineCloud full_back = ReadLineCloud(map_path);
+  const LineCloud compact_back = ReadLineCloud(compact_path);
+  const LineMap full_lines = LineMapByPointId(full_back, key);
+  const LineMap compact_lines = LineMapByPointId(compact_back, key);
+  const auto max_relative_distance = [&](const LineMap& m) {
     double worst = 0;
-    for (size_t i = 0; i < c.size(); ++i) {
-      worst = std::max(worst, c.lines[i].DistanceTo(points[i]) /
+    for (size_t i = 0; i < ids.size(); ++i) {
+      worst = std::max(worst, m.lines.at(ids[i]).DistanceTo(points[i]) /
                                   std::max(1.0, points[i].norm()));
     }
     return worst;
   };
-  const LineCloud full_back = ReadLineCloud(map_path);
-  const LineCloud compact_back = ReadLineCloud(compact_path);
+  size_t differing = 0;
+  for (const uint64_t id : ids) {
+    const PluckerLine& a = full_lines.lines.at(id);
+    const PluckerLine& b = compact_lines.lines.at(id);
+    differing += !(a.v == b.v && a.w == b.w);
+  }
 
   const std::string queries_dir = JoinPaths(args.out, "queries");
   CreateDirectories(queries_dir);
   size_t total_obs = 0;
   for (const SyntheticQuery& q : scene.queries) {
-    const std::string text = QueryJson(q, scene.gravity_in_world).dump(1);
+    const std::string text = QueryJson(q, scene.gravity_in_world, key).dump(1);
     WriteFileAtomically(JoinPaths(queries_dir, q.name + ".json"),
                         [&](std::ostream& o) { o << text << "\n"; });
     total_obs += q.observations.size();
@@ -98,7 +113,9 @@ void RunDemo(const DemoArgs& args) {
   const std::vector<SceneQuery> rig_queries =
       SceneQueriesForMethod(scene, FindMethod("m-P3P+l+s"), args.queries);
   for (size_t k = 0; k < rig_queries.size(); ++k) {
-    nlohmann::json j = QueryToJson(rig_queries[k].query);
+    Query rig_query = rig_queries[k].query;
+    AddLineIds(key, &rig_query);
+    nlohmann::json j = QueryToJson(rig_query);
     j["ground_truth"] = {{"rig_from_world", PoseToJson(rig_queries[k].truth.rotation,
                                                        rig_queries[k].truth.translation)}};
     const std::string text = j.dump(1);
@@ -118,12 +135,13 @@ void RunDemo(const DemoArgs& args) {
       "  scene        room {:.0f} x {:.0f} x {:.0f} m, {} map images, camera "
       "SIMPLE_RADIAL {}x{} f={:.0f}, {:.1f} px noise\n"
       "  model        {} points (mean track {:.2f}), {} observations -> {}\n"
-      "  key          {} ({}), fingerprint {}\n"
+      "  key          the built-in public demo key (compact256 directions; never for real "
+      "maps), fingerprint {}\n"
       "  line cloud   {} lines -> {} ({} bytes, {:.1f} B/line), lifted in "
       "{:.2f} ms\n"
       "  compact      {} ({} bytes, {:.1f} B/line)\n"
       "  check        max point-to-line distance / |X|: full {:.2e}, "
-      "compact {:.2e}\n"
+      "compact {:.2e}; lines differing between the two files: {}\n"
       "  queries      {} query files ({:.0f} observations each) -> {}\n"
       "               {} rig query files (3 images, local points) -> {}\n"
       "  view         {} (points), {} (line segments)\n",
@@ -131,12 +149,12 @@ void RunDemo(const DemoArgs& args) {
       args.scene.room_size.z(), model.images.size(), args.scene.width,
       args.scene.height, args.scene.focal, args.scene.noise_px,
       model.points3D.size(), model.MeanTrackLength(), num_obs, model_dir,
-      key_path, new_key ? "new" : "reused", ToHex(cloud.key_fingerprint),
+      ToHex(cloud.key_fingerprint),
       cloud.size(), map_path, map_bytes,
       static_cast<double>(map_bytes) / cloud.size(), 1e3 * lift_s,
       compact_path, compact_bytes,
       static_cast<double>(compact_bytes) / cloud.size(),
-      max_relative_distance(full_back), max_relative_distance(compact_back),
+      max_relative_distance(full_lines), max_relative_distance(compact_lines), differing,
       scene.queries.size(),
       scene.queries.empty() ? 0.0
                             : static_cast<double>(total_obs) / scene.queries.size(),
@@ -145,7 +163,7 @@ void RunDemo(const DemoArgs& args) {
 
   // Localize the queries with every method against the map it needs: the
   // line cloud as read back from disk, or the point model.
-  const LocalizationMap line_map = LineMapFromCloud(full_back);
+  const LocalizationMap line_map = full_lines;
   const LocalizationMap point_map = PointMapFromModel(reread);
   LocalizeOptions options;
   const double max_position = 0.01 * scene.extent;

@@ -125,7 +125,7 @@ std::vector<EvalQuery> QueriesForMethod(const EvalWork& work, const MethodInfo& 
         EvalQuery q{g.name, im.name, {}, ToSim3(im.cam_from_world)};
         q.query.cameras = {work.cameras.at(im.camera_id)};
         for (const EvalCorrespondence& c : im.correspondences) {
-          if (ids.count(c.point_id)) q.query.observations.push_back({0, c.xy, c.point_id});
+          if (ids.count(c.point_id)) q.query.observations.push_back({0, c.xy, c.point_id, std::nullopt});
         }
         if (method.gravity) {
           q.query.gravity_query = im.gravity;
@@ -152,7 +152,7 @@ std::vector<EvalQuery> QueriesForMethod(const EvalWork& work, const MethodInfo& 
           if (!corr.point_local) continue;
           q.query.points_local.push_back(scale * *corr.point_local);
         }
-        q.query.observations.push_back({static_cast<int>(c), corr.xy, corr.point_id});
+        q.query.observations.push_back({static_cast<int>(c), corr.xy, corr.point_id, std::nullopt});
       }
     }
     q.name = name;
@@ -347,7 +347,7 @@ std::vector<GroupMaps> LoadMaps(const EvalWork& work, const std::string& work_di
     }
     GroupMaps m;
     for (size_t i = 0; i < ids.size(); ++i) m.points.points[ids[i]] = xyz[i];
-    m.lines = LineMapFromCloud(LiftPoints(ids, xyz, key, {LineEncoding::kPlucker}));
+    m.lines = LineMapByPointId(LiftPoints(ids, xyz, key, {LineEncoding::kPlucker}), key);
     maps.push_back(std::move(m));
   }
   return maps;
@@ -631,7 +631,7 @@ json RunEvaluation(const EvalRunOptions& options) {
       std::vector<Eigen::Vector3d> xyz;
       for (uint64_t id : ids) xyz.push_back(scene.model.points3D.at(id).xyz);
       const PointMap point_map = PointMapFromModel(scene.model);
-      const LineMap line_map = LineMapFromCloud(LiftPoints(ids, xyz, key, {LineEncoding::kPlucker}));
+      const LineMap line_map = LineMapByPointId(LiftPoints(ids, xyz, key, {LineEncoding::kPlucker}), key);
       SceneQueryOptions qo;
       qo.seed = options.seed;
       LocalizeOptions lo;

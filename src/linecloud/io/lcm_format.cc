@@ -71,7 +71,7 @@ std::string BuildHeader(const LineCloud& cloud, Layout* layout) {
                             cloud.descriptor_dim);
     nlohmann::json j;
     j["format"] = "linecloud-map";
-    j["version"] = kLcmVersion;
+    j["version"] = cloud.keyed_line_ids ? kLcmVersion : 1;
     j["generator"] = "linecloud";
     j["num_lines"] = cloud.size();
     j["encoding"] = std::string(LineEncodingName(cloud.encoding));
@@ -82,6 +82,9 @@ std::string BuildHeader(const LineCloud& cloud, Layout* layout) {
             : "direction index (uint8, fibonacci-hemisphere-256-v1), "
               "position in the plane orthogonal to it (2 x float32)";
     j["key_fingerprint"] = ToHex(cloud.key_fingerprint);
+    j["line_ids"] = cloud.keyed_line_ids
+                        ? "keyed permutation of the point ids, stored in increasing order"
+                        : "point ids (format version 1)";
     if (cloud.has_descriptors()) {
       j["descriptors"] = {{"dim", cloud.descriptor_dim},
                           {"dtype", "uint8"},
@@ -110,7 +113,7 @@ std::string SerializeLineCloud(const LineCloud& cloud) {
   const std::string header = BuildHeader(cloud, &layout);
   std::string out(layout.checksum_offset + kChecksumBytes, '\0');
   std::memcpy(out.data(), kMagic, 8);
-  const uint32_t version = kLcmVersion;
+  const uint32_t version = cloud.keyed_line_ids ? kLcmVersion : 1;
   const uint32_t header_size = static_cast<uint32_t>(header.size());
   std::memcpy(out.data() + 8, &version, 4);
   std::memcpy(out.data() + 12, &header_size, 4);
@@ -152,6 +155,7 @@ namespace {
 struct ParsedHeader {
   nlohmann::json json;
   size_t body_start = 0;
+  uint32_t version = 0;
 };
 
 ParsedHeader ParseHeader(std::string_view data, const std::string& source) {
@@ -162,9 +166,9 @@ ParsedHeader ParseHeader(std::string_view data, const std::string& source) {
     Fail("{}: not a linecloud map (bad magic bytes)", source);
   }
   const uint32_t version = r.Read<uint32_t>("version");
-  if (version != kLcmVersion) {
-    Fail("{}: unsupported .lcm format version {} (this build reads version {})",
-         source, version, kLcmVersion);
+  if (version < kLcmOldestVersion || version > kLcmVersion) {
+    Fail("{}: unsupported .lcm format version {} (this build reads versions {} to {})",
+         source, version, kLcmOldestVersion, kLcmVersion);
   }
   const uint32_t header_size = r.Read<uint32_t>("header_size");
   if (header_size > kMaxHeaderBytes) {
@@ -184,6 +188,7 @@ ParsedHeader ParseHeader(std::string_view data, const std::string& source) {
     Fail("{}: checksum mismatch: the file is truncated or corrupt", source);
   }
   ParsedHeader parsed;
+  parsed.version = version;
   parsed.body_start = r.Position();
   parsed.json = nlohmann::json::parse(header, nullptr, /*allow_exceptions=*/false);
   if (parsed.json.is_discarded() || !parsed.json.is_object()) {
@@ -216,6 +221,7 @@ LineCloud ParseLineCloud(std::string_view data, const std::string& source) {
     Fail("{}: header field 'format' is not 'linecloud-map'", source);
   }
   LineCloud cloud;
+  cloud.keyed_line_ids = header.version >= 2;
   const std::string encoding = Field<std::string>(j, "encoding", source);
   if (encoding == LineEncodingName(LineEncoding::kPlucker)) {
     cloud.encoding = LineEncoding::kPlucker;
@@ -252,7 +258,7 @@ LineCloud ParseLineCloud(std::string_view data, const std::string& source) {
     if (Field<size_t>(s, "offset", source) != expected.offset ||
         Field<size_t>(s, "bytes", source) != expected.bytes) {
       Fail("{}: section '{}' does not match the layout of version {}", source,
-           name, kLcmVersion);
+           name, header.version);
     }
   }
   const std::string fingerprint = Field<std::string>(j, "key_fingerprint", source);

@@ -1,8 +1,8 @@
-// The .lcm line-cloud map format, version 1. Little-endian, checksummed and
+// The .lcm line-cloud map format, version 2. Little-endian, checksummed and
 // self-describing:
 //
 //   offset 0   8 bytes   magic "LCMAP\r\n\x1a" (catches text-mode mangling)
-//          8   uint32    format version (1)
+//          8   uint32    format version (2; 1 is still read)
 //         12   uint32    header length H in bytes
 //         16   H bytes   header: UTF-8 JSON describing the content (counts,
 //                        encoding, record sizes, descriptor type, key
@@ -26,7 +26,11 @@
 
 namespace linecloud {
 
-inline constexpr uint32_t kLcmVersion = 1;
+// Version 2: line ids are the keyed permutation of the point ids (lifting.h)
+// and lines are stored in increasing line-id order; the layout is version 1's.
+// Version 1 files (point ids as line ids) are still read.
+inline constexpr uint32_t kLcmVersion = 2;
+inline constexpr uint32_t kLcmOldestVersion = 1;
 
 void WriteLineCloud(const LineCloud& cloud, const std::string& path);
 // Serialises to bytes (what WriteLineCloud writes).

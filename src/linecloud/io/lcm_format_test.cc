@@ -21,7 +21,7 @@ LineCloud MakeCloud(LineEncoding encoding, bool descriptors) {
     ids.push_back(10 + 3 * i);
     points.emplace_back(g(rng), g(rng), g(rng));
   }
-  LineCloud cloud = LiftPoints(ids, points, LiftingKey::Generate(), {encoding});
+  LineCloud cloud = LiftPoints(ids, points, DemoLiftingKey(), {encoding});
   if (descriptors) {
     cloud.descriptor_dim = 128;
     cloud.descriptor_type = "colmap-sift-uint8";

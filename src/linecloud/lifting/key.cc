@@ -21,16 +21,29 @@ void EnsureSodiumInitialized() {
   if (rc < 0) Fail("libsodium failed to initialise");
 }
 
-LiftingKey LiftingKey::Generate() {
+std::string_view DirectionSetName(DirectionSet set) {
+  return set == DirectionSet::kCompact256 ? "compact256" : "sphere";
+}
+
+DirectionSet DirectionSetFromName(std::string_view name, std::string_view source) {
+  if (name == "sphere") return DirectionSet::kSphere;
+  if (name == "compact256") return DirectionSet::kCompact256;
+  Fail("{}: unknown direction set '{}' (expected sphere or compact256)", source, name);
+}
+
+LiftingKey LiftingKey::Generate(DirectionSet directions) {
   EnsureSodiumInitialized();
   Bytes bytes;
   randombytes_buf(bytes.data(), bytes.size());
-  return LiftingKey(bytes);
+  return LiftingKey(bytes, directions);
 }
 
 LiftingKey::Id LiftingKey::Fingerprint() const {
   EnsureSodiumInitialized();
-  static constexpr std::string_view kContext = "linecloud/key-fingerprint/v1";
+  // Sphere keys keep the fingerprint they had before direction sets existed.
+  const std::string_view kContext = directions_ == DirectionSet::kSphere
+                                        ? "linecloud/key-fingerprint/v1"
+                                        : "linecloud/key-fingerprint/compact256/v1";
   Id id;
   crypto_generichash(id.data(), id.size(),
                      reinterpret_cast<const unsigned char*>(kContext.data()),
@@ -45,6 +58,15 @@ LiftingKey::Bytes LiftingKey::DeriveSubkey(const std::string& purpose) const {
                      reinterpret_cast<const unsigned char*>(purpose.data()),
                      purpose.size(), bytes_.data(), bytes_.size());
   return subkey;
+}
+
+LiftingKey DemoLiftingKey() {
+  EnsureSodiumInitialized();
+  static constexpr std::string_view kSeed = "linecloud/demo-key/public/never-for-real-maps/v1";
+  LiftingKey::Bytes bytes;
+  crypto_generichash(bytes.data(), bytes.size(), reinterpret_cast<const unsigned char*>(kSeed.data()),
+                     kSeed.size(), nullptr, 0);
+  return LiftingKey(bytes, DirectionSet::kCompact256);
 }
 
 std::string ToHex(const uint8_t* data, size_t size) {
@@ -74,14 +96,30 @@ bool ParseHex(std::string_view hex, uint8_t* out, size_t size) {
   return true;
 }
 
-LiftingKey ReadKeyFile(const std::string& path) {
+LiftingKey ReadKeyFile(const std::string& path, bool allow_shared) {
+  struct stat st;
+  if (::stat(path.c_str(), &st) == 0 && (st.st_mode & 077) != 0) {
+    if (!allow_shared) {
+      Fail("{}: key file is readable by other users (mode {:o}); run chmod 600 on it, or "
+           "pass --allow-shared-key",
+           path, st.st_mode & 0777);
+    }
+    std::cerr << "warning: " << path
+              << " is readable by other users; run chmod 600 on it\n";
+  }
   const std::string text = ReadFileToString(path);
   TextLines lines(text, path);
   std::string_view line;
   if (!lines.Next(&line)) {
     Fail("{}: key file is empty (expected 64 hex digits)", path);
   }
-  const auto tokens = SplitWhitespace(line);
+  auto tokens = SplitWhitespace(line);
+  DirectionSet directions = DirectionSet::kSphere;
+  if (tokens.size() == 2 && tokens[0] == "directions") {
+    directions = DirectionSetFromName(tokens[1], path);
+    if (!lines.Next(&line)) Fail("{}: key file has no key after its directions line", path);
+    tokens = SplitWhitespace(line);
+  }
   if (tokens.size() != 1 || tokens[0].size() != 2 * LiftingKey::kBytes) {
     Fail("{}: malformed key file (expected one line of 64 hex digits)", path);
   }
@@ -92,16 +130,11 @@ LiftingKey ReadKeyFile(const std::string& path) {
   if (lines.Next(&line)) {
     Fail("{}: malformed key file (unexpected content after the key)", path);
   }
-  struct stat st;
-  if (::stat(path.c_str(), &st) == 0 && (st.st_mode & 077) != 0) {
-    std::cerr << "warning: " << path
-              << " is readable by other users; run chmod 600 on it\n";
-  }
-  return LiftingKey(bytes);
+  return LiftingKey(bytes, directions);
 }
 
 void WriteKeyFile(const std::string& path, const LiftingKey& key) {
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL, 0600);
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW, 0600);
   if (fd < 0) {
     if (errno == EEXIST) {
       Fail("{}: key file already exists; pass it with --key-file to reuse it",
@@ -112,8 +145,9 @@ void WriteKeyFile(const std::string& path, const LiftingKey& key) {
   ::fchmod(fd, 0600);
   const std::string text =
       "# linecloud lifting key: keep it secret, and reuse it for every lifting "
-      "of this map\n" +
-      ToHex(key.bytes()) + "\n";
+      "of this model\n"
+      "directions " +
+      std::string(DirectionSetName(key.directions())) + "\n" + ToHex(key.bytes()) + "\n";
   const ssize_t written = ::write(fd, text.data(), text.size());
   const bool ok = written == static_cast<ssize_t>(text.size()) && ::fsync(fd) == 0;
   ::close(fd);

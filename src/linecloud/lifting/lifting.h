@@ -7,12 +7,24 @@
 // block counter i, gives 64 pseudo-random bytes; two 53-bit uniforms u1, u2
 // map to v = (sqrt(1 − z²) cos φ, sqrt(1 − z²) sin φ, z) with z = 1 − 2 u1 and
 // φ = 2π u2 (Archimedes: z uniform ⇒ v uniform on S²). Byte 16 picks the
-// compact direction. The same (key, id) always gives the same line, so a map
-// re-lifted with its key reveals nothing new.
+// compact direction, which is *the* direction of a kCompact256 key.
+//
+// One point, one line: the line of point i depends only on (key, i, X_i) —
+// never on the encoding, the options, the output or the run. Under a sphere
+// key only the full encoding exists (the compact encoding is refused); under
+// a compact256 key both encodings store the same float32-rounded line.
+//
+// Line ids: a line carries not its point's id but a keyed permutation of it
+// (an 8-round Feistel network on 64 bits with SipHash-2-4 round functions
+// under a subkey of the map key), and a cloud is stored sorted by line id, so
+// neither ids nor order say anything about which points are neighbours
+// (COLMAP numbers points in triangulation order). The key's owner maps point
+// ids to line ids and back (LineIdsOfPoints, PointIdOfLine).
 #pragma once
 
 #include <cstdint>
 #include <span>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -30,8 +42,15 @@ struct LiftingOptions {
 void KeyedDirections(const LiftingKey& key, std::span<const uint64_t> ids,
                      Eigen::Vector3d* directions, uint8_t* compact_indices);
 
-// Lifts points (ids[k], points[k]) to a line cloud. Throws Error on
-// non-finite points, repeated ids or mismatched sizes.
+// The line id of point id `point_id` under `key`, and back.
+uint64_t LineIdOfPoint(const LiftingKey& key, uint64_t point_id);
+uint64_t PointIdOfLine(const LiftingKey& key, uint64_t line_id);
+std::vector<uint64_t> LineIdsOfPoints(const LiftingKey& key,
+                                      std::span<const uint64_t> point_ids);
+
+// Lifts points (ids[k], points[k]) to a line cloud whose ids are the line ids
+// of `ids`, in increasing line-id order. Throws Error on non-finite points,
+// repeated ids, mismatched sizes, or the compact encoding under a sphere key.
 LineCloud LiftPoints(std::span<const uint64_t> ids,
                      std::span<const Eigen::Vector3d> points,
                      const LiftingKey& key, const LiftingOptions& options);

@@ -7,10 +7,12 @@
 #include <fstream>
 #include <random>
 #include <set>
+#include <unordered_map>
 
 #include <gtest/gtest.h>
 
 #include "linecloud/io/lcm_format.h"
+#include "linecloud/privacy/two_key_attack.h"
 #include "linecloud/testing/test_util.h"
 #include "linecloud/util/error.h"
 
@@ -19,10 +21,18 @@ namespace {
 
 using testing::TempDir;
 
-LiftingKey KeyFromSeed(uint8_t seed) {
+LiftingKey KeyFromSeed(uint8_t seed, DirectionSet directions = DirectionSet::kSphere) {
   LiftingKey::Bytes b;
   for (size_t i = 0; i < b.size(); ++i) b[i] = static_cast<uint8_t>(seed * 31 + i);
-  return LiftingKey(b);
+  return LiftingKey(b, directions);
+}
+
+// The line of each point id, through the key's owner's id map.
+std::unordered_map<uint64_t, PluckerLine> LinesByPointId(const LineCloud& cloud,
+                                                         const LiftingKey& key) {
+  std::unordered_map<uint64_t, PluckerLine> out;
+  for (size_t k = 0; k < cloud.size(); ++k) out[PointIdOfLine(key, cloud.ids[k])] = cloud.lines[k];
+  return out;
 }
 
 void RandomPoints(size_t n, uint64_t seed, std::vector<uint64_t>* ids,
@@ -41,21 +51,76 @@ TEST(Lifting, LinesPassThroughTheirPoints) {
   std::vector<uint64_t> ids;
   std::vector<Eigen::Vector3d> points;
   RandomPoints(5000, 1, &ids, &points);
-  const LiftingKey key = KeyFromSeed(1);
-  const LineCloud full = LiftPoints(ids, points, key, {LineEncoding::kPlucker});
-  const LineCloud compact = LiftPoints(ids, points, key, {LineEncoding::kCompact});
+  const LiftingKey sphere = KeyFromSeed(1);
+  const LiftingKey compact_key = KeyFromSeed(1, DirectionSet::kCompact256);
+  const LineCloud full = LiftPoints(ids, points, sphere, {LineEncoding::kPlucker});
+  const LineCloud compact = LiftPoints(ids, points, compact_key, {LineEncoding::kCompact});
   ASSERT_EQ(full.size(), ids.size());
+  const auto full_lines = LinesByPointId(full, sphere);
+  const auto compact_lines = LinesByPointId(compact, compact_key);
   double worst_full = 0, worst_compact = 0;
   for (size_t i = 0; i < ids.size(); ++i) {
     const double scale = points[i].norm();
-    worst_full = std::max(worst_full, full.lines[i].DistanceTo(points[i]) / scale);
-    worst_compact = std::max(worst_compact, compact.lines[i].DistanceTo(points[i]) / scale);
+    worst_full = std::max(worst_full, full_lines.at(ids[i]).DistanceTo(points[i]) / scale);
+    worst_compact =
+        std::max(worst_compact, compact_lines.at(ids[i]).DistanceTo(points[i]) / scale);
     EXPECT_TRUE(full.lines[i].IsValid(1e-12));
     // Compact directions are one of the 256 fixed ones.
     EXPECT_EQ(compact.lines[i].v, CompactDirections()[compact.compact[i].direction_index]);
   }
   EXPECT_LT(worst_full, 1e-9);
   EXPECT_LT(worst_compact, 1e-6);
+}
+
+// One point, one line: under one key every encoding stores the same line, and
+// the encoding a key cannot store identically is refused.
+TEST(Lifting, EveryEncodingOfAKeyStoresTheSameLine) {
+  std::vector<uint64_t> ids;
+  std::vector<Eigen::Vector3d> points;
+  RandomPoints(3000, 11, &ids, &points);
+  const LiftingKey key = KeyFromSeed(11, DirectionSet::kCompact256);
+  const LineCloud full = LiftPoints(ids, points, key, {LineEncoding::kPlucker});
+  const LineCloud compact = ParseLineCloud(
+      SerializeLineCloud(LiftPoints(ids, points, key, {LineEncoding::kCompact})), "mem");
+  ASSERT_EQ(full.ids, compact.ids);
+  for (size_t k = 0; k < full.size(); ++k) {
+    ASSERT_EQ(full.lines[k].v, compact.lines[k].v);
+    ASSERT_EQ(full.lines[k].w, compact.lines[k].w);
+  }
+  const TwoLiftingsAttack attack = IntersectLinesOfEqualId(full, compact);
+  EXPECT_EQ(attack.shared_ids, ids.size());
+  EXPECT_TRUE(attack.points.empty());
+  // A sphere key has no compact form of its lines.
+  EXPECT_THROW(LiftPoints(ids, points, KeyFromSeed(11), {LineEncoding::kCompact}), Error);
+  // The same key bytes with another direction set: another key (fingerprint).
+  EXPECT_NE(KeyFromSeed(11).Fingerprint(), key.Fingerprint());
+}
+
+TEST(Lifting, LineIdsAreAKeyedPermutationStoredInOrder) {
+  std::vector<uint64_t> ids;
+  std::vector<Eigen::Vector3d> points;
+  RandomPoints(20000, 12, &ids, &points);
+  const LiftingKey key = KeyFromSeed(12);
+  const LineCloud cloud = LiftPoints(ids, points, key, {});
+  EXPECT_TRUE(std::is_sorted(cloud.ids.begin(), cloud.ids.end()));
+  std::set<uint64_t> point_ids(ids.begin(), ids.end()), back;
+  for (const uint64_t line_id : cloud.ids) back.insert(PointIdOfLine(key, line_id));
+  EXPECT_EQ(back, point_ids);  // invertible by the owner
+  // Extreme ids too.
+  for (const uint64_t id : {uint64_t{0}, ~uint64_t{0}, uint64_t{1} << 63}) {
+    EXPECT_EQ(PointIdOfLine(key, LineIdOfPoint(key, id)), id);
+  }
+  // Unrelated across keys; consecutive point ids scatter.
+  const std::vector<uint64_t> other = LineIdsOfPoints(KeyFromSeed(13), ids);
+  const std::vector<uint64_t> mine = LineIdsOfPoints(key, ids);
+  size_t same = 0, increasing = 0;
+  for (size_t i = 0; i + 1 < ids.size(); ++i) {
+    same += mine[i] == other[i];
+    increasing += mine[i + 1] > mine[i];
+  }
+  EXPECT_EQ(same, 0u);
+  // Each successor is larger with probability 1/2: 19 999 trials, ±5σ = ±354.
+  EXPECT_NEAR(static_cast<double>(increasing), 9999.5, 354.0);
 }
 
 TEST(Lifting, DeterministicPerKeyAndIdIndependentOfOrder) {
@@ -177,21 +242,45 @@ TEST(LiftingKey, FileRoundTripPermissionsAndErrors) {
       "", "abc\n", std::string(64, 'g') + "\n", std::string(64, 'a') + "\nextra\n"};
   for (const std::string& bad : bad_keys) {
     std::ofstream(tmp.Path("bad")) << bad;
+    ::chmod(tmp.Path("bad").c_str(), 0600);
     try {
       ReadKeyFile(tmp.Path("bad"));
       ADD_FAILURE() << "accepted '" << bad << "'";
     } catch (const Error& e) {
       EXPECT_NE(std::string(e.what()).find(tmp.Path("bad")), std::string::npos);
+      EXPECT_EQ(std::string(e.what()).find("readable by other"), std::string::npos);
     }
   }
   EXPECT_THROW(ReadKeyFile(tmp.Path("missing")), Error);
+  // The direction set round-trips; a legacy file (no directions line) is a
+  // sphere key; a key others can read is refused unless allowed.
+  const LiftingKey compact = LiftingKey::Generate(DirectionSet::kCompact256);
+  WriteKeyFile(tmp.Path("c"), compact);
+  EXPECT_EQ(ReadKeyFile(tmp.Path("c")).directions(), DirectionSet::kCompact256);
+  EXPECT_EQ(ReadKeyFile(tmp.Path("c")).Fingerprint(), compact.Fingerprint());
+  std::ofstream(tmp.Path("legacy")) << "# old\n" << ToHex(key.bytes()) << "\n";
+  ::chmod(tmp.Path("legacy").c_str(), 0600);
+  EXPECT_EQ(ReadKeyFile(tmp.Path("legacy")).Fingerprint(), key.Fingerprint());
+  ::chmod(tmp.Path("legacy").c_str(), 0644);
+  try {
+    ReadKeyFile(tmp.Path("legacy"));
+    ADD_FAILURE() << "accepted a key file others can read";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("readable by other users"), std::string::npos);
+  }
+  EXPECT_EQ(ReadKeyFile(tmp.Path("legacy"), /*allow_shared=*/true).bytes(), key.bytes());
+  std::ofstream(tmp.Path("badset")) << "directions cube\n" << ToHex(key.bytes()) << "\n";
+  ::chmod(tmp.Path("badset").c_str(), 0600);
+  EXPECT_THROW(ReadKeyFile(tmp.Path("badset")), Error);
 }
 
 TEST(Lifting, NoPointCoordinateInTheFile) {
   std::vector<uint64_t> ids;
   std::vector<Eigen::Vector3d> points;
   RandomPoints(2000, 8, &ids, &points);
-  const LiftingKey key = KeyFromSeed(8);
+  const LiftingKey key = KeyFromSeed(8, DirectionSet::kCompact256);
+  testing::ExpectNoCoordinates(
+      SerializeLineCloud(LiftPoints(ids, points, KeyFromSeed(8), {})), points);
   for (const LineEncoding encoding : {LineEncoding::kPlucker, LineEncoding::kCompact}) {
     testing::ExpectNoCoordinates(
         SerializeLineCloud(LiftPoints(ids, points, key, {encoding})), points);

@@ -42,7 +42,11 @@ PluckerLine DecodeCompactLine(const CompactLine& compact);
 
 struct LineCloud {
   LineEncoding encoding = LineEncoding::kPlucker;
-  std::vector<uint64_t> ids;          // id of the point each line came from
+  // Line ids: the keyed permutation of the ids of the points the lines came
+  // from (lifting.h), unless keyed_line_ids is false (a version-1 file,
+  // whose ids are the point ids themselves).
+  std::vector<uint64_t> ids;
+  bool keyed_line_ids = true;
   std::vector<PluckerLine> lines;     // always present (decoded if compact)
   std::vector<CompactLine> compact;   // the stored form when kCompact
   int descriptor_dim = 0;             // 0: no descriptors

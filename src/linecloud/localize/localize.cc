@@ -7,6 +7,7 @@
 
 #include "linecloud/estimation/pose_data.h"
 #include "linecloud/estimation/pose_estimator.h"
+#include "linecloud/lifting/lifting.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
@@ -95,6 +96,20 @@ LineMap LineMapFromCloud(const LineCloud& cloud) {
   return map;
 }
 
+LineMap LineMapByPointId(const LineCloud& cloud, const LiftingKey& key) {
+  if (cloud.key_fingerprint != key.Fingerprint()) {
+    Fail("line cloud was lifted with another key (fingerprint {}, key {})",
+         ToHex(cloud.key_fingerprint), ToHex(key.Fingerprint()));
+  }
+  LineMap map;
+  map.lines.reserve(cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const uint64_t point_id = cloud.keyed_line_ids ? PointIdOfLine(key, cloud.ids[i]) : cloud.ids[i];
+    map.lines.emplace(point_id, cloud.lines[i]);
+  }
+  return map;
+}
+
 void LocalizeOptions::Check() const {
   ransac.Check();
   refinement.Check();
@@ -152,8 +167,12 @@ PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query,
     if (method.local_points) data.points_local.push_back(align_query * query.points_local[i]);
     if (line_map) {
       const auto& lines = std::get<LineMap>(map).lines;
-      const auto it = lines.find(o.id);
-      if (it == lines.end()) Fail("{}: observations[{}].id = {} is not in the map", source, i, o.id);
+      const uint64_t id = o.line_id.value_or(o.id);
+      const auto it = lines.find(id);
+      if (it == lines.end()) {
+        Fail("{}: observations[{}].{} = {} is not in the map", source, i,
+             o.line_id ? "line_id" : "id", id);
+      }
       data.lines.push_back(PluckerLine(align_map * it->second.v, align_map * it->second.w));
     } else {
       const auto& points = std::get<PointMap>(map).points;

@@ -20,6 +20,7 @@
 #include "linecloud/geometry/plucker.h"
 #include "linecloud/geometry/rigid3.h"
 #include "linecloud/io/colmap_model.h"
+#include "linecloud/lifting/key.h"
 #include "linecloud/lifting/line_cloud.h"
 #include "linecloud/solvers/minimal_problem.h"
 
@@ -29,6 +30,9 @@ struct QueryObservation {
   int camera = 0;
   Eigen::Vector2d xy;  // pixels, COLMAP convention (top-left pixel centre at 0.5, 0.5)
   uint64_t id = 0;     // map point id, or the id of the line lifted from it
+  // The line id when `id` is a point id (the map owner's query files, e.g.
+  // the demo's): used with a line cloud instead of `id`.
+  std::optional<uint64_t> line_id;
 };
 
 struct Query {
@@ -51,7 +55,11 @@ struct LineMap {
 using LocalizationMap = std::variant<PointMap, LineMap>;
 
 PointMap PointMapFromModel(const Reconstruction& model);
+// Lines by line id (what a query matched against the map's descriptors has).
 LineMap LineMapFromCloud(const LineCloud& cloud);
+// Lines by the id of the point each was lifted from: for the key's owner
+// (evaluation, synthetic queries), whose correspondences carry point ids.
+LineMap LineMapByPointId(const LineCloud& cloud, const LiftingKey& key);
 
 struct LocalizeOptions {
   RansacOptions ransac;        // max_error in px

@@ -77,17 +77,18 @@ TEST(Localize, RealImageAgainstItsModelAndLineCloud) {
   Query query;
   query.cameras.push_back(model.cameras.at(image->camera_id));
   for (const Point2D& p : image->points2D) {
-    if (p.point3D_id != kInvalidPoint3DId) query.observations.push_back({0, p.xy, p.point3D_id});
+    if (p.point3D_id != kInvalidPoint3DId) query.observations.push_back({0, p.xy, p.point3D_id, std::nullopt});
   }
   ASSERT_GT(query.observations.size(), 500u);
   std::vector<uint64_t> ids = model.SortedPoint3DIds();
   std::vector<Eigen::Vector3d> points;
   for (uint64_t id : ids) points.push_back(model.points3D.at(id).xyz);
-  const LineCloud cloud = LiftPoints(ids, points, LiftingKey::Generate(), {});
+  const LiftingKey key = DemoLiftingKey();
+  const LineCloud cloud = LiftPoints(ids, points, key, {});
   LocalizeOptions options;
   for (const auto& [name, map] :
        {std::pair<const char*, LocalizationMap>{"p3P", PointMapFromModel(model)},
-        std::pair<const char*, LocalizationMap>{"p6L", LineMapFromCloud(cloud)}}) {
+        std::pair<const char*, LocalizationMap>{"p6L", LineMapByPointId(cloud, key)}}) {
     const LocalizeResult r = Localize(FindMethod(name), query, map, options);
     ASSERT_TRUE(r.success) << name;
     const Rigid3d& truth = image->cam_from_world;

@@ -72,6 +72,12 @@ Query ParseQueryJson(const nlohmann::json& j, const std::string& source) {
     }
     if (!o["id"].is_number_unsigned()) Fail("{}.id: expected a non-negative integer", where);
     obs.id = o["id"].get<uint64_t>();
+    if (o.contains("line_id")) {
+      if (!o["line_id"].is_number_unsigned()) {
+        Fail("{}.line_id: expected a non-negative integer", where);
+      }
+      obs.line_id = o["line_id"].get<uint64_t>();
+    }
     const nlohmann::json& xy = o["xy"];
     if (!xy.is_array() || xy.size() != 2 || !xy[0].is_number() || !xy[1].is_number()) {
       Fail("{}.xy: expected [u, v]", where);
@@ -112,6 +118,7 @@ nlohmann::json QueryToJson(const Query& q) {
   j["observations"] = nlohmann::json::array();
   for (const QueryObservation& o : q.observations) {
     j["observations"].push_back({{"camera", o.camera}, {"xy", {o.xy.x(), o.xy.y()}}, {"id", o.id}});
+    if (o.line_id) j["observations"].back()["line_id"] = *o.line_id;
   }
   if (!q.points_local.empty()) {
     j["points_local"] = nlohmann::json::array();

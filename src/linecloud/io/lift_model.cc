@@ -1,0 +1,149 @@
+#include "linecloud/io/lift_model.h"
+
+#include <chrono>
+#include <iostream>
+
+#include "linecloud/io/colmap_database.h"
+#include "linecloud/io/colmap_model.h"
+#include "linecloud/io/lcm_format.h"
+#include "linecloud/lifting/lifting.h"
+#include "linecloud/util/error.h"
+#include "linecloud/util/file.h"
+
+namespace linecloud {
+namespace {
+
+struct ResolvedKey {
+  LiftingKey key;
+  std::string path;
+  std::string source;
+};
+
+ResolvedKey ResolveKey(const LiftModelOptions& o, const std::vector<uint64_t>& elements) {
+  const KeyStore store(o.key_store.empty() ? KeyStore::DefaultDirectory() : o.key_store);
+  const std::optional<KeyStoreMatch> known = store.Find(elements, o.allow_shared_key);
+  const DirectionSet directions = o.compact ? DirectionSet::kCompact256 : DirectionSet::kSphere;
+  if (o.key_file.empty()) {
+    if (known) return {known->key, known->key_path, "key store"};
+    // Before the key store, the default key lived next to the output.
+    const std::string legacy = o.out_path + ".key";
+    if (FileExists(legacy)) {
+      const LiftingKey key = ReadKeyFile(legacy, o.allow_shared_key);
+      store.Register(key, legacy, elements);
+      return {key, legacy, "legacy key file"};
+    }
+    const KeyStoreMatch created = store.CreateKey(directions, elements);
+    return {created.key, created.key_path, "new key in the key store"};
+  }
+  const bool create = !FileExists(o.key_file);
+  if (create) WriteKeyFile(o.key_file, LiftingKey::Generate(directions));
+  const LiftingKey key = ReadKeyFile(o.key_file, o.allow_shared_key);
+  if (known && known->key.Fingerprint() != key.Fingerprint() && !o.force) {
+    if (create) std::remove(o.key_file.c_str());
+    Fail("{}: this model was lifted before with the key {} (fingerprint {}); lifting it with {} "
+         "too would reveal every point the two maps share (their lines intersect there). Use "
+         "that key, or pass --force if nothing lifted with it was ever shared",
+         o.model_dir, known->key_path, ToHex(known->key.Fingerprint()), o.key_file);
+  }
+  store.Register(key, o.key_file, elements);
+  return {key, o.key_file, create ? "new key file" : "key file"};
+}
+
+// Refuses to replace a map whose lines differ from the new ones: the old and
+// new line of a point would intersect in the point.
+void CheckExistingOutput(const LiftModelOptions& o, const LineCloud& cloud, const LiftingKey& key) {
+  if (!FileExists(o.out_path) || o.force) return;
+  LineCloud existing;
+  try {
+    existing = ReadLineCloud(o.out_path);
+  } catch (const Error&) {
+    Fail("{}: exists and is not a readable line cloud; remove it or pass --force", o.out_path);
+  }
+  if (existing.key_fingerprint != cloud.key_fingerprint) {
+    Fail("{}: was lifted with another key (fingerprint {}); lifting one model with two keys "
+         "reveals its points by intersecting the lines. Lift with that map's key, or pass "
+         "--force if the old file was never shared",
+         o.out_path, ToHex(existing.key_fingerprint));
+  }
+  std::unordered_map<uint64_t, size_t> index;
+  for (size_t i = 0; i < cloud.size(); ++i) index.emplace(cloud.ids[i], i);
+  for (size_t i = 0; i < existing.size(); ++i) {
+    const uint64_t id =
+        existing.keyed_line_ids ? existing.ids[i] : LineIdOfPoint(key, existing.ids[i]);
+    const auto it = index.find(id);
+    if (it == index.end()) continue;
+    if (existing.lines[i].v.cross(cloud.lines[it->second].v).norm() > 1e-9) {
+      Fail("{}: holds other lines through the same points (an older {} lifting under this key); "
+           "writing these too would reveal the points where the two lines cross. Keep the old "
+           "file's encoding, or pass --force if it was never shared",
+           o.out_path, LineEncodingName(existing.encoding));
+    }
+  }
+}
+
+}  // namespace
+
+void LiftModelOptions::Check() const {
+  if (model_dir.empty()) Fail("lift: no model folder given (--model)");
+  if (out_path.empty()) Fail("lift: no output given (--out)");
+}
+
+std::vector<uint64_t> ModelSketchElements(const Reconstruction& model) {
+  std::vector<uint64_t> elements;
+  for (const auto& [id, point] : model.points3D) {
+    if (point.track.empty()) elements.push_back(SketchElement(id, ""));
+    for (const TrackElement& t : point.track) {
+      const auto im = model.images.find(t.image_id);
+      elements.push_back(SketchElement(id, im == model.images.end() ? "" : im->second.name));
+    }
+  }
+  return elements;
+}
+
+LiftModelResult LiftModel(const LiftModelOptions& o) {
+  o.Check();
+  const auto start = std::chrono::steady_clock::now();
+  const Reconstruction rec = ReadColmapModel(o.model_dir);
+  const std::vector<uint64_t> ids = rec.SortedPoint3DIds();
+  if (ids.empty()) Fail("{}: the model has no 3D points to lift", o.model_dir);
+
+  PointDescriptors descriptors;
+  if (!o.database.empty()) {
+    const ColmapDatabase db(o.database);
+    descriptors = ComputePointDescriptors(rec, ids, db, o.aggregation);
+  }
+  const ResolvedKey key = ResolveKey(o, ModelSketchElements(rec));
+
+  std::vector<Eigen::Vector3d> points;
+  points.reserve(ids.size());
+  for (const uint64_t id : ids) points.push_back(rec.points3D.at(id).xyz);
+  LiftingOptions lifting;
+  lifting.encoding = o.compact ? LineEncoding::kCompact : LineEncoding::kPlucker;
+  LiftModelResult result;
+  result.cloud = LiftPoints(ids, points, key.key, lifting);
+  if (descriptors.dim > 0) {
+    // Descriptors follow the lines' (line-id) order.
+    const std::vector<uint64_t> line_ids = LineIdsOfPoints(key.key, ids);
+    std::unordered_map<uint64_t, size_t> row;
+    for (size_t i = 0; i < line_ids.size(); ++i) row.emplace(line_ids[i], i);
+    LineCloud& c = result.cloud;
+    c.descriptor_dim = descriptors.dim;
+    c.descriptors.resize(c.size() * descriptors.dim);
+    for (size_t k = 0; k < c.size(); ++k) {
+      std::copy_n(descriptors.data.data() + row.at(c.ids[k]) * descriptors.dim, descriptors.dim,
+                  c.descriptors.data() + k * descriptors.dim);
+    }
+    c.descriptor_type = "colmap-sift-uint8";
+    c.descriptor_aggregation = DescriptorAggregationName(o.aggregation);
+  }
+  CheckExistingOutput(o, result.cloud, key.key);
+  WriteLineCloud(result.cloud, o.out_path);
+  result.num_points = ids.size();
+  result.key_path = key.path;
+  result.key_source = key.source;
+  result.seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
+}
+
+}  // namespace linecloud

@@ -1,0 +1,49 @@
+// `linecloud lift` as a library call: a COLMAP model (and optionally its
+// database) to a line-cloud file, under the model's one key.
+//
+// The key: `key_file` when given (created there, mode 0600, if it does not
+// exist yet), otherwise the key store's key of the model (key_store.h),
+// created on the model's first lifting. Refused, with an error naming the
+// files: a key other than the one the store knows for this model; replacing
+// an output lifted with another key, or whose lines differ from the new ones
+// (e.g. a version-1 compact map); the compact encoding under a sphere key.
+#pragma once
+
+#include <string>
+
+#include "linecloud/io/track_descriptors.h"
+#include "linecloud/lifting/key_store.h"
+#include "linecloud/lifting/line_cloud.h"
+
+namespace linecloud {
+
+struct LiftModelOptions {
+  std::string model_dir;
+  std::string out_path;
+  std::string key_file;    // empty: the key store's key of the model
+  std::string key_store;   // empty: KeyStore::DefaultDirectory()
+  std::string database;    // empty: no descriptors
+  DescriptorAggregation aggregation = DescriptorAggregation::kMedoid;
+  bool compact = false;
+  bool force = false;             // replace an output lifted with another key
+  bool allow_shared_key = false;  // accept a key file others can read
+
+  void Check() const;
+};
+
+struct LiftModelResult {
+  LineCloud cloud;
+  size_t num_points = 0;
+  std::string key_path;
+  // "new key in the key store", "key store", "new key file", "key file",
+  // or "legacy key file" (OUT.key from before the key store).
+  std::string key_source;
+  double seconds = 0;
+};
+
+// The sketch elements of a model: one per (point id, observing image name).
+std::vector<uint64_t> ModelSketchElements(const Reconstruction& model);
+
+LiftModelResult LiftModel(const LiftModelOptions& options);
+
+}  // namespace linecloud
