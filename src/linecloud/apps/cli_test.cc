@@ -2,6 +2,7 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <sstream>
 
 #include <gtest/gtest.h>
 
@@ -537,15 +538,18 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
         std::tuple{"p2P+u", "--model", demo + "/model"},
         std::tuple{"p3P", "--model", demo + "/model"}}) {
     const CliResult r = RunCli({"localize", map_flag, map, "--query", query, "--method", method,
-                                "--out", tmp.Path("result.json")});
+                                "--out", tmp.Path("result.json"), "--inliers"});
     ASSERT_EQ(r.code, 0) << method << ": " << r.err;
     const nlohmann::json result = ReadJsonFile(tmp.Path("result.json"));
     ASSERT_TRUE(result["success"].get<bool>()) << method;
     const Rigid3d estimate = JsonPose(result, "result");
     EXPECT_LT(RotationDistance(estimate.rotation, truth.rotation), 0.2 * 3.14159 / 180) << method;
     EXPECT_LT((estimate.Center() - truth.Center()).norm(), 0.05) << method;
+    EXPECT_LT((JsonVector3(result["center"], "center") - estimate.Center()).norm(), 1e-9);
     EXPECT_GT(result["stats"]["inlier_ratio"].get<double>(), 0.9) << method;
-    EXPECT_GT(result["inliers"].size(), 10u);
+    EXPECT_EQ(result["inliers"].size(), result["num_inliers"].get<size_t>());
+    EXPECT_GT(result["num_inliers"].get<int>(), 100);
+    EXPECT_LT(result["uncertainty"]["rotation_deg"].get<double>(), 0.2) << method;
     // LM lowers its robust (Cauchy) cost, not necessarily the mean |residual|
     // reported here: check the refined error against the 1 px noise instead (mean |e| ≈ 0.8 px for
     // a 1D line residual, ≈ 1.25 px for a 2D point residual).
@@ -568,6 +572,56 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
         << method;
     EXPECT_NEAR(result["scale"].get<double>(), 1.0, 0.01) << method;
   }
+  // The summary comes first and the inlier list only with --inliers; COLMAP's
+  // images.txt form; the frustum PLY.
+  CliResult r = RunCli({"localize", "--map", demo + "/map.lcm", "--query", query, "--method",
+                        "p4L+u", "--ply", tmp.Path("loc.ply")});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out.find("\"inliers\""), std::string::npos);
+  EXPECT_LT(r.out.find("\"q\""), r.out.find("\"stats\""));
+  EXPECT_LT(r.out.find("\"success\""), r.out.find("\"q\""));
+  const LineCloud cloud = ReadLineCloud(demo + "/map.lcm");
+  const std::string ply = ReadFileToString(tmp.Path("loc.ply"));
+  EXPECT_NE(ply.find(fmt::format("element vertex {}\n", 2 * cloud.size() + 5)), std::string::npos);
+  EXPECT_NE(ply.find(fmt::format("element edge {}\n", cloud.size() + 8)), std::string::npos);
+  r = RunCli({"localize", "--map", demo + "/map.lcm", "--query", query, "--method", "p4L+u",
+              "--format", "colmap"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const std::string data_line = r.out.substr(r.out.rfind("#"));
+  std::istringstream line(r.out.substr(r.out.find('\n', r.out.rfind("#")) + 1));
+  int image_id = 0, camera_id = 0;
+  double qw, qx, qy, qz, tx, ty, tz;
+  std::string name;
+  ASSERT_TRUE(line >> image_id >> qw >> qx >> qy >> qz >> tx >> ty >> tz >> camera_id >> name)
+      << r.out;
+  EXPECT_LT(RotationDistance(Eigen::Quaterniond(qw, qx, qy, qz), truth.rotation),
+            0.2 * 3.14159 / 180);
+  // Bounded RANSAC, and "ran fine, no pose": exit 0, success false, a reason.
+  r = RunCli({"localize", "--map", demo + "/map.lcm", "--query", query, "--method", "p4L+u",
+              "--min-inliers", "100000", "--max-iterations", "50", "--max-seconds", "5"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json no_pose = nlohmann::json::parse(r.out);
+  EXPECT_FALSE(no_pose["success"].get<bool>());
+  EXPECT_NE(no_pose["reason"].get<std::string>().find("--min-inliers"), std::string::npos);
+  EXPECT_FALSE(no_pose.contains("q"));
+  EXPECT_TRUE(no_pose.contains("rejected_q"));
+  EXPECT_LE(no_pose["stats"]["iterations"].get<int>(), 50);
+  EXPECT_NE(r.err.find("no pose:"), std::string::npos);
+  // An image where JSON belongs; a number that overflows a double.
+  std::ofstream(tmp.Path("photo.jpg"), std::ios::binary) << "\xFF\xD8\xFF\xE0\x00\x10JFIF";
+  ExpectError(RunCli({"localize", "--map", demo + "/map.lcm", "--query", tmp.Path("photo.jpg"),
+                      "--method", "p6L"}),
+              "this is an image, not a JSON file");
+  std::ofstream(tmp.Path("big.json")) << R"({"cameras": [{"model": "PINHOLE", "width": 9, "height": 9, "params": [1e400, 1, 5, 5]}]})";
+  ExpectError(RunCli({"localize", "--map", demo + "/map.lcm", "--query", tmp.Path("big.json"),
+                      "--method", "p6L"}),
+              "big.json");
+  // info takes --map like every other command; the positional form still works.
+  r = RunCli({"info", "--map", demo + "/map.lcm"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out, RunCli({"info", demo + "/map.lcm"}).out);
+  EXPECT_NE(r.out.find("version 2"), std::string::npos);
+
   // Wrong map kind, unknown method, missing query: one clear error line.
   ExpectError(RunCli({"localize", "--model", demo + "/model", "--query", query, "--method",
                       "p4L+u"}),

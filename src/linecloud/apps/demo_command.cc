@@ -174,6 +174,7 @@ void RunDemo(const DemoArgs& args) {
   std::cout << "| method | map | queries | localized | rot. deg init / ref | pos. m init / ref "
                "| inliers | iters | sols | solver us | ms/query | reproj. px init / ref |\n"
                "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  std::vector<std::string> failures;
   for (const MethodInfo& method : AllMethods()) {
     if (!method.implemented) {
       std::cout << fmt::format("| {} | {} | no solver yet | | | | | | | | | |\n", method.name,
@@ -190,7 +191,10 @@ void RunDemo(const DemoArgs& args) {
         m.median_rotation_deg[0], m.median_rotation_deg[1], m.median_position[0],
         m.median_position[1], 100 * m.inlier_ratio, m.iterations, m.solutions, m.solver_us,
         m.total_ms, m.reprojection_px[0], m.reprojection_px[1]);
+    for (const std::string& f : m.failures) failures.push_back(m.method + " " + f);
   }
+  // Queries without a pose, and why (the success criteria of `localize`).
+  for (const std::string& f : failures) std::cout << "no pose: " << f << "\n";
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/io/ply.h"
 #include "linecloud/lifting/key.h"
+#include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
 namespace linecloud {
@@ -19,6 +20,7 @@ struct InfoArgs {
 };
 
 void RunInfo(const InfoArgs& args) {
+  if (args.map.empty()) Fail("give the map: linecloud info --map MAP.lcm");
   const std::string data = ReadFileToString(args.map);
   const LineCloud cloud = ParseLineCloud(data, args.map);
   Eigen::Vector3d min, max;
@@ -26,7 +28,7 @@ void RunInfo(const InfoArgs& args) {
   nlohmann::json j;
   j["file"] = args.map;
   j["file_bytes"] = data.size();
-  j["format_version"] = kLcmVersion;
+  j["format_version"] = cloud.keyed_line_ids ? kLcmVersion : 1;
   j["num_lines"] = cloud.size();
   j["encoding"] = std::string(LineEncodingName(cloud.encoding));
   j["bytes_per_line"] = cloud.size() ? static_cast<double>(data.size()) / cloud.size() : 0.0;
@@ -53,7 +55,7 @@ void RunInfo(const InfoArgs& args) {
       "  anchor bbox min   ({:.4f}, {:.4f}, {:.4f})\n"
       "  anchor bbox max   ({:.4f}, {:.4f}, {:.4f})\n"
       "  file size         {} bytes ({:.1f} bytes per line)\n",
-      args.map, kLcmVersion, cloud.size(), LineEncodingName(cloud.encoding),
+      args.map, j["format_version"].get<int>(), cloud.size(), LineEncodingName(cloud.encoding),
       cloud.has_descriptors()
           ? fmt::format("yes: {}-D {} ({})", cloud.descriptor_dim,
                         cloud.descriptor_type, cloud.descriptor_aggregation)
@@ -67,7 +69,10 @@ void RunInfo(const InfoArgs& args) {
 void RegisterInfoCommand(CLI::App& app) {
   auto args = std::make_shared<InfoArgs>();
   CLI::App* cmd = app.add_subcommand("info", "Describe a line-cloud map (.lcm)");
-  cmd->add_option("map", args->map, "Line-cloud map (.lcm)")->required();
+  // --map like every other command; the positional form still works.
+  auto* positional = cmd->add_option("map", args->map, "Line-cloud map (.lcm)");
+  auto* flag = cmd->add_option("--map", args->map, "Line-cloud map (.lcm)");
+  positional->excludes(flag);
   cmd->add_flag("--json", args->json, "Print JSON instead of text");
   cmd->callback([args] { RunInfo(*args); });
 }

@@ -1,9 +1,13 @@
+#include <cstdio>
 #include <iostream>
 #include <memory>
+
+#include <fmt/format.h>
 
 #include "linecloud/apps/commands.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/io/lcm_format.h"
+#include "linecloud/io/ply.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/localize/query_json.h"
 #include "linecloud/util/error.h"
@@ -21,28 +25,84 @@ struct LocalizeArgs {
   double threshold = 4.0;
   uint64_t seed = 0;
   std::string out;
+  std::string format = "json";
+  std::string ply;
+  bool with_inliers = false;
+  bool quiet = false;
+  int min_inliers = -1;
+  LocalizeOptions options;
 };
 
-void RunLocalize(const LocalizeArgs& args) {
+void PrintProgress(int iterations, int needed, int inliers, double seconds) {
+  std::cerr << fmt::format("\rRANSAC: {} iterations ({} needed), best {} inliers, {:.1f} s   ",
+                           iterations, needed, inliers, seconds)
+            << std::flush;
+}
+
+std::vector<PlyCamera> QueryCameras(const Query& query, const LocalizeResult& result) {
+  std::vector<PlyCamera> cameras;
+  const Sim3d world_from_query = result.query_from_world.Inverse();
+  for (size_t c = 0; c < query.cameras.size(); ++c) {
+    const Rigid3d cam_from_rig = c < query.cam_from_rig.size() ? query.cam_from_rig[c] : Rigid3d();
+    const Sim3d rig_from_cam = Sim3d(1.0, cam_from_rig.rotation, cam_from_rig.translation).Inverse();
+    cameras.push_back({world_from_query * rig_from_cam, query.cameras[c]});
+  }
+  return cameras;
+}
+
+void RunLocalize(LocalizeArgs args) {
   const MethodInfo& method = FindMethod(args.method);
   if (args.map_path.empty() == args.model_dir.empty()) {
     Fail("give exactly one of --map MAP.lcm (line cloud) or --model DIR (point model)");
   }
   const Query query = ReadQueryJson(args.query_path);
-  const LocalizationMap map = args.map_path.empty()
-                                  ? LocalizationMap(PointMapFromModel(ReadColmapModel(args.model_dir)))
-                                  : LocalizationMap(LineMapFromCloud(ReadLineCloud(args.map_path)));
-  LocalizeOptions options;
+  std::optional<LineCloud> cloud;
+  std::optional<Reconstruction> model;
+  if (args.map_path.empty()) {
+    model = ReadColmapModel(args.model_dir);
+  } else {
+    cloud = ReadLineCloud(args.map_path);
+  }
+  const LocalizationMap map =
+      model ? LocalizationMap(PointMapFromModel(*model)) : LocalizationMap(LineMapFromCloud(*cloud));
+  LocalizeOptions& options = args.options;
   options.ransac.max_error = args.threshold;
   options.ransac.seed = args.seed;
   options.refine = !args.no_refine;
+  if (args.min_inliers >= 0) {
+    options.success.min_inliers_points = options.success.min_inliers_lines = args.min_inliers;
+  }
+  bool progress_shown = false;
+  if (!args.quiet) {
+    options.ransac.progress = [&](int iterations, int needed, int inliers, double seconds) {
+      PrintProgress(iterations, needed, inliers, seconds);
+      progress_shown = true;
+    };
+  }
   const LocalizeResult result = Localize(method, query, map, options, args.query_path);
-  const std::string text = LocalizeResultToJson(method, result).dump(2) + "\n";
+  if (progress_shown) std::cerr << "\n";
+
+  std::string text;
+  if (args.format == "colmap") {
+    if (query.cameras.size() != 1) {
+      Fail("--format colmap writes one image's pose; this query has {} cameras (use JSON)",
+           query.cameras.size());
+    }
+    text = result.success ? LocalizeResultToColmapImagesTxt(result, "query")
+                          : "# no pose: " + result.failure + "\n";
+  } else {
+    text = LocalizeResultToJson(method, result, args.with_inliers).dump(2) + "\n";
+  }
+  if (!args.ply.empty() && result.has_pose) {
+    WriteLocalizationPly(args.ply, cloud ? &*cloud : nullptr, model ? &*model : nullptr,
+                         QueryCameras(query, result), 0);
+  }
   if (args.out.empty()) {
     std::cout << text;
   } else {
     WriteFileAtomically(args.out, [&](std::ostream& os) { os << text; });
   }
+  if (!args.quiet && !result.success) std::cerr << "no pose: " << result.failure << "\n";
 }
 
 }  // namespace
@@ -50,8 +110,10 @@ void RunLocalize(const LocalizeArgs& args) {
 void RegisterLocalizeCommand(CLI::App& app) {
   auto args = std::make_shared<LocalizeArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "localize", "Localize a query (QUERY.json) against a line cloud or a point model: RANSAC "
-                  "with the method's minimal solver, then LM refinement");
+      "localize",
+      "Localize a query (QUERY.json) against a line cloud or a point model: RANSAC with the "
+      "method's minimal solver, then LM refinement. Exit code 0 when it ran, with \"success\": "
+      "false and a \"reason\" when the data do not support a pose; non-zero for bad input");
   auto* map = cmd->add_option("--map", args->map_path, "Line cloud (.lcm)");
   auto* model = cmd->add_option("--model", args->model_dir, "COLMAP sparse model folder");
   map->excludes(model);
@@ -59,10 +121,34 @@ void RegisterLocalizeCommand(CLI::App& app) {
   cmd->add_option("--method", args->method, "One of the 16 methods, e.g. p6L, p3P, m-P3P+l")
       ->required();
   cmd->add_flag("--no-refine", args->no_refine, "Skip the final LM refinement");
+  cmd->add_flag("--refine-focal", args->options.refine_focal,
+                "Refine the focal length with the pose (single camera; the given focal is a "
+                "prior, e.g. from EXIF)");
   cmd->add_option("--threshold", args->threshold, "RANSAC inlier threshold in pixels")
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "RANSAC seed")->capture_default_str();
-  cmd->add_option("--out", args->out, "Write the result JSON here instead of stdout");
+  cmd->add_option("--max-iterations", args->options.ransac.max_iterations,
+                  "RANSAC iteration cap")
+      ->capture_default_str();
+  cmd->add_option("--max-seconds", args->options.ransac.max_seconds,
+                  "RANSAC time budget in seconds (0: none)")
+      ->capture_default_str();
+  cmd->add_option("--min-inliers", args->min_inliers,
+                  "Inliers a pose needs (default: 30 on a point model, 60 on a line cloud)");
+  cmd->add_option("--min-inlier-ratio", args->options.success.min_inlier_ratio,
+                  "Share of the correspondences that must be inliers")
+      ->capture_default_str();
+  cmd->add_option("--max-rotation-uncertainty", args->options.success.max_rotation_uncertainty_deg,
+                  "Largest estimated 1-sigma rotation uncertainty (degrees) of a success")
+      ->capture_default_str();
+  cmd->add_flag("--inliers", args->with_inliers, "Also list the inlier observation indices");
+  cmd->add_option("--format", args->format,
+                  "json, or colmap (an images.txt entry for COLMAP's tools)")
+      ->check(CLI::IsMember({"json", "colmap"}))
+      ->capture_default_str();
+  cmd->add_option("--ply", args->ply, "Write the map and the localized camera frustum(s) as PLY");
+  cmd->add_flag("--quiet", args->quiet, "No progress or notes on standard error");
+  cmd->add_option("--out", args->out, "Write the result here instead of standard output");
   cmd->callback([args] { RunLocalize(*args); });
 }
 

@@ -25,6 +25,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <random>
 #include <span>
@@ -41,6 +42,12 @@ struct RansacOptions {
   int max_iterations = 10000;
   bool local_optimization = true;
   uint64_t seed = 0;
+  double max_seconds = 0;        // wall-clock budget; 0: none
+  // Called about every `progress_interval_s` seconds while the run lasts
+  // (never for runs shorter than that): iterations so far, iterations the
+  // current best model needs, its inliers, seconds elapsed.
+  std::function<void(int, int, int, double)> progress;
+  double progress_interval_s = 1.0;
 
   void Check() const {
     if (!(max_error > 0) || !std::isfinite(max_error)) {
@@ -48,6 +55,9 @@ struct RansacOptions {
     }
     if (!(confidence > 0 && confidence < 1)) {
       Fail("RANSAC confidence must be in (0, 1), got {}", confidence);
+    }
+    if (!(max_seconds >= 0) || !std::isfinite(max_seconds)) {
+      Fail("RANSAC time budget must be a non-negative number of seconds, got {}", max_seconds);
     }
     if (min_iterations < 0 || max_iterations < 1 || min_iterations > max_iterations) {
       Fail("RANSAC iterations: need 0 <= min ({}) <= max ({}) and max >= 1", min_iterations,
@@ -64,6 +74,9 @@ struct RansacStats {
   double solver_us = 0;          // mean time of one generate_models call
   double ransac_ms = 0;          // whole run, local optimisation included
   int local_optimizations = 0;
+  // Why the run stopped: "confidence" (enough iterations for an all-inlier
+  // sample), "max_iterations" or "max_seconds".
+  const char* stop_reason = "confidence";
 };
 
 template <typename Model>
@@ -113,8 +126,24 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator,
   double solver_seconds = 0;
   int needed = options.max_iterations;
   int iteration = 0;
+  double next_progress = options.progress_interval_s;
+  const char* stop_reason = "max_iterations";
   for (; iteration < options.max_iterations; ++iteration) {
-    if (iteration >= options.min_iterations && iteration >= needed) break;
+    if (iteration >= options.min_iterations && iteration >= needed) {
+      stop_reason = "confidence";
+      break;
+    }
+    if (options.max_seconds > 0 || options.progress) {
+      const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+      if (options.max_seconds > 0 && elapsed >= options.max_seconds) {
+        stop_reason = "max_seconds";
+        break;
+      }
+      if (options.progress && elapsed >= next_progress) {
+        options.progress(iteration, needed, best_inliers, elapsed);
+        next_progress = elapsed + options.progress_interval_s;
+      }
+    }
     // k distinct indices (k is tiny: rejection is cheaper than shuffling).
     for (int i = 0; i < k; ++i) {
       int candidate;
@@ -154,6 +183,8 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator,
     }
   }
   result.stats.iterations = iteration;
+  if (iteration >= needed && iteration >= options.min_iterations) stop_reason = "confidence";
+  result.stats.stop_reason = stop_reason;
   if (result.success) {
     estimator.inliers(result.model, options.max_error, &result.inlier_mask);
     result.stats.num_inliers = best_inliers;

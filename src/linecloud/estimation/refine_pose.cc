@@ -5,6 +5,7 @@
 #include <utility>
 
 #include <limits>
+#include <numbers>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -127,6 +128,51 @@ RefineSummary RefinePose(const PoseData& data, std::span<const int> indices,
   }
   summary.final_cost = current.cost;
   return summary;
+}
+
+PoseUncertainty EstimatePoseUncertainty(const PoseData& data, std::span<const int> indices,
+                                        const Sim3d& query_from_world, bool similarity) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  const PoseLinearization linearization(data, query_from_world);
+  Eigen::Matrix<double, 7, 7> fisher = Eigen::Matrix<double, 7, 7>::Zero();
+  Eigen::Vector2d r;
+  Eigen::Matrix<double, 2, 7> j;
+  double sum_sq = 0;
+  int rows = 0;
+  for (const int i : indices) {
+    const int n = ReprojectionResidual(data, linearization, static_cast<size_t>(i), &r, &j);
+    for (int row = 0; row < n; ++row) fisher.noalias() += j.row(row).transpose() * j.row(row);
+    sum_sq += r[0] * r[0] + (n == 2 ? r[1] * r[1] : 0.0);
+    rows += n;
+  }
+  const int dim = similarity ? 7 : 6;
+  PoseUncertainty u;
+  u.rotation_deg = u.position = kInf;
+  if (rows <= dim) return u;
+  u.sigma_px = std::sqrt(sum_sq / (rows - dim));
+  const Eigen::MatrixXd f = fisher.topLeftCorner(dim, dim);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(f);
+  const Eigen::VectorXd& values = eigen.eigenvalues();  // ascending
+  if (!(values[0] > 1e-12 * values[dim - 1])) return u;
+  const Eigen::MatrixXd covariance = u.sigma_px * u.sigma_px * eigen.eigenvectors() *
+                                     values.cwiseInverse().asDiagonal() *
+                                     eigen.eigenvectors().transpose();
+  u.rotation_deg = std::sqrt(covariance.topLeftCorner<3, 3>().trace()) * 180.0 / std::numbers::pi;
+  // The centre's Jacobian by central differences of the perturbation.
+  const Eigen::Vector3d centre = query_from_world.Inverse().translation;
+  const double h = 1e-6 * std::max(1.0, centre.norm());
+  Eigen::MatrixXd jc(3, dim);
+  for (int k = 0; k < dim; ++k) {
+    Eigen::Matrix<double, 7, 1> d = Eigen::Matrix<double, 7, 1>::Zero();
+    const double step = k < 3 || k == 6 ? 1e-7 : h;
+    d[k] = step;
+    const Eigen::Vector3d plus = PerturbPose(query_from_world, d).Inverse().translation;
+    d[k] = -step;
+    const Eigen::Vector3d minus = PerturbPose(query_from_world, d).Inverse().translation;
+    jc.col(k) = (plus - minus) / (2 * step);
+  }
+  u.position = std::sqrt((jc * covariance * jc.transpose()).trace());
+  return u;
 }
 
 double RotationErrorBound(const PoseData& data, std::span<const int> indices,

@@ -44,6 +44,22 @@ RefineSummary RefinePose(const PoseData& data, std::span<const int> indices,
 double RotationErrorBound(const PoseData& data, std::span<const int> indices,
                           const Sim3d& query_from_world, double sigma_px, bool similarity);
 
+// How well the data determine an estimated pose: the covariance σ̂² F⁻¹ of
+// the Gauss–Newton linearisation at the estimate (F as in RotationErrorBound,
+// at the estimate instead of the truth), with the noise σ̂ estimated from the
+// residuals themselves, σ̂² = Σ r² / (rows − parameters). A wrong calibration
+// raises σ̂, a weak geometry (few, clustered or nearly degenerate
+// correspondences) raises F⁻¹; either shows here.
+struct PoseUncertainty {
+  double sigma_px = 0;  // estimated observation noise, px
+  // RMS (√trace) 1-σ uncertainty of the rotation, degrees, and of the query's
+  // centre (camera or rig origin) in world units; +∞ when F is singular.
+  double rotation_deg = 0;
+  double position = 0;
+};
+PoseUncertainty EstimatePoseUncertainty(const PoseData& data, std::span<const int> indices,
+                                        const Sim3d& query_from_world, bool similarity);
+
 // Applies the left perturbation of ReprojectionResidual: (ω, δt, δσ).
 Sim3d PerturbPose(const Sim3d& pose, const Eigen::Matrix<double, 7, 1>& delta);
 

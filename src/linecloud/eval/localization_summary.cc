@@ -11,10 +11,12 @@ namespace linecloud {
 LocalizationTally::LocalizationTally(double max_rotation_deg, double max_position)
     : max_rotation_deg_(max_rotation_deg), max_position_(max_position) {}
 
-void LocalizationTally::Add(const LocalizeResult& r, const Sim3d& truth, double position_unit) {
+void LocalizationTally::Add(const LocalizeResult& r, const Sim3d& truth, double position_unit,
+                            std::string_view name) {
   constexpr double kDeg = 180.0 / std::numbers::pi;
   LocalizationSummary& s = sums_;
   ++s.queries;
+  if (!r.success) s.failures.push_back(std::string(name) + ": " + r.failure);
   s.iterations += r.stats.iterations;
   s.inlier_ratio += r.stats.inlier_ratio;
   s.solutions += r.stats.mean_solutions;

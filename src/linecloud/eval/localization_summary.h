@@ -2,6 +2,8 @@
 // demo's table and for `bench localize`.
 #pragma once
 
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "linecloud/geometry/rigid3.h"
@@ -23,6 +25,7 @@ struct LocalizationSummary {
   double refine_iterations = 0;
   double total_ms = 0;                      // RANSAC + refinement
   double reprojection_px[2] = {0, 0};       // initial, refined
+  std::vector<std::string> failures;        // "name: reason" of each query without a pose
 };
 
 class LocalizationTally {
@@ -33,7 +36,8 @@ class LocalizationTally {
 
   // Position errors are divided by `position_unit` (1: world units; the
   // scene size: relative). A failed query counts as 180° and 1e9 off.
-  void Add(const LocalizeResult& result, const Sim3d& truth, double position_unit = 1.0);
+  void Add(const LocalizeResult& result, const Sim3d& truth, double position_unit = 1.0,
+           std::string_view name = "");
 
   // Medians and means over the queries added so far.
   LocalizationSummary Summary() const;

@@ -69,7 +69,7 @@ MethodSummary EvaluateMethod(const MethodInfo& method, const std::vector<SceneQu
                              double max_rotation_deg, double max_position) {
   LocalizationTally tally(max_rotation_deg, max_position);
   for (const SceneQuery& sq : queries) {
-    tally.Add(Localize(method, sq.query, map, options, sq.name), sq.truth);
+    tally.Add(Localize(method, sq.query, map, options, sq.name), sq.truth, 1.0, sq.name);
   }
   MethodSummary summary;
   static_cast<LocalizationSummary&>(summary) = tally.Summary();

@@ -100,6 +100,11 @@ double Camera::FocalLengthX() const { return params.at(0); }
 double Camera::FocalLengthY() const {
   return ModelOrThrow(model_id).single_focal ? params.at(0) : params.at(1);
 }
+void Camera::ScaleFocalLength(double factor) {
+  params.at(0) *= factor;
+  if (!ModelOrThrow(model_id).single_focal) params.at(1) *= factor;
+}
+
 Eigen::Vector2d Camera::PrincipalPoint() const {
   const int i = ModelOrThrow(model_id).single_focal ? 1 : 2;
   return Eigen::Vector2d(params.at(i), params.at(i + 1));

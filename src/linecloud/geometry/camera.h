@@ -57,6 +57,8 @@ struct Camera {
   double FocalLengthY() const;
   double MeanFocalLength() const { return 0.5 * (FocalLengthX() + FocalLengthY()); }
   Eigen::Vector2d PrincipalPoint() const;
+  // Multiplies the focal length(s) by `factor`.
+  void ScaleFocalLength(double factor);
 
   // Projects a point in the camera frame (z > 0) to pixel coordinates.
   Eigen::Vector2d ImgFromCam(const Eigen::Vector3d& point_in_cam) const;

@@ -25,10 +25,20 @@ std::vector<double> Numbers(const nlohmann::json& j, size_t n, const std::string
 
 nlohmann::json ReadJsonFile(const std::string& path) {
   const std::string text = ReadFileToString(path);
+  const auto starts_with = [&](std::string_view magic) { return text.rfind(magic, 0) == 0; };
+  if (starts_with("\xFF\xD8\xFF") || starts_with("\x89PNG") || starts_with("GIF8") ||
+      starts_with("II*") || starts_with("MM\x00*") || starts_with("BM")) {
+    Fail("{}: this is an image, not a JSON file (localize --query takes a QUERY.json of "
+         "correspondences; see the README for the format)",
+         path);
+  }
   try {
     return nlohmann::json::parse(text);
   } catch (const nlohmann::json::parse_error& e) {
     Fail("{}: invalid JSON at byte {}", path, e.byte);
+  } catch (const nlohmann::json::exception& e) {
+    // e.g. a number that overflows a double (1e400)
+    Fail("{}: invalid JSON ({})", path, e.what());
   }
 }
 

@@ -1,6 +1,9 @@
 #include "linecloud/io/ply.h"
 
+#include <array>
 #include <ostream>
+#include <utility>
+#include <vector>
 
 #include "linecloud/util/byte_reader.h"
 #include "linecloud/util/error.h"
@@ -65,6 +68,78 @@ void WriteModelPly(const Reconstruction& rec, const std::string& path) {
       const Point3D& p = rec.points3D.at(id);
       for (int k = 0; k < 3; ++k) WriteLE(out, static_cast<float>(p.xyz[k]));
       for (int k = 0; k < 3; ++k) WriteLE(out, p.color[k]);
+    }
+  });
+}
+
+void WriteLocalizationPly(const std::string& path, const LineCloud* cloud,
+                          const Reconstruction* model, const std::vector<PlyCamera>& cameras,
+                          double depth) {
+  struct Vertex {
+    Eigen::Vector3d p;
+    std::array<uint8_t, 3> rgb;
+  };
+  std::vector<Vertex> vertices;
+  std::vector<std::pair<int32_t, int32_t>> edges;
+  Eigen::Vector3d min = Eigen::Vector3d::Zero(), max = Eigen::Vector3d::Zero();
+  if (cloud) {
+    AnchorBoundingBox(*cloud, &min, &max);
+    const double length = 0.05 * (max - min).norm();
+    for (const PluckerLine& line : cloud->lines) {
+      edges.emplace_back(static_cast<int32_t>(vertices.size()),
+                         static_cast<int32_t>(vertices.size() + 1));
+      for (const double s : {-0.5, 0.5}) {
+        vertices.push_back({line.PointAt(s * length), {160, 160, 160}});
+      }
+    }
+  }
+  if (model) {
+    bool first = true;
+    for (const uint64_t id : model->SortedPoint3DIds()) {
+      const Point3D& p = model->points3D.at(id);
+      vertices.push_back({p.xyz, p.color});
+      min = first ? p.xyz : Eigen::Vector3d(min.cwiseMin(p.xyz));
+      max = first ? p.xyz : Eigen::Vector3d(max.cwiseMax(p.xyz));
+      first = false;
+    }
+  }
+  if (!(depth > 0)) depth = 0.1 * (max - min).norm();
+  if (!(depth > 0)) depth = 1.0;
+  for (const PlyCamera& c : cameras) {
+    const int32_t centre = static_cast<int32_t>(vertices.size());
+    // Distances in the camera frame are scale × world distances.
+    const double d = depth / c.world_from_cam.scale;
+    vertices.push_back({c.world_from_cam * Eigen::Vector3d::Zero(), {230, 30, 30}});
+    const double w = static_cast<double>(c.camera.width), h = static_cast<double>(c.camera.height);
+    for (const Eigen::Vector2d& corner :
+         {Eigen::Vector2d(0, 0), Eigen::Vector2d(w, 0), Eigen::Vector2d(w, h),
+          Eigen::Vector2d(0, h)}) {
+      vertices.push_back({c.world_from_cam * (d * c.camera.CamFromImg(corner)), {230, 30, 30}});
+    }
+    for (int k = 0; k < 4; ++k) {
+      edges.emplace_back(centre, centre + 1 + k);
+      edges.emplace_back(centre + 1 + k, centre + 1 + (k + 1) % 4);
+    }
+  }
+  for (const Vertex& v : vertices) {
+    if (!v.p.allFinite()) Fail("{}: a vertex to write is not finite", path);
+  }
+  WriteFileAtomically(path, [&](std::ostream& out) {
+    out << "ply\nformat binary_little_endian 1.0\n"
+        << "comment linecloud localization: the map and the localized camera(s), red\n"
+        << "element vertex " << vertices.size() << "\n"
+        << "property float x\nproperty float y\nproperty float z\n"
+        << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+        << "element edge " << edges.size() << "\n"
+        << "property int vertex1\nproperty int vertex2\n"
+        << "end_header\n";
+    for (const Vertex& v : vertices) {
+      for (int k = 0; k < 3; ++k) WriteLE(out, static_cast<float>(v.p[k]));
+      for (int k = 0; k < 3; ++k) WriteLE(out, v.rgb[k]);
+    }
+    for (const auto& [a, b] : edges) {
+      WriteLE(out, a);
+      WriteLE(out, b);
     }
   });
 }

@@ -2,7 +2,9 @@
 #pragma once
 
 #include <string>
+#include <vector>
 
+#include "linecloud/geometry/rigid3.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/lifting/line_cloud.h"
 
@@ -17,6 +19,21 @@ void WriteLineCloudPly(const LineCloud& cloud, const std::string& path,
 
 // The model's 3D points with their colours.
 void WriteModelPly(const Reconstruction& reconstruction, const std::string& path);
+
+// A localized camera to draw: its frustum (centre and the rays through the
+// image corners, cut at `depth` world units) in world coordinates.
+struct PlyCamera {
+  Sim3d world_from_cam;  // may carry a scale (+s methods)
+  Camera camera;
+};
+
+// The map (line segments as in WriteLineCloudPly, grey, or a point model's
+// coloured points) and each camera's frustum (red: 5 vertices, 8 edges), so
+// that a viewer shows where the query was localized. `depth` <= 0 picks 10 %
+// of the map's bounding-box diagonal.
+void WriteLocalizationPly(const std::string& path, const LineCloud* cloud,
+                          const Reconstruction* model, const std::vector<PlyCamera>& cameras,
+                          double depth);
 
 // Axis-aligned bounding box of the line anchors (min, max).
 void AnchorBoundingBox(const LineCloud& cloud, Eigen::Vector3d* min,

@@ -110,7 +110,25 @@ LineMap LineMapByPointId(const LineCloud& cloud, const LiftingKey& key) {
   return map;
 }
 
+void SuccessCriteria::Check() const {
+  if (min_inliers_points < 0 || min_inliers_lines < 0) {
+    Fail("minimum inlier counts must be non-negative, got {} / {}", min_inliers_points,
+         min_inliers_lines);
+  }
+  if (!(min_inlier_ratio >= 0 && min_inlier_ratio <= 1)) {
+    Fail("minimum inlier ratio must be in [0, 1], got {}", min_inlier_ratio);
+  }
+  if (!(max_focal_discrepancy >= 0) || !std::isfinite(max_focal_discrepancy)) {
+    Fail("maximum focal-length discrepancy must be a non-negative fraction, got {}",
+         max_focal_discrepancy);
+  }
+  if (!(max_rotation_uncertainty_deg > 0)) {
+    Fail("maximum rotation uncertainty must be positive, got {}", max_rotation_uncertainty_deg);
+  }
+}
+
 void LocalizeOptions::Check() const {
+  success.Check();
   ransac.Check();
   refinement.Check();
   local_refinement.Check();
@@ -190,35 +208,164 @@ Sim3d PreparedQuery::ToQueryFromWorld(const Sim3d& aligned_pose) const {
          Sim3d(1.0, aligned_from_map, Eigen::Vector3d::Zero());
 }
 
+namespace {
+
+// Why the data do not support the pose, or "" when they do.
+std::string SupportFailure(const MethodInfo& method, const LocalizeResult& r,
+                           const SuccessCriteria& c) {
+  const int min_inliers = method.lines ? c.min_inliers_lines : c.min_inliers_points;
+  const int inliers = static_cast<int>(r.inliers.size());
+  const double ratio = r.num_correspondences > 0
+                           ? static_cast<double>(inliers) / r.num_correspondences
+                           : 0.0;
+  if (inliers < min_inliers) {
+    return fmt::format("{} inliers, fewer than the {} a {} map needs (--min-inliers)", inliers,
+                       min_inliers, method.lines ? "line" : "point");
+  }
+  if (ratio < c.min_inlier_ratio) {
+    return fmt::format("inlier ratio {:.3f} is below {:.2f} (--min-inlier-ratio)", ratio,
+                       c.min_inlier_ratio);
+  }
+  if (r.best_fit_focal && c.max_focal_discrepancy > 0) {
+    const double given = r.given_focal;
+    const double off = std::abs(*r.best_fit_focal / given - 1.0);
+    if (off > c.max_focal_discrepancy) {
+      return fmt::format(
+          "the calibration looks wrong: the inliers fit a focal length of {:.1f} px, the camera "
+          "says {:.1f} px ({:.0f} % off, more than {:.0f} %); check it, or pass --refine-focal",
+          *r.best_fit_focal, given, 100 * off, 100 * c.max_focal_discrepancy);
+    }
+  }
+  if (!(r.uncertainty.rotation_deg <= c.max_rotation_uncertainty_deg)) {
+    return fmt::format(
+        "the rotation is undetermined: uncertainty {:.3g}° exceeds {:.3g}° "
+        "(--max-rotation-uncertainty; weak geometry or a wrong calibration)",
+        r.uncertainty.rotation_deg, c.max_rotation_uncertainty_deg);
+  }
+  return "";
+}
+
+}  // namespace
+
+namespace {
+
+// The final LM on `inliers`; returns its iterations and adds its time.
+int RefineStage(const MethodInfo& method, const PoseData& data, const std::vector<int>& inliers,
+                const LocalizeOptions& options, Sim3d* pose, double* ms, double* final_cost) {
+  if (!options.refine || inliers.size() < static_cast<size_t>(method.sample_size)) return 0;
+  const auto start = Clock::now();
+  RefineOptions refinement = options.refinement;
+  refinement.similarity = method.similarity();
+  const RefineSummary summary = RefinePose(data, inliers, refinement, pose);
+  *ms += 1e3 * std::chrono::duration<double>(Clock::now() - start).count();
+  if (final_cost) *final_cost = summary.final_cost;
+  return summary.iterations;
+}
+
+// The focal length as a prior: a golden-section search of the factor k on
+// the camera's focal length(s) in [1/1.5, 1.5] (log scale), each k scored by
+// the LM's final robust cost on RANSAC's inliers with the pose refined anew —
+// the profile of the cost over k. Pixel residuals use the focal being tried,
+// so the costs compare like for like.
+double RefineFocalFactor(const MethodInfo& method, const Query& query, const LocalizationMap& map,
+                         const std::vector<int>& inliers, const Sim3d& start_pose,
+                         const LocalizeOptions& options, double* refine_ms) {
+  const auto cost = [&](double log_k) {
+    Query scaled = query;
+    scaled.cameras[0].ScaleFocalLength(std::exp(log_k));
+    const PreparedQuery prepared = PrepareQuery(method, scaled, map);
+    Sim3d pose = start_pose;
+    LocalizeOptions o = options;
+    o.refine = true;
+    double c = 0;
+    RefineStage(method, prepared.data, inliers, o, &pose, refine_ms, &c);
+    return c;
+  };
+  constexpr double kInvPhi = 0.6180339887498949;
+  double a = std::log(1 / 1.5), b = std::log(1.5);
+  double x1 = b - kInvPhi * (b - a), x2 = a + kInvPhi * (b - a);
+  double f1 = cost(x1), f2 = cost(x2);
+  while (b - a > 1e-4) {  // k to 0.01 %
+    if (f1 <= f2) {
+      b = x2, x2 = x1, f2 = f1;
+      x1 = b - kInvPhi * (b - a);
+      f1 = cost(x1);
+    } else {
+      a = x1, x1 = x2, f1 = f2;
+      x2 = a + kInvPhi * (b - a);
+      f2 = cost(x2);
+    }
+  }
+  return std::exp(0.5 * (a + b));
+}
+
+}  // namespace
+
 LocalizeResult Localize(const MethodInfo& method, const Query& query,
                         const LocalizationMap& map, const LocalizeOptions& options,
                         std::string_view source) {
   options.Check();
-  const PreparedQuery prepared = PrepareQuery(method, query, map, source);
-  const PoseData& data = prepared.data;
+  if (options.refine_focal && query.cameras.size() != 1) {
+    Fail("{}: refining the focal length needs a query with one camera, got {}", source,
+         query.cameras.size());
+  }
+  PreparedQuery prepared = PrepareQuery(method, query, map, source);
   LocalizeResult result;
-  PoseEstimator estimator(method, data, options.local_refinement);
+  result.num_correspondences = static_cast<int>(query.observations.size());
+  PoseEstimator estimator(method, prepared.data, options.local_refinement);
   const RansacResult<Sim3d> ransac = Ransac(estimator, options.ransac);
   result.stats = ransac.stats;
-  if (!ransac.success) return result;
+  if (!ransac.success) {
+    result.failure = fmt::format("RANSAC found no pose in {} iterations (stopped by {})",
+                                 ransac.stats.iterations, ransac.stats.stop_reason);
+    return result;
+  }
   std::vector<int> ransac_inliers;
   InlierIndices(ransac.inlier_mask, &ransac_inliers);
+  result.reprojection_initial_px =
+      MeanReprojectionError(prepared.data, ransac.model, ransac_inliers);
   Sim3d pose = ransac.model;
-  result.reprojection_initial_px = MeanReprojectionError(data, pose, ransac_inliers);
-  if (options.refine && ransac_inliers.size() >= static_cast<size_t>(method.sample_size)) {
-    const auto start = Clock::now();
-    RefineOptions refinement = options.refinement;
-    refinement.similarity = method.similarity();
-    result.refine_iterations = RefinePose(data, ransac_inliers, refinement, &pose).iterations;
-    result.refine_ms = 1e3 * std::chrono::duration<double>(Clock::now() - start).count();
+  result.given_focal = query.cameras[0].MeanFocalLength();
+  if (options.refine_focal) {
+    // Focal length and inliers in turn: the inliers RANSAC found with the
+    // prior focal length are a subset of those the refined one explains.
+    Query scaled = query;
+    for (int round = 0; round < 3; ++round) {
+      const double k = RefineFocalFactor(method, scaled, map, ransac_inliers, pose, options,
+                                         &result.refine_ms);
+      scaled.cameras[0].ScaleFocalLength(k);
+      prepared = PrepareQuery(method, scaled, map, source);
+      RefineStage(method, prepared.data, ransac_inliers, options, &pose, &result.refine_ms,
+                  nullptr);
+      std::vector<char> mask;
+      PoseEstimator(method, prepared.data, options.local_refinement)
+          .inliers(pose, options.ransac.max_error, &mask);
+      InlierIndices(mask, &ransac_inliers);
+      if (std::abs(std::log(k)) < 1e-3) break;
+    }
+    result.refined_focal = scaled.cameras[0].MeanFocalLength();
+  } else if (options.success.max_focal_discrepancy > 0 && query.cameras.size() == 1 &&
+             ransac_inliers.size() > static_cast<size_t>(method.sample_size) + 1) {
+    // The calibration check: the focal length the inliers fit best.
+    double unused_ms = 0;
+    result.best_fit_focal =
+        result.given_focal * RefineFocalFactor(method, query, map, ransac_inliers, pose, options,
+                                               &unused_ms);
   }
-  result.reprojection_refined_px = MeanReprojectionError(data, pose, ransac_inliers);
+  result.refine_iterations = RefineStage(method, prepared.data, ransac_inliers, options, &pose,
+                                         &result.refine_ms, nullptr);
+  result.reprojection_refined_px = MeanReprojectionError(prepared.data, pose, ransac_inliers);
   std::vector<char> mask;
-  estimator.inliers(pose, options.ransac.max_error, &mask);
+  PoseEstimator(method, prepared.data, options.local_refinement)
+      .inliers(pose, options.ransac.max_error, &mask);
   InlierIndices(mask, &result.inliers);
   result.query_from_world = prepared.ToQueryFromWorld(pose);
   result.initial = prepared.ToQueryFromWorld(ransac.model);
-  result.success = true;
+  result.has_pose = true;
+  result.uncertainty =
+      EstimatePoseUncertainty(prepared.data, result.inliers, pose, method.similarity());
+  result.failure = SupportFailure(method, result, options.success);
+  result.success = result.failure.empty();
   return result;
 }
 

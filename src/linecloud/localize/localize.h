@@ -5,7 +5,9 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <optional>
+#include <string>
 #include <string_view>
 #include <unordered_map>
 #include <variant>
@@ -61,17 +63,63 @@ LineMap LineMapFromCloud(const LineCloud& cloud);
 // (evaluation, synthetic queries), whose correspondences carry point ids.
 LineMap LineMapByPointId(const LineCloud& cloud, const LiftingKey& key);
 
+// When a pose counts as found. COLMAP registers an image with at least 30
+// inliers making up at least 25 % of its matches. A line gives one
+// constraint (eq. 6: the offset across its projection) where a point gives two
+// (eq. 2), so a line cloud needs twice the inliers for the same number of
+// constraints, and a wrong pose collects chance inliers far more easily
+// against lines (a band around a projected line, not a disc around a point):
+// see docs/localize.md for the measurements behind the defaults.
+struct SuccessCriteria {
+  int min_inliers_points = 30;
+  int min_inliers_lines = 60;
+  double min_inlier_ratio = 0.25;
+  // Upper bound on the estimated 1-σ rotation uncertainty (PoseUncertainty).
+  double max_rotation_uncertainty_deg = 1.0;
+  // Single-camera queries whose focal length is not refined: the focal length
+  // that fits the inliers best (the LM cost's profile over the focal length)
+  // may differ from the camera's by at most this fraction; a wrong focal
+  // length biases the pose far beyond its noise-based uncertainty. 0: no check.
+  double max_focal_discrepancy = 0.1;
+
+  // No criteria: every pose RANSAC finds is a success (the paper's protocol
+  // and the benchmarks, which judge poses by their error to the truth).
+  static SuccessCriteria None() {
+    return {.min_inliers_points = 0,
+            .min_inliers_lines = 0,
+            .min_inlier_ratio = 0,
+            .max_rotation_uncertainty_deg = std::numeric_limits<double>::infinity(),
+            .max_focal_discrepancy = 0};
+  }
+
+  void Check() const;
+};
+
 struct LocalizeOptions {
   RansacOptions ransac;        // max_error in px
   bool refine = true;
   RefineOptions refinement;    // final LM; `similarity` follows the method
   RefineOptions local_refinement{.max_iterations = 3};  // RANSAC's local optimisation
+  SuccessCriteria success;
+  // Single-camera queries: the focal length is a prior (e.g. from EXIF) and
+  // is refined with the pose after RANSAC, as COLMAP's registration can.
+  bool refine_focal = false;
 
   void Check() const;
 };
 
 struct LocalizeResult {
+  // True only when the criteria hold; otherwise `failure` says why (a pose
+  // RANSAC found but the criteria rejected is still in query_from_world).
   bool success = false;
+  std::string failure;
+  bool has_pose = false;
+  int num_correspondences = 0;
+  PoseUncertainty uncertainty;
+  std::optional<double> refined_focal;  // with LocalizeOptions::refine_focal
+  // The focal length the inliers fit best, from the calibration check.
+  std::optional<double> best_fit_focal;
+  double given_focal = 0;  // the query camera's (first camera's) mean focal length
   Sim3d query_from_world;     // cam_from_world (one image) / rig_from_world / local_from_world
   Sim3d initial;              // RANSAC's estimate before the final refinement
   std::vector<int> inliers;   // observation indices

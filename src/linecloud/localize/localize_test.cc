@@ -8,7 +8,10 @@
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/lifting/lifting.h"
+#include "linecloud/estimation/pose_estimator.h"
+#include "linecloud/eval/scene_localization.h"
 #include "linecloud/synthetic/localization_instances.h"
+#include "linecloud/synthetic/scene.h"
 #include "linecloud/testing/test_util.h"
 
 namespace linecloud {
@@ -136,6 +139,138 @@ TEST(Localize, BadInputGetsAClearError) {
             std::string::npos);
   EXPECT_NE(error(FindMethod("m-P3P+l"), inst.query, points).find("points_local"),
             std::string::npos);
+}
+
+}  // namespace
+}  // namespace linecloud
+
+namespace linecloud {
+namespace {
+
+struct SceneFixture {
+  SyntheticScene scene;
+  LineMap lines;
+  PointMap points;
+};
+
+const SceneFixture& Scene() {
+  static const SceneFixture* fixture = [] {
+    auto* f = new SceneFixture;
+    SyntheticSceneOptions o;
+    o.num_queries = 6;
+    f->scene = GenerateSyntheticScene(o);
+    const std::vector<uint64_t> ids = f->scene.model.SortedPoint3DIds();
+    std::vector<Eigen::Vector3d> xyz;
+    for (const uint64_t id : ids) xyz.push_back(f->scene.model.points3D.at(id).xyz);
+    const LiftingKey key = DemoLiftingKey();
+    f->lines = LineMapByPointId(LiftPoints(ids, xyz, key, {}), key);
+    f->points = PointMapFromModel(f->scene.model);
+    return f;
+  }();
+  return *fixture;
+}
+
+double RotationErrorDeg(const Sim3d& a, const Sim3d& b) {
+  return a.rotation.angularDistance(b.rotation) * 180.0 / std::numbers::pi;
+}
+
+// Wrong poses are never reported as a success: with 15 % correct matches
+// (where RANSAC's best guess is junk, or right but unsupported by COLMAP's
+// standard), and with a focal length 20 % off (the calibration check), while
+// the clean queries succeed and --refine-focal recovers the 20 % case.
+TEST(LocalizeSuccess, OnlyPosesTheDataSupport) {
+  const SceneFixture& f = Scene();
+  const double true_focal = f.scene.queries[0].camera.MeanFocalLength();
+  for (const char* name : {"p3P", "p6L", "p4L+u"}) {
+    const MethodInfo& method = FindMethod(name);
+    const LocalizationMap& map = method.lines ? LocalizationMap(f.lines) : LocalizationMap(f.points);
+    LocalizeOptions options;
+    options.ransac.max_iterations = 300;  // bounded: 15 % inliers would need ~10⁴ p6L samples
+    options.ransac.seed = 3;
+    SceneQueryOptions clean, wrong;
+    wrong.outlier_ratio = 0.85;
+    const std::vector<SceneQuery> clean_queries = SceneQueriesForMethod(f.scene, method, clean);
+    const std::vector<SceneQuery> wrong_queries = SceneQueriesForMethod(f.scene, method, wrong);
+    for (size_t k = 0; k < 4; ++k) {
+      const SceneQuery& q = clean_queries[k];
+      LocalizeResult r = Localize(method, q.query, map, options);
+      ASSERT_TRUE(r.success) << name << " " << q.name << ": " << r.failure;
+      EXPECT_LT(RotationErrorDeg(r.query_from_world, q.truth), 0.5) << name;
+      EXPECT_LT(r.uncertainty.rotation_deg, 0.2) << name;
+      ASSERT_TRUE(r.best_fit_focal.has_value());
+      EXPECT_NEAR(*r.best_fit_focal / true_focal, 1.0, 0.05) << name;
+
+      r = Localize(method, wrong_queries[k].query, map, options);
+      EXPECT_FALSE(r.success) << name << " " << q.name << ": 15 % correct matches";
+      EXPECT_NE(r.failure.find("inlier"), std::string::npos) << r.failure;
+
+      SceneQuery off = q;
+      off.query.cameras[0].ScaleFocalLength(1.2);
+      r = Localize(method, off.query, map, options);
+      EXPECT_FALSE(r.success) << name << " " << q.name << ": focal 20 % off, rotation error "
+                              << RotationErrorDeg(r.query_from_world, q.truth) << "°";
+      LocalizeOptions refine = options;
+      refine.refine_focal = true;
+      r = Localize(method, off.query, map, refine);
+      ASSERT_TRUE(r.success) << name << " " << q.name << " --refine-focal: " << r.failure;
+      EXPECT_LT(RotationErrorDeg(r.query_from_world, q.truth), 0.5) << name;
+      EXPECT_NEAR(*r.refined_focal / true_focal, 1.0, 0.03) << name;
+    }
+  }
+}
+
+// Chance inliers against a line cloud vs a point model: a wrong match is
+// an inlier when the observation falls in the 4 px band around its line's
+// projection, not in a 4 px disc around a point. Measured at the true pose
+// with every match wrong (the chance-inlier rate the criteria must stay above).
+TEST(LocalizeSuccess, ChanceInliersAreFarMoreLikelyAgainstLines) {
+  const SceneFixture& f = Scene();
+  SceneQueryOptions all_wrong;
+  all_wrong.outlier_ratio = 0.999;
+  double rate[2] = {0, 0};
+  for (int lines = 0; lines < 2; ++lines) {
+    const MethodInfo& method = FindMethod(lines ? "p6L" : "p3P");
+    const LocalizationMap& map = lines ? LocalizationMap(f.lines) : LocalizationMap(f.points);
+    size_t inliers = 0, total = 0;
+    for (const SceneQuery& q : SceneQueriesForMethod(f.scene, method, all_wrong)) {
+      const PreparedQuery prepared = PrepareQuery(method, q.query, map);
+      PoseEstimator estimator(method, prepared.data, RefineOptions{});
+      std::vector<char> mask;
+      const Sim3d aligned_truth = q.truth;  // no gravity alignment for p3P / p6L
+      estimator.inliers(aligned_truth, 4.0, &mask);
+      inliers += std::count(mask.begin(), mask.end(), 1);
+      total += mask.size();
+    }
+    rate[lines] = static_cast<double>(inliers) / total;
+  }
+  std::cout << "[ chance inliers at 4 px ] points " << rate[0] << ", lines " << rate[1] << "\n";
+  EXPECT_LT(rate[0], 0.005);
+  EXPECT_GT(rate[1], 1.5 * rate[0]);  // measured 0.41 % vs 0.16 %: 2.7×
+  // Well below the default minimum inlier ratio.
+  EXPECT_LT(rate[1], SuccessCriteria{}.min_inlier_ratio / 2);
+}
+
+TEST(LocalizeSuccess, RansacIsBoundedInTimeAndReportsProgress) {
+  const SceneFixture& f = Scene();
+  const MethodInfo& method = FindMethod("p6L");
+  SceneQueryOptions wrong;
+  wrong.outlier_ratio = 0.8;
+  const SceneQuery q = SceneQueriesForMethod(f.scene, method, wrong)[0];
+  LocalizeOptions options;
+  options.ransac.max_seconds = 0.2;
+  options.ransac.progress_interval_s = 0.05;
+  int calls = 0, last_iterations = -1;
+  options.ransac.progress = [&](int iterations, int, int, double seconds) {
+    ++calls;
+    EXPECT_GT(iterations, last_iterations);
+    EXPECT_LT(seconds, 0.3);
+    last_iterations = iterations;
+  };
+  const LocalizeResult r = Localize(method, q.query, f.lines, options);
+  EXPECT_STREQ(r.stats.stop_reason, "max_seconds");
+  EXPECT_LT(r.stats.ransac_ms, 1000.0);  // the budget plus one minimal solve, with slack
+  EXPECT_GE(calls, 1);
+  EXPECT_LT(r.stats.iterations, options.ransac.max_iterations);
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 #include "linecloud/localize/query_json.h"
 
+
 #include <cmath>
 
 #include "linecloud/io/json_util.h"
@@ -132,19 +133,38 @@ nlohmann::json QueryToJson(const Query& q) {
   return j;
 }
 
-nlohmann::json LocalizeResultToJson(const MethodInfo& method, const LocalizeResult& r) {
-  nlohmann::json j;
+nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const LocalizeResult& r,
+                                            bool with_inliers) {
+  nlohmann::ordered_json j;
+  const auto finite_or_null = [](double x) {
+    return std::isfinite(x) ? nlohmann::ordered_json(x) : nlohmann::ordered_json(nullptr);
+  };
   j["method"] = std::string(method.name);
   j["success"] = r.success;
-  if (r.success) {
-    const nlohmann::json pose = PoseToJson(r.query_from_world.rotation,
-                                           r.query_from_world.translation);
-    j["q"] = pose["q"];
-    j["t"] = pose["t"];
-    j["scale"] = r.query_from_world.scale;
+  if (!r.success) j["reason"] = r.failure;
+  if (r.has_pose) {
+    const Eigen::Quaterniond& q = r.query_from_world.rotation;
+    const Eigen::Vector3d& t = r.query_from_world.translation;
+    // A rejected pose is reported under its own name, never as "q"/"t".
+    const std::string prefix = r.success ? "" : "rejected_";
+    j[prefix + "q"] = {q.w(), q.x(), q.y(), q.z()};
+    j[prefix + "t"] = {t.x(), t.y(), t.z()};
+    j[prefix + "scale"] = r.query_from_world.scale;
+    const Eigen::Vector3d c = r.query_from_world.Inverse().translation;
+    j[prefix + "center"] = {c.x(), c.y(), c.z()};
   }
-  j["inliers"] = r.inliers;
+  j["num_correspondences"] = r.num_correspondences;
+  j["num_inliers"] = r.inliers.size();
+  j["inlier_ratio"] = r.num_correspondences > 0
+                          ? static_cast<double>(r.inliers.size()) / r.num_correspondences
+                          : 0.0;
+  if (r.has_pose) {
+    j["uncertainty"] = {{"rotation_deg", finite_or_null(r.uncertainty.rotation_deg)},
+                        {"position", finite_or_null(r.uncertainty.position)},
+                        {"sigma_px", r.uncertainty.sigma_px}};
+  }
   j["stats"] = {{"iterations", r.stats.iterations},
+                {"stop_reason", r.stats.stop_reason},
                 {"inlier_ratio", r.stats.inlier_ratio},
                 {"mean_solutions", r.stats.mean_solutions},
                 {"solver_us", r.stats.solver_us},
@@ -153,7 +173,27 @@ nlohmann::json LocalizeResultToJson(const MethodInfo& method, const LocalizeResu
                 {"refine_iterations", r.refine_iterations},
                 {"reprojection_px",
                  {{"initial", r.reprojection_initial_px}, {"refined", r.reprojection_refined_px}}}};
+  if (r.refined_focal) j["refined_focal"] = *r.refined_focal;
+  if (r.best_fit_focal) j["calibration_check"] = {{"given_focal", r.given_focal},
+                                                   {"best_fit_focal", *r.best_fit_focal}};
+  if (with_inliers) j["inliers"] = r.inliers;
   return j;
+}
+
+std::string LocalizeResultToColmapImagesTxt(const LocalizeResult& r, const std::string& name,
+                                            uint32_t image_id, uint32_t camera_id) {
+  if (!r.success) Fail("no pose to write in COLMAP's format: {}", r.failure);
+  if (name.find_first_of(" \t\n") != std::string::npos) {
+    Fail("image name '{}' has white space, which COLMAP's images.txt cannot hold", name);
+  }
+  const Eigen::Quaterniond& q = r.query_from_world.rotation;
+  const Eigen::Vector3d& t = r.query_from_world.translation;
+  return fmt::format(
+      "# Image list with two lines of data per image:\n"
+      "#   IMAGE_ID, QW, QX, QY, QZ, TX, TY, TZ, CAMERA_ID, NAME\n"
+      "#   POINTS2D[] as (X, Y, POINT3D_ID)\n"
+      "{} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {:.17g} {} {}\n\n",
+      image_id, q.w(), q.x(), q.y(), q.z(), t.x(), t.y(), t.z(), camera_id, name);
 }
 
 }  // namespace linecloud

@@ -15,7 +15,17 @@ Query ReadQueryJson(const std::string& path);
 
 nlohmann::json QueryToJson(const Query& query);
 
-// {"method", "success", "q", "t", "scale", "inliers", "stats": {...}}.
-nlohmann::json LocalizeResultToJson(const MethodInfo& method, const LocalizeResult& result);
+// The pose and a summary first — {"method", "success", "reason" (failures),
+// "q", "t", "scale", "center", "num_correspondences", "num_inliers",
+// "inlier_ratio", "uncertainty", "stats"} — then "inliers" (observation
+// indices) only when `with_inliers`.
+nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const LocalizeResult& result,
+                                            bool with_inliers = true);
+
+// One line of COLMAP's images.txt for the pose (cam_from_world):
+// IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME, followed by an empty
+// points2D line, so that the pose drops into COLMAP's tools.
+std::string LocalizeResultToColmapImagesTxt(const LocalizeResult& result, const std::string& name,
+                                            uint32_t image_id = 1, uint32_t camera_id = 1);
 
 }  // namespace linecloud
