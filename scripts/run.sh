@@ -9,10 +9,10 @@ cd "$(dirname "$0")/.."
 job="${1:-demo}"
 bash scripts/install_deps.sh
 cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
-cmake --build build -j2
 case "$job" in
-  demo) ./build/linecloud demo ;;
-  test) ctest --test-dir build --output-on-failure -j2 ;;
-  bench) ./build/linecloud_bench ;;
+  # The demo needs only the executable, not the tests and benchmarks.
+  demo) cmake --build build -j2 --target linecloud && ./build/linecloud demo ;;
+  test) cmake --build build -j2 && ctest --test-dir build --output-on-failure -j2 ;;
+  bench) cmake --build build -j2 && ./build/linecloud_bench ;;
   *) echo "error: unknown job '$job' (demo, test, bench)" >&2; exit 2 ;;
 esac

@@ -235,6 +235,44 @@ TEST(Cli, LineOrderCarriesNoNeighbourhoodSignal) {
   EXPECT_LT(line_order, 2.5 * chance); // ~10 expected hits of 1038; 2.5× is > 4σ
 }
 
+// The README's newcomer path on a real COLMAP project: lift with
+// descriptors, a query from one of the model's images, localize it against
+// the line cloud (p6L) and the point model (p3P).
+TEST(Cli, NewcomerPathOnARealModel) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
+  TempDir tmp;
+  const std::string model = SharedDataPath(kMaupertuis);
+  const std::string store = tmp.Path("keys");
+  ASSERT_EQ(RunCli({"lift", "--model", model, "--database",
+                    SharedDataPath("colmap-maupertuis/colmap.db"), "--out", tmp.Path("m.lcm"),
+                    "--key-store", store})
+                .code,
+            0);
+  // Before the model is lifted, no key: a clear error.
+  ExpectError(RunCli({"make-query", "--model", model, "--image", "02.jpg", "--out",
+                      tmp.Path("q.json"), "--key-store", tmp.Path("empty")}),
+              "has no key for this model");
+  ExpectError(RunCli({"make-query", "--model", model, "--image", "nope.jpg", "--out",
+                      tmp.Path("q.json"), "--key-store", store}),
+              "no image named 'nope.jpg'");
+  CliResult r = RunCli({"make-query", "--model", model, "--image", "02.jpg", "--out",
+                        tmp.Path("q.json"), "--key-store", store});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json q = ReadJsonFile(tmp.Path("q.json"));
+  const Rigid3d reference = JsonPose(q["reference"]["cam_from_world"], "reference");
+  for (const auto& [method, flag, map] : {std::tuple{"p6L", "--map", tmp.Path("m.lcm")},
+                                          std::tuple{"p3P", "--model", model}}) {
+    r = RunCli({"localize", flag, map, "--query", tmp.Path("q.json"), "--method", method});
+    ASSERT_EQ(r.code, 0) << r.err;
+    const nlohmann::json result = nlohmann::json::parse(r.out);
+    ASSERT_TRUE(result["success"].get<bool>()) << method << r.out;
+    const Rigid3d estimate = JsonPose(result, "result");
+    EXPECT_LT(RotationDistance(estimate.rotation, reference.rotation), 0.05 * 3.14159 / 180)
+        << method;
+    EXPECT_GT(result["num_inliers"].get<int>(), 900) << method;
+  }
+}
+
 TEST(Cli, LiftRefusesToReplaceAMapWithOtherLines) {
   LINECLOUD_REQUIRE_DATA(kMaupertuis);
   TempDir tmp;

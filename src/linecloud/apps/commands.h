@@ -12,6 +12,7 @@ void RegisterInfoCommand(CLI::App& app);
 void RegisterExportCommand(CLI::App& app);
 void RegisterSolveCommand(CLI::App& app);
 void RegisterLocalizeCommand(CLI::App& app);
+void RegisterMakeQueryCommand(CLI::App& app);
 void RegisterBenchCommand(CLI::App& app);
 void RegisterEvalCommand(CLI::App& app);
 

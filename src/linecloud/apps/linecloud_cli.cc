@@ -18,6 +18,7 @@ int RunLinecloud(int argc, const char* const* argv) {
   RegisterExportCommand(app);
   RegisterSolveCommand(app);
   RegisterLocalizeCommand(app);
+  RegisterMakeQueryCommand(app);
   RegisterBenchCommand(app);
   RegisterEvalCommand(app);
   if (argc >= 2 && argv[1][0] != '-') {

@@ -100,6 +100,19 @@ std::vector<uint64_t> ModelSketchElements(const Reconstruction& model) {
   return elements;
 }
 
+LiftingKey ModelKey(const Reconstruction& model, const std::string& model_name,
+                    const std::string& key_file, const std::string& key_store) {
+  if (!key_file.empty()) return ReadKeyFile(key_file);
+  const KeyStore store(key_store.empty() ? KeyStore::DefaultDirectory() : key_store);
+  const std::optional<KeyStoreMatch> known = store.Find(ModelSketchElements(model));
+  if (!known) {
+    Fail("{}: the key store {} has no key for this model; lift it first (linecloud lift), or "
+         "pass --key-file",
+         model_name, store.dir());
+  }
+  return known->key;
+}
+
 LiftModelResult LiftModel(const LiftModelOptions& o) {
   o.Check();
   const auto start = std::chrono::steady_clock::now();

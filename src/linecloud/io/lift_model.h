@@ -46,4 +46,10 @@ std::vector<uint64_t> ModelSketchElements(const Reconstruction& model);
 
 LiftModelResult LiftModel(const LiftModelOptions& options);
 
+// The key of a model that was lifted before: `key_file` when given, else the
+// key store's (empty `key_store`: the default store). Throws Error naming the
+// model when the store does not know it.
+LiftingKey ModelKey(const Reconstruction& model, const std::string& model_name,
+                    const std::string& key_file, const std::string& key_store);
+
 }  // namespace linecloud
