@@ -142,7 +142,7 @@ void RunDemo(const DemoArgs& args) {
       "  compact      {} ({} bytes, {:.1f} B/line)\n"
       "  check        max point-to-line distance / |X|: full {:.2e}, "
       "compact {:.2e}; lines differing between the two files: {}\n"
-      "  queries      {} query files ({:.0f} observations each) -> {}\n"
+      "  queries      {} query files ({:.0f} observations on average) -> {}\n"
       "               {} rig query files (3 images, local points) -> {}\n"
       "  view         {} (points), {} (line segments)\n",
       args.scene.seed, args.scene.room_size.x(), args.scene.room_size.y(),
