@@ -52,6 +52,13 @@ int RunLinecloud(int argc, const char* const* argv) {
   } catch (const std::bad_alloc&) {
     std::cerr << "error: out of memory\n";
     return 1;
+  } catch (const std::exception& e) {
+    // The process boundary: nothing escapes as an abort.
+    std::cerr << "error: internal: " << e.what() << "\n";
+    return 1;
+  } catch (...) {
+    std::cerr << "error: internal: unknown exception\n";
+    return 1;
   }
   return 0;
 }

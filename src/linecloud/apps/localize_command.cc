@@ -39,17 +39,6 @@ void PrintProgress(int iterations, int needed, int inliers, double seconds) {
             << std::flush;
 }
 
-std::vector<PlyCamera> QueryCameras(const Query& query, const LocalizeResult& result) {
-  std::vector<PlyCamera> cameras;
-  const Sim3d world_from_query = result.query_from_world.Inverse();
-  for (size_t c = 0; c < query.cameras.size(); ++c) {
-    const Rigid3d cam_from_rig = c < query.cam_from_rig.size() ? query.cam_from_rig[c] : Rigid3d();
-    const Sim3d rig_from_cam = Sim3d(1.0, cam_from_rig.rotation, cam_from_rig.translation).Inverse();
-    cameras.push_back({world_from_query * rig_from_cam, query.cameras[c]});
-  }
-  return cameras;
-}
-
 void RunLocalize(LocalizeArgs args) {
   const MethodInfo& method = FindMethod(args.method);
   if (args.map_path.empty() == args.model_dir.empty()) {
@@ -95,7 +84,7 @@ void RunLocalize(LocalizeArgs args) {
   }
   if (!args.ply.empty() && result.has_pose) {
     WriteLocalizationPly(args.ply, cloud ? &*cloud : nullptr, model ? &*model : nullptr,
-                         QueryCameras(query, result), 0);
+                         LocalizedCameras(query, result), 0);
   }
   if (args.out.empty()) {
     std::cout << text;

@@ -134,6 +134,18 @@ void LocalizeOptions::Check() const {
   local_refinement.Check();
 }
 
+std::vector<PlyCamera> LocalizedCameras(const Query& query, const LocalizeResult& result) {
+  std::vector<PlyCamera> cameras;
+  const Sim3d world_from_query = result.query_from_world.Inverse();
+  for (size_t c = 0; c < query.cameras.size(); ++c) {
+    const Rigid3d cam_from_rig = c < query.cam_from_rig.size() ? query.cam_from_rig[c] : Rigid3d();
+    const Sim3d rig_from_cam =
+        Sim3d(1.0, cam_from_rig.rotation, cam_from_rig.translation).Inverse();
+    cameras.push_back({world_from_query * rig_from_cam, query.cameras[c]});
+  }
+  return cameras;
+}
+
 Eigen::Matrix3d GravityAlignment(const Eigen::Vector3d& gravity) {
   return Eigen::Quaterniond::FromTwoVectors(gravity.normalized(), -Eigen::Vector3d::UnitY())
       .toRotationMatrix();

@@ -22,6 +22,7 @@
 #include "linecloud/geometry/plucker.h"
 #include "linecloud/geometry/rigid3.h"
 #include "linecloud/io/colmap_model.h"
+#include "linecloud/io/ply.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/lifting/line_cloud.h"
 #include "linecloud/solvers/minimal_problem.h"
@@ -152,6 +153,10 @@ PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query,
 LocalizeResult Localize(const MethodInfo& method, const Query& query,
                         const LocalizationMap& map, const LocalizeOptions& options,
                         std::string_view source = "query");
+
+// The query's cameras where the result put them (world_from_cam, with the
+// scale of +s methods), for drawing (WriteLocalizationPly).
+std::vector<PlyCamera> LocalizedCameras(const Query& query, const LocalizeResult& result);
 
 // The rotation taking direction `gravity` to −y (the +u convention).
 Eigen::Matrix3d GravityAlignment(const Eigen::Vector3d& gravity);
