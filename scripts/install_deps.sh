@@ -10,6 +10,7 @@ packages=(
   libopengv-dev  # a peer in the solver benchmark only
   libceres-dev   # the peer of our LM in the refinement benchmark only
   libcairo2-dev  # eval: PNG plots
+  libvlfeat-dev libfreeimage-dev  # features: SIFT as COLMAP's CPU extractor, image decoding
   colmap         # eval: structure from motion (its command line)
   "$@"
 )

@@ -8,6 +8,7 @@
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/io/ply.h"
+#include "linecloud/localize/image_query.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/localize/query_json.h"
 #include "linecloud/util/error.h"
@@ -20,6 +21,10 @@ struct LocalizeArgs {
   std::string map_path;
   std::string model_dir;
   std::string query_path;
+  std::string image_path;
+  std::string camera;
+  std::string database;
+  ImageQueryOptions image;
   std::string method;
   bool no_refine = false;
   double threshold = 4.0;
@@ -44,7 +49,10 @@ void RunLocalize(LocalizeArgs args) {
   if (args.map_path.empty() == args.model_dir.empty()) {
     Fail("give exactly one of --map MAP.lcm (line cloud) or --model DIR (point model)");
   }
-  const Query query = ReadQueryJson(args.query_path);
+  if (args.query_path.empty() == args.image_path.empty()) {
+    Fail("give exactly one of --query QUERY.json (correspondences) or --image PHOTO (with "
+         "--camera)");
+  }
   std::optional<LineCloud> cloud;
   std::optional<Reconstruction> model;
   if (args.map_path.empty()) {
@@ -52,6 +60,29 @@ void RunLocalize(LocalizeArgs args) {
   } else {
     cloud = ReadLineCloud(args.map_path);
   }
+  Query query;
+  std::optional<ImageQuery> image_query;
+  if (!args.image_path.empty()) {
+    if (args.camera.empty()) Fail("--image needs --camera \"MODEL WIDTH HEIGHT PARAMS...\"");
+    const Camera camera = ParseCameraString(args.camera);
+    MapDescriptors descriptors;
+    if (cloud) {
+      descriptors = MapDescriptorsFromCloud(*cloud, args.map_path);
+    } else {
+      if (args.database.empty()) {
+        Fail("--image with --model needs the model's --database colmap.db for descriptors");
+      }
+      descriptors = MapDescriptorsFromModel(*model, args.database);
+    }
+    if (!args.quiet) {
+      args.image.progress = [](const std::string& what) { std::cerr << what << "\n"; };
+    }
+    image_query = QueryFromImage(args.image_path, camera, descriptors, args.image);
+    query = image_query->query;
+  } else {
+    query = ReadQueryJson(args.query_path);
+  }
+  const std::string source = args.image_path.empty() ? args.query_path : args.image_path;
   const LocalizationMap map =
       model ? LocalizationMap(PointMapFromModel(*model)) : LocalizationMap(LineMapFromCloud(*cloud));
   LocalizeOptions& options = args.options;
@@ -68,7 +99,14 @@ void RunLocalize(LocalizeArgs args) {
       progress_shown = true;
     };
   }
-  const LocalizeResult result = Localize(method, query, map, options, args.query_path);
+  LocalizeResult result;
+  if (image_query && query.observations.size() < static_cast<size_t>(method.sample_size)) {
+    result.num_correspondences = static_cast<int>(query.observations.size());
+    result.failure = fmt::format("{} matches, fewer than the {} the method's sample needs",
+                                 query.observations.size(), method.sample_size);
+  } else {
+    result = Localize(method, query, map, options, source);
+  }
   if (progress_shown) std::cerr << "\n";
 
   std::string text;
@@ -80,7 +118,17 @@ void RunLocalize(LocalizeArgs args) {
     text = result.success ? LocalizeResultToColmapImagesTxt(result, "query")
                           : "# no pose: " + result.failure + "\n";
   } else {
-    text = LocalizeResultToJson(method, result, args.with_inliers).dump(2) + "\n";
+    nlohmann::ordered_json j = LocalizeResultToJson(method, result, args.with_inliers);
+    if (image_query) {
+      j["num_features"] = image_query->features.size();
+      j["num_matches"] = image_query->matches.size();
+      j["times_ms"] = {{"decode", image_query->times.decode_ms},
+                       {"extract", image_query->times.extract_ms},
+                       {"match", image_query->times.match_ms},
+                       {"ransac", result.stats.ransac_ms},
+                       {"refine", result.refine_ms}};
+    }
+    text = j.dump(2) + "\n";
   }
   if (!args.ply.empty() && result.has_pose) {
     WriteLocalizationPly(args.ply, cloud ? &*cloud : nullptr, model ? &*model : nullptr,
@@ -106,7 +154,19 @@ void RegisterLocalizeCommand(CLI::App& app) {
   auto* map = cmd->add_option("--map", args->map_path, "Line cloud (.lcm)");
   auto* model = cmd->add_option("--model", args->model_dir, "COLMAP sparse model folder");
   map->excludes(model);
-  cmd->add_option("--query", args->query_path, "Query file (SPEC.md)")->required();
+  cmd->add_option("--query", args->query_path, "Query file of correspondences (SPEC.md)");
+  cmd->add_option("--image", args->image_path,
+                  "A photo to localize: SIFT as COLMAP computes it, matched to the map's "
+                  "descriptors");
+  cmd->add_option("--camera", args->camera,
+                  "The photo's camera, \"MODEL WIDTH HEIGHT PARAMS...\" in COLMAP's order");
+  cmd->add_option("--database", args->database,
+                  "With --model and --image: the COLMAP database of the model (descriptors)");
+  cmd->add_option("--max-ratio", args->image.matching.max_ratio,
+                  "Lowe's ratio test on descriptor angles (COLMAP's default)")
+      ->capture_default_str();
+  cmd->add_flag("--cross-check", args->image.matching.cross_check,
+                "Keep only mutual nearest neighbours");
   cmd->add_option("--method", args->method, "One of the 16 methods, e.g. p6L, p3P, m-P3P+l")
       ->required();
   cmd->add_flag("--no-refine", args->no_refine, "Skip the final LM refinement");

@@ -1,0 +1,129 @@
+#include "linecloud/features/sift.h"
+
+extern "C" {
+#include <vl/sift.h>
+}
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <memory>
+
+#include "linecloud/util/error.h"
+
+namespace linecloud {
+namespace {
+
+// VLFeat orders the 8 orientation bins of each spatial cell the other way
+// round from Lowe's / SiftGPU's (UBC) layout: bin k goes to (8 − k) mod 8.
+void VlFeatToUbc(const float* in, float* out) {
+  for (int cell = 0; cell < 16; ++cell) {
+    for (int k = 0; k < 8; ++k) out[8 * cell + (8 - k) % 8] = in[8 * cell + k];
+  }
+}
+
+// RootSIFT bytes: v / |v|₁, square root, × 512, rounded, clamped to [0, 255].
+void RootSiftBytes(const float* v, uint8_t* out) {
+  float l1 = 0;
+  for (int i = 0; i < 128; ++i) l1 += std::abs(v[i]);
+  for (int i = 0; i < 128; ++i) {
+    const float normalized = l1 > 0 ? std::sqrt(v[i] / l1) : 0.0f;
+    const float scaled = std::round(512.0f * normalized);
+    out[i] = static_cast<uint8_t>(std::clamp(scaled, 0.0f, 255.0f));
+  }
+}
+
+struct LevelFeatures {
+  int detections = 0;  // keypoints before orientations
+  std::vector<SiftKeypoint> keypoints;
+  std::vector<uint8_t> descriptors;
+};
+
+}  // namespace
+
+void SiftOptions::Check() const {
+  if (max_image_size <= 0) Fail("SIFT max_image_size must be positive, got {}", max_image_size);
+  if (max_num_features <= 0) Fail("SIFT max_num_features must be positive, got {}", max_num_features);
+  if (num_octaves <= 0 || octave_resolution <= 0) {
+    Fail("SIFT octaves ({}) and octave resolution ({}) must be positive", num_octaves,
+         octave_resolution);
+  }
+  if (!(peak_threshold > 0) || !(edge_threshold > 0)) {
+    Fail("SIFT peak ({}) and edge ({}) thresholds must be positive", peak_threshold,
+         edge_threshold);
+  }
+  if (max_num_orientations < 1 || max_num_orientations > 4) {
+    Fail("SIFT max_num_orientations must be 1 to 4, got {}", max_num_orientations);
+  }
+}
+
+SiftFeatures ExtractSift(const GreyImage& input, const SiftOptions& options) {
+  options.Check();
+  if (input.width < 8 || input.height < 8) {
+    Fail("image of {}x{} pixels is too small for SIFT", input.width, input.height);
+  }
+  const GreyImage image = DownscaleToMaxSize(input, options.max_image_size);
+  const float scale_x = static_cast<float>(input.width) / image.width;
+  const float scale_y = static_cast<float>(input.height) / image.height;
+
+  std::unique_ptr<VlSiftFilt, void (*)(VlSiftFilt*)> sift(
+      vl_sift_new(image.width, image.height, options.num_octaves, options.octave_resolution,
+                  options.first_octave),
+      vl_sift_delete);
+  if (!sift) Fail("VLFeat could not set up SIFT for a {}x{} image", image.width, image.height);
+  vl_sift_set_peak_thresh(sift.get(), options.peak_threshold);
+  vl_sift_set_edge_thresh(sift.get(), options.edge_threshold);
+
+  std::vector<float> pixels(image.pixels.size());
+  for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = image.pixels[i] / 255.0f;
+
+  std::vector<LevelFeatures> levels;  // one entry per DoG level with detections
+  std::array<float, 128> raw, ubc;
+  for (int err = vl_sift_process_first_octave(sift.get(), pixels.data()); err != VL_ERR_EOF;
+       err = vl_sift_process_next_octave(sift.get())) {
+    vl_sift_detect(sift.get());
+    const VlSiftKeypoint* keypoints = vl_sift_get_keypoints(sift.get());
+    const int n = vl_sift_get_nkeypoints(sift.get());
+    int previous_level = -1;
+    for (int i = 0; i < n; ++i) {
+      const VlSiftKeypoint& k = keypoints[i];
+      if (k.is != previous_level || levels.empty()) levels.emplace_back();
+      previous_level = k.is;
+      LevelFeatures& level = levels.back();
+      ++level.detections;
+      double angles[4];
+      const int found = vl_sift_calc_keypoint_orientations(sift.get(), angles, &k);
+      for (int o = 0; o < std::min(found, options.max_num_orientations); ++o) {
+        level.keypoints.push_back({(k.x + 0.5f) * scale_x, (k.y + 0.5f) * scale_y,
+                                   k.sigma * scale_x, static_cast<float>(angles[o])});
+        vl_sift_calc_keypoint_descriptor(sift.get(), raw.data(), &k, angles[o]);
+        VlFeatToUbc(raw.data(), ubc.data());
+        level.descriptors.resize(level.descriptors.size() + 128);
+        RootSiftBytes(ubc.data(), level.descriptors.data() + level.descriptors.size() - 128);
+      }
+    }
+  }
+
+  // Keep the coarsest levels; the level that crosses the cap is kept whole.
+  size_t first_kept = 0;
+  int detections = 0;
+  for (size_t i = levels.size(); i-- > 0;) {
+    detections += levels[i].detections;
+    if (detections > options.max_num_features) {
+      first_kept = i;
+      break;
+    }
+  }
+  SiftFeatures features;
+  features.image_width = input.width;
+  features.image_height = input.height;
+  for (size_t i = first_kept; i < levels.size(); ++i) {
+    features.keypoints.insert(features.keypoints.end(), levels[i].keypoints.begin(),
+                              levels[i].keypoints.end());
+    features.descriptors.insert(features.descriptors.end(), levels[i].descriptors.begin(),
+                                levels[i].descriptors.end());
+  }
+  return features;
+}
+
+}  // namespace linecloud

@@ -1,0 +1,53 @@
+// SIFT features as COLMAP 3.8's CPU extractor computes them
+// (`colmap feature_extractor --SiftExtraction.use_gpu 0`): Lowe's detector
+// and descriptor (D. G. Lowe, "Distinctive Image Features from Scale-Invariant
+// Keypoints", IJCV 2004) as implemented by VLFeat (Vedaldi & Fulkerson, the
+// library COLMAP's CPU SIFT is built on), with COLMAP's default options and
+// post-processing:
+//   - keypoints at VLFeat's position + 0.5 (COLMAP: pixel centres at 0.5);
+//   - up to 2 orientations per keypoint (VLFeat's first local maxima);
+//   - the finest DoG levels dropped until at most max_num_features
+//     keypoints (counted before orientations) remain — whole levels;
+//   - descriptors reordered from VLFeat's bin order to the UBC / SiftGPU
+//     order, L1-normalised, square-rooted (RootSIFT), scaled by 512, rounded
+//     and clamped to bytes.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "linecloud/features/image.h"
+
+namespace linecloud {
+
+struct SiftOptions {
+  int max_image_size = 3200;      // larger images are downscaled first
+  int max_num_features = 8192;
+  int first_octave = -1;
+  int num_octaves = 4;
+  int octave_resolution = 3;      // DoG levels per octave
+  double peak_threshold = 0.02 / 3;
+  double edge_threshold = 10.0;
+  int max_num_orientations = 2;
+
+  void Check() const;
+};
+
+struct SiftKeypoint {
+  float x = 0, y = 0;   // pixels, COLMAP convention (top-left pixel centre at 0.5, 0.5)
+  float scale = 0;      // sigma, pixels
+  float orientation = 0;  // radians
+};
+
+struct SiftFeatures {
+  std::vector<SiftKeypoint> keypoints;
+  std::vector<uint8_t> descriptors;  // keypoints.size() x 128, UBC bin order
+  int image_width = 0, image_height = 0;
+
+  size_t size() const { return keypoints.size(); }
+  const uint8_t* descriptor(size_t i) const { return descriptors.data() + 128 * i; }
+};
+
+SiftFeatures ExtractSift(const GreyImage& image, const SiftOptions& options = {});
+
+}  // namespace linecloud

@@ -1,0 +1,120 @@
+#include "linecloud/localize/image_query.h"
+
+#include <charconv>
+#include <chrono>
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "linecloud/io/colmap_database.h"
+#include "linecloud/io/track_descriptors.h"
+#include "linecloud/util/error.h"
+#include "linecloud/util/text_parser.h"
+
+namespace linecloud {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double MsSince(Clock::time_point start) {
+  return 1e3 * std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+}  // namespace
+
+MapDescriptors MapDescriptorsFromCloud(const LineCloud& cloud, const std::string& source) {
+  if (!cloud.has_descriptors()) {
+    Fail("{}: the map has no descriptors to match a photo to; lift it with --database "
+         "colmap.db",
+         source);
+  }
+  if (cloud.descriptor_dim != 128 || cloud.descriptor_type != "colmap-sift-uint8") {
+    Fail("{}: descriptors are {}-D '{}', but photos give 128-D colmap-sift-uint8", source,
+         cloud.descriptor_dim, cloud.descriptor_type);
+  }
+  return {cloud.ids, cloud.descriptors};
+}
+
+MapDescriptors MapDescriptorsFromModel(const Reconstruction& model, const std::string& database) {
+  const ColmapDatabase db(database);
+  MapDescriptors out;
+  out.ids = model.SortedPoint3DIds();
+  const PointDescriptors d =
+      ComputePointDescriptors(model, out.ids, db, DescriptorAggregation::kMedoid);
+  if (d.dim != 128) Fail("{}: descriptors are {}-D, expected 128-D SIFT", database, d.dim);
+  out.descriptors = d.data;
+  return out;
+}
+
+Camera ParseCameraString(const std::string& text) {
+  const auto tokens = SplitWhitespace(text);
+  if (tokens.size() < 3) {
+    Fail("--camera '{}': expected \"MODEL WIDTH HEIGHT PARAMS...\" (COLMAP's cameras.txt order)",
+         text);
+  }
+  Camera camera;
+  camera.model_id = CameraModelFromName(tokens[0]);
+  if (camera.model_id == CameraModelId::kInvalid) {
+    Fail("--camera: unknown camera model '{}' (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, "
+         "OPENCV, OPENCV_FISHEYE, FULL_OPENCV)",
+         tokens[0]);
+  }
+  const auto number = [&](size_t i) {
+    double v = 0;
+    const std::string_view t = tokens[i];
+    const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
+    if (ec != std::errc() || ptr != t.data() + t.size() || !std::isfinite(v)) {
+      Fail("--camera: '{}' is not a finite number", t);
+    }
+    return v;
+  };
+  const double w = number(1), h = number(2);
+  if (!(w >= 1 && h >= 1 && w <= 1e6 && h <= 1e6) || w != std::floor(w) || h != std::floor(h)) {
+    Fail("--camera: width and height must be whole numbers of pixels, got {} x {}", tokens[1],
+         tokens[2]);
+  }
+  camera.width = static_cast<uint64_t>(w);
+  camera.height = static_cast<uint64_t>(h);
+  for (size_t i = 3; i < tokens.size(); ++i) camera.params.push_back(number(i));
+  const int expected = CameraModelNumParams(camera.model_id);
+  if (static_cast<int>(camera.params.size()) != expected) {
+    Fail("--camera: {} takes {} parameters, got {}", tokens[0], expected, camera.params.size());
+  }
+  camera.Check("--camera");
+  return camera;
+}
+
+ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
+                          const MapDescriptors& map, const ImageQueryOptions& options) {
+  const auto say = [&](const std::string& what) {
+    if (options.progress) options.progress(what);
+  };
+  ImageQuery out;
+  auto start = Clock::now();
+  const GreyImage image = ReadGreyImage(image_path);
+  out.times.decode_ms = MsSince(start);
+  if (static_cast<uint64_t>(image.width) != camera.width ||
+      static_cast<uint64_t>(image.height) != camera.height) {
+    Fail("{}: the image is {}x{} pixels but the camera is {}x{}", image_path, image.width,
+         image.height, camera.width, camera.height);
+  }
+  say(fmt::format("extracting SIFT from {} ({}x{})", image_path, image.width, image.height));
+  start = Clock::now();
+  out.features = ExtractSift(image, options.sift);
+  out.times.extract_ms = MsSince(start);
+  say(fmt::format("{} features in {:.0f} ms; matching to {} map descriptors",
+                  out.features.size(), out.times.extract_ms, map.ids.size()));
+  start = Clock::now();
+  out.matches = MatchDescriptors(out.features.descriptors, map.descriptors, options.matching);
+  out.times.match_ms = MsSince(start);
+  say(fmt::format("{} matches in {:.0f} ms", out.matches.size(), out.times.match_ms));
+  out.query.cameras.push_back(camera);
+  for (const DescriptorMatch& m : out.matches) {
+    const SiftKeypoint& k = out.features.keypoints[m.query];
+    out.query.observations.push_back(
+        {0, Eigen::Vector2d(k.x, k.y), map.ids[m.map], std::nullopt});
+  }
+  return out;
+}
+
+}  // namespace linecloud

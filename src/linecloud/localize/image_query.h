@@ -1,0 +1,62 @@
+// A query from a photo: decode, SIFT as COLMAP computes it, match to the map's
+// descriptors — the correspondences `Localize` takes (Speciale et al., CVPR
+// 2019: the query's local features matched to the descriptors stored with the
+// lines). The map side is a line cloud lifted with descriptors, or a point
+// model with its COLMAP database.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "linecloud/features/matching.h"
+#include "linecloud/features/sift.h"
+#include "linecloud/geometry/camera.h"
+#include "linecloud/io/colmap_model.h"
+#include "linecloud/lifting/line_cloud.h"
+#include "linecloud/localize/localize.h"
+
+namespace linecloud {
+
+// The descriptors a query is matched to, with the id each belongs to (a line
+// id for a line cloud, a point id for a point model).
+struct MapDescriptors {
+  std::vector<uint64_t> ids;
+  std::vector<uint8_t> descriptors;  // ids.size() x 128
+};
+
+// Throws Error naming `source` when the cloud has no descriptors ("lift with
+// --database") or descriptors of another type or size than COLMAP's SIFT.
+MapDescriptors MapDescriptorsFromCloud(const LineCloud& cloud, const std::string& source);
+// One descriptor per point of the model that has one in the database.
+MapDescriptors MapDescriptorsFromModel(const Reconstruction& model, const std::string& database);
+
+// "MODEL WIDTH HEIGHT PARAMS..." in COLMAP's cameras.txt order, e.g.
+// "PINHOLE 1536 1024 1520.4 1525.9 768 512"; throws Error on an unknown model
+// or a wrong parameter count.
+Camera ParseCameraString(const std::string& text);
+
+struct ImageQueryOptions {
+  SiftOptions sift;
+  DescriptorMatchOptions matching;
+  std::function<void(const std::string&)> progress;  // stage messages
+};
+
+struct ImageQueryTimes {
+  double decode_ms = 0, extract_ms = 0, match_ms = 0;
+};
+
+struct ImageQuery {
+  Query query;                 // one camera, one observation per match
+  SiftFeatures features;
+  std::vector<DescriptorMatch> matches;  // query = keypoint index, map = MapDescriptors row
+  ImageQueryTimes times;
+};
+
+// Throws Error naming the image when it cannot be read or its size differs
+// from the camera's.
+ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
+                          const MapDescriptors& map, const ImageQueryOptions& options);
+
+}  // namespace linecloud
