@@ -292,6 +292,60 @@ TEST(Cli, NewcomerPathOnARealModel) {
   }
 }
 
+// localize --image on bad input: one clear error line each; a photo that
+// gives too few matches is "success": false, not an error.
+TEST(Cli, LocalizeImageRejectsBadInput) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/images/02.jpg");
+  TempDir tmp;
+  const std::string model = SharedDataPath(kMaupertuis);
+  const std::string photo = SharedDataPath("colmap-maupertuis/images/02.jpg");
+  ASSERT_EQ(RunCli({"lift", "--model", model, "--database",
+                    SharedDataPath("colmap-maupertuis/colmap.db"), "--out", tmp.Path("m.lcm"),
+                    "--key-store", tmp.Path("keys"), "--key-file", FixedKeyFile(tmp, "m.key", 9)})
+                .code,
+            0);
+  ASSERT_EQ(RunCli({"lift", "--model", model, "--out", tmp.Path("bare.lcm"), "--key-store",
+                    tmp.Path("keys")})
+                .code,
+            0);
+  const std::string camera = "SIMPLE_PINHOLE 1919 1079 1847.53 959.5 539.5";
+  const auto localize = [&](const std::string& map, const std::string& image,
+                            const std::string& cam, std::vector<std::string> extra = {}) {
+    std::vector<std::string> args = {"localize", "--map", map, "--image", image, "--camera", cam,
+                                     "--method", "p6L", "--quiet", "--max-image-size", "480"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return RunCli(args);
+  };
+  ExpectError(localize(tmp.Path("m.lcm"), tmp.Path("missing.jpg"), camera), "missing.jpg");
+  std::ofstream(tmp.Path("text.jpg")) << "not an image at all\n";
+  ExpectError(localize(tmp.Path("m.lcm"), tmp.Path("text.jpg"), camera), "text.jpg");
+  const std::string bytes = ReadFileToString(photo);
+  std::ofstream(tmp.Path("cut.jpg"), std::ios::binary).write(bytes.data(), 300);
+  const CliResult cut = localize(tmp.Path("m.lcm"), tmp.Path("cut.jpg"), camera);
+  EXPECT_TRUE(cut.code != 0 || cut.out.find("\"success\": false") != std::string::npos) << cut.err;
+  ExpectError(localize(tmp.Path("m.lcm"), photo, "PINHOLE 1919 1079 1 2 3"),
+              "PINHOLE takes 4 parameters, got 3");
+  ExpectError(localize(tmp.Path("m.lcm"), photo, "FISHEYE_X 1919 1079 1 2 3"),
+              "unknown camera model 'FISHEYE_X'");
+  ExpectError(localize(tmp.Path("m.lcm"), photo, "SIMPLE_PINHOLE 640 480 500 320 240"),
+              "the image is 1919x1079 pixels but the camera is 640x480");
+  ExpectError(localize(tmp.Path("bare.lcm"), photo, camera), "lift it with --database");
+  ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--image", photo, "--method",
+                      "p6L"}),
+              "--image needs --camera");
+  ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--image", photo, "--query",
+                      tmp.Path("q.json"), "--camera", camera, "--method", "p6L"}),
+              "exactly one of --query");
+  // A ratio test no match passes: ran fine, no pose.
+  const CliResult none = localize(tmp.Path("m.lcm"), photo, camera, {"--max-ratio", "0.05"});
+  ASSERT_EQ(none.code, 0) << none.err;
+  const nlohmann::json j = nlohmann::json::parse(none.out);
+  EXPECT_FALSE(j["success"].get<bool>());
+  EXPECT_NE(j["reason"].get<std::string>().find("matches"), std::string::npos) << none.out;
+  EXPECT_GT(j["num_features"].get<int>(), 100);
+  EXPECT_TRUE(j["times_ms"].contains("extract"));
+}
+
 TEST(Cli, LiftRefusesToReplaceAMapWithOtherLines) {
   LINECLOUD_REQUIRE_DATA(kMaupertuis);
   TempDir tmp;

@@ -167,6 +167,10 @@ void RegisterLocalizeCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--cross-check", args->image.matching.cross_check,
                 "Keep only mutual nearest neighbours");
+  cmd->add_option("--max-image-size", args->image.sift.max_image_size,
+                  "Photos with a larger side are downscaled before SIFT (COLMAP's "
+                  "SiftExtraction.max_image_size)")
+      ->capture_default_str();
   cmd->add_option("--method", args->method, "One of the 16 methods, e.g. p6L, p3P, m-P3P+l")
       ->required();
   cmd->add_flag("--no-refine", args->no_refine, "Skip the final LM refinement");
