@@ -51,6 +51,8 @@ void RegisterEvalCommand(CLI::App& app) {
   run->add_option("--noise-queries", run_options->noise_sweep_queries, "synthetic queries per noise level")
       ->capture_default_str();
   run->add_flag("--no-sweeps", *no_sweeps, "skip the density and noise sweeps (and their plots)");
+  run->add_flag("!--no-direct-matching", run_options->direct_matching,
+                "skip the direct-matching protocol (query images' own SIFT features)");
   run->callback([run_options, no_sweeps] {
     EvalRunOptions o = *run_options;
     if (*no_sweeps) {

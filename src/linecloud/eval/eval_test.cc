@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "linecloud/eval/dataset.h"
+#include "linecloud/eval/direct_matching.h"
 #include "linecloud/eval/eval_prepare.h"
 #include "linecloud/eval/eval_run.h"
 #include "linecloud/eval/eval_work.h"
@@ -339,6 +340,40 @@ TEST(EvalRun, SyntheticWorkLocalizesEveryQueryWithAllMethods) {
 }
 
 // The targets on a real report (CI: fountain-P11 end to end).
+// A query image's own descriptors must never reach its map: the map of a
+// group that registers one of the group's images is refused.
+TEST(DirectMatching, RefusesAMapThatRegistersTheQueryImage) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
+  const Reconstruction model =
+      ReadColmapModel(testing::SharedDataPath("colmap-maupertuis/reconstruction"));
+  const std::string db = testing::SharedDataPath("colmap-maupertuis/colmap.db");
+  try {
+    MapDescriptorsExcluding(model, db, {"02.jpg"});
+    ADD_FAILURE() << "accepted a map that registers the query image";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("02.jpg"), std::string::npos);
+  }
+  // Without the image (and its observations) the map is accepted.
+  Reconstruction without = model;
+  uint32_t removed = 0;
+  for (auto it = without.images.begin(); it != without.images.end();) {
+    if (it->second.name == "02.jpg") {
+      removed = it->first;
+      it = without.images.erase(it);
+    } else {
+      ++it;
+    }
+  }
+  for (auto it = without.points3D.begin(); it != without.points3D.end();) {
+    auto& track = it->second.track;
+    std::erase_if(track, [&](const TrackElement& t) { return t.image_id == removed; });
+    it = track.empty() ? without.points3D.erase(it) : std::next(it);
+  }
+  const MapDescriptors d = MapDescriptorsExcluding(without, db, {"02.jpg"});
+  EXPECT_EQ(d.ids.size(), without.points3D.size());
+  EXPECT_EQ(d.descriptors.size(), 128 * d.ids.size());
+}
+
 TEST(EvalReport, StrechaSceneMeetsTheMeasuredTargets) {
   const char* path = std::getenv("LINECLOUD_EVAL_REPORT");
   if (!path) GTEST_SKIP() << "LINECLOUD_EVAL_REPORT is not set (CI sets it after `linecloud eval run`)";
@@ -356,6 +391,14 @@ TEST(EvalReport, StrechaSceneMeetsTheMeasuredTargets) {
     }
     EXPECT_LT(s["reprojection_px"]["refined"].get<double>(), 2.0) << name;
   }
+  // The deployable protocol ([image]): photos matched straight to the maps.
+  ASSERT_TRUE(r.contains("direct_matching")) << "eval run without direct matching";
+  const nlohmann::json& d = r["direct_matching"]["methods"];
+  const nlohmann::json& p6l = d["p6L"];
+  const nlohmann::json& p3p = d["p3P"];
+  EXPECT_GE(p6l["localized"].get<double>(), 0.9 * p6l["queries"].get<double>());
+  EXPECT_LE(p6l["median_rotation_deg"].get<double>(),
+            1.5 * p3p["median_rotation_deg"].get<double>());
 }
 
 }  // namespace

@@ -1,0 +1,134 @@
+#include "linecloud/eval/direct_matching.h"
+
+#include <chrono>
+#include <cmath>
+#include <numbers>
+
+#include <fmt/format.h>
+
+#include "linecloud/eval/statistics.h"
+#include "linecloud/io/colmap_model.h"
+#include "linecloud/lifting/lifting.h"
+#include "linecloud/synthetic/localization_instances.h"
+#include "linecloud/util/error.h"
+#include "linecloud/util/file.h"
+
+namespace linecloud {
+namespace {
+
+using json = nlohmann::json;
+
+struct GroupMap {
+  MapDescriptors descriptors;  // ids are point ids
+  PointMap points;
+  LineMap lines;               // keyed by point id (the owner's view)
+};
+
+GroupMap LoadGroupMap(const EvalWork& work, const std::string& work_dir, const EvalGroup& g,
+                      const LiftingKey& key) {
+  const Reconstruction model = ReadColmapModel(JoinPaths(work_dir, g.map_dir));
+  std::vector<std::string> names;
+  for (const EvalImage& im : g.images) names.push_back(im.name);
+  GroupMap m;
+  m.descriptors =
+      MapDescriptorsExcluding(model, JoinPaths(work_dir, "colmap/database.db"), names);
+  std::vector<Eigen::Vector3d> xyz;
+  for (const uint64_t id : m.descriptors.ids) xyz.push_back(model.points3D.at(id).xyz);
+  m.points = PointMapFromModel(model);
+  m.lines = LineMapByPointId(LiftPoints(m.descriptors.ids, xyz, key, {}), key);
+  (void)work;
+  return m;
+}
+
+}  // namespace
+
+MapDescriptors MapDescriptorsExcluding(const Reconstruction& map, const std::string& database,
+                                       const std::vector<std::string>& excluded_images) {
+  for (const auto& [id, image] : map.images) {
+    for (const std::string& name : excluded_images) {
+      if (image.name == name) {
+        Fail("the map registers the query image {}: its descriptors would reach the map it is "
+             "localized against",
+             name);
+      }
+    }
+  }
+  return MapDescriptorsFromModel(map, database);
+}
+
+json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const LiftingKey& key,
+                       const DirectMatchingOptions& options) {
+  constexpr double kDeg = 180.0 / std::numbers::pi;
+  struct Tally {
+    std::vector<double> rotation, translation;
+    int localized = 0;
+    double extract_ms = 0, match_ms = 0, ransac_ms = 0, refine_ms = 0;
+  };
+  std::map<std::string, Tally> tallies;
+  json per_query = json::array();
+  for (const EvalGroup& g : work.groups) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const GroupMap map = LoadGroupMap(work, work_dir, g, key);
+    for (const EvalImage& im : g.images) {
+      const std::string path = JoinPaths(JoinPaths(work.dataset_dir, "images"), im.name);
+      const ImageQuery q =
+          QueryFromImage(path, work.cameras.at(im.camera_id), map.descriptors, {});
+      json row = {{"group", g.name}, {"image", im.name}, {"features", q.features.size()},
+                  {"matches", q.matches.size()}, {"extract_ms", q.times.extract_ms},
+                  {"match_ms", q.times.match_ms}};
+      for (const std::string& name : options.methods) {
+        const MethodInfo& method = FindMethod(name);
+        LocalizeOptions lo;
+        lo.ransac.max_error = options.threshold_px;
+        lo.ransac.seed = options.seed;
+        Tally& t = tallies[name];
+        double rot = 180, trans = 1e9;
+        std::string failure;
+        if (q.query.observations.size() >= static_cast<size_t>(method.sample_size)) {
+          const LocalizationMap lm =
+              method.lines ? LocalizationMap(map.lines) : LocalizationMap(map.points);
+          const LocalizeResult r = Localize(method, q.query, lm, lo, im.name);
+          t.ransac_ms += r.stats.ransac_ms;
+          t.refine_ms += r.refine_ms;
+          failure = r.failure;
+          if (r.success) {
+            const LocalizationError e = CompareLocalization(
+                r.query_from_world, Sim3d(1.0, im.cam_from_world.rotation,
+                                          im.cam_from_world.translation));
+            rot = e.rotation_rad * kDeg;
+            trans = e.position;
+          }
+        } else {
+          failure = "too few matches";
+        }
+        t.extract_ms += q.times.extract_ms;
+        t.match_ms += q.times.match_ms;
+        t.rotation.push_back(rot);
+        t.translation.push_back(trans);
+        t.localized += rot <= options.max_rotation_deg && trans <= options.max_translation;
+        row[name] = {{"rotation_deg", rot}, {"translation", trans}};
+        if (!failure.empty()) row[name]["failure"] = failure;
+      }
+      per_query.push_back(row);
+    }
+    fmt::print("[eval] direct matching, group {} ({:.1f} s)\n", g.name,
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    std::fflush(stdout);
+  }
+  json methods = json::object();
+  for (auto& [name, t] : tallies) {
+    const double n = std::max<size_t>(1, t.rotation.size());
+    methods[name] = {{"queries", t.rotation.size()},
+                     {"localized", t.localized},
+                     {"median_rotation_deg", Median(t.rotation)},
+                     {"median_translation", Median(t.translation)},
+                     {"mean_ms", {{"extract", t.extract_ms / n}, {"match", t.match_ms / n},
+                                  {"ransac", t.ransac_ms / n}, {"refine", t.refine_ms / n}}}};
+  }
+  return {{"thresholds", {{"rotation_deg", options.max_rotation_deg},
+                          {"translation", options.max_translation}}},
+          {"methods", methods},
+          {"per_query", per_query}};
+}
+
+}  // namespace linecloud

@@ -1,0 +1,39 @@
+// The deployable protocol: each query image's own SIFT features (as COLMAP
+// computes them) matched straight to the map's descriptors — the line cloud's
+// for p6L, the point model's for p3P — through the code path of
+// `localize --image` (QueryFromImage, Localize with the default success
+// criteria). The map's descriptors come from the map images only: the query
+// group's images are not in its map (checked), so no query descriptor can
+// reach the map it is localized against.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "linecloud/eval/eval_work.h"
+#include "linecloud/lifting/key.h"
+#include "linecloud/localize/image_query.h"
+
+namespace linecloud {
+
+struct DirectMatchingOptions {
+  std::vector<std::string> methods = {"p6L", "p3P"};
+  double max_rotation_deg = 0.5;   // "localized" thresholds of [image]
+  double max_translation = 0.05;   // work units (metres with ground truth)
+  double threshold_px = 4.0;
+  uint64_t seed = 1;
+};
+
+// The map's descriptors (medoid of each track) from `database`; throws Error
+// when the map registers one of `excluded_images` (a query image).
+MapDescriptors MapDescriptorsExcluding(const Reconstruction& map, const std::string& database,
+                                       const std::vector<std::string>& excluded_images);
+
+// report.json's "direct_matching": per method the queries, localized count,
+// median errors and mean stage times, and per query the details.
+nlohmann::json RunDirectMatching(const EvalWork& work, const std::string& work_dir,
+                                 const LiftingKey& key, const DirectMatchingOptions& options);
+
+}  // namespace linecloud
