@@ -337,13 +337,32 @@ TEST(Cli, LocalizeImageRejectsBadInput) {
                       tmp.Path("q.json"), "--camera", camera, "--method", "p6L"}),
               "exactly one of --query");
   // A ratio test no match passes: ran fine, no pose.
-  const CliResult none = localize(tmp.Path("m.lcm"), photo, camera, {"--max-ratio", "0.05"});
+  const CliResult none = localize(tmp.Path("m.lcm"), photo, camera,
+                                  {"--max-ratio", "0.05", "--overlay", tmp.Path("o.png")});
   ASSERT_EQ(none.code, 0) << none.err;
   const nlohmann::json j = nlohmann::json::parse(none.out);
   EXPECT_FALSE(j["success"].get<bool>());
   EXPECT_NE(j["reason"].get<std::string>().find("matches"), std::string::npos) << none.out;
   EXPECT_GT(j["num_features"].get<int>(), 100);
   EXPECT_TRUE(j["times_ms"].contains("extract"));
+  // The overlay is the photo's size (PNG header: width and height, big-endian).
+  const std::string png = ReadFileToString(tmp.Path("o.png"));
+  ASSERT_GT(png.size(), 24u);
+  EXPECT_EQ(png.substr(1, 3), "PNG");
+  const auto be32 = [&](size_t at) {
+    return (uint32_t(uint8_t(png[at])) << 24) | (uint32_t(uint8_t(png[at + 1])) << 16) |
+           (uint32_t(uint8_t(png[at + 2])) << 8) | uint32_t(uint8_t(png[at + 3]));
+  };
+  EXPECT_EQ(be32(16), 1919u);
+  EXPECT_EQ(be32(20), 1079u);
+  ASSERT_EQ(RunCli({"make-query", "--model", model, "--image", "02.jpg", "--out",
+                    tmp.Path("q.json"), "--key-file", tmp.Path("m.key")})
+                .code,
+            0);
+  ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--query", tmp.Path("q.json"),
+                      "--method", "p6L", "--overlay", tmp.Path("o2.png")}),
+              "--overlay draws on the photo: it needs --image");
+  EXPECT_FALSE(FileExists(tmp.Path("o2.png")));
 }
 
 TEST(Cli, LiftRefusesToReplaceAMapWithOtherLines) {

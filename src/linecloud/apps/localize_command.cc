@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/eval/overlay.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/io/ply.h"
@@ -32,6 +33,7 @@ struct LocalizeArgs {
   std::string out;
   std::string format = "json";
   std::string ply;
+  std::string overlay;
   bool with_inliers = false;
   bool quiet = false;
   int min_inliers = -1;
@@ -48,6 +50,9 @@ void RunLocalize(LocalizeArgs args) {
   const MethodInfo& method = FindMethod(args.method);
   if (args.map_path.empty() == args.model_dir.empty()) {
     Fail("give exactly one of --map MAP.lcm (line cloud) or --model DIR (point model)");
+  }
+  if (!args.overlay.empty() && args.image_path.empty()) {
+    Fail("--overlay draws on the photo: it needs --image");
   }
   if (args.query_path.empty() == args.image_path.empty()) {
     Fail("give exactly one of --query QUERY.json (correspondences) or --image PHOTO (with "
@@ -130,6 +135,9 @@ void RunLocalize(LocalizeArgs args) {
     }
     text = j.dump(2) + "\n";
   }
+  if (image_query && !args.overlay.empty()) {
+    WriteLocalizationOverlay(args.overlay, ReadGreyImage(args.image_path), query, result, map);
+  }
   if (!args.ply.empty() && result.has_pose) {
     WriteLocalizationPly(args.ply, cloud ? &*cloud : nullptr, model ? &*model : nullptr,
                          LocalizedCameras(query, result), 0);
@@ -200,6 +208,9 @@ void RegisterLocalizeCommand(CLI::App& app) {
       ->check(CLI::IsMember({"json", "colmap"}))
       ->capture_default_str();
   cmd->add_option("--ply", args->ply, "Write the map and the localized camera frustum(s) as PLY");
+  cmd->add_option("--overlay", args->overlay,
+                  "With --image: a PNG of the photo with inlier keypoints (green), outliers (red) "
+                  "and their map lines or points projected by the pose (yellow)");
   cmd->add_flag("--quiet", args->quiet, "No progress or notes on standard error");
   cmd->add_option("--out", args->out, "Write the result here instead of standard output");
   cmd->callback([args] { RunLocalize(*args); });
