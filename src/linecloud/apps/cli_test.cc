@@ -365,6 +365,52 @@ TEST(Cli, LocalizeImageRejectsBadInput) {
   EXPECT_FALSE(FileExists(tmp.Path("o2.png")));
 }
 
+// lift --gravity stores the map's gravity; info shows it; a +u query
+// without gravity_map takes it from the map, with the query's from --gravity.
+TEST(Cli, MapGravityFromLiftToLocalize) {
+  TempDir tmp;
+  const std::string demo = tmp.Path("demo");
+  ASSERT_EQ(RunCli({"demo", "--out", demo, "--points", "1500", "--queries", "2"}).code, 0);
+  nlohmann::json q = ReadJsonFile(demo + "/queries/query_000.json");
+  const Eigen::Vector3d g_map = JsonVector3(q["gravity_map"], "gravity_map");
+  const Eigen::Vector3d g_query = JsonVector3(q["gravity_query"], "gravity_query");
+  q.erase("gravity_map");
+  q.erase("gravity_query");
+  std::ofstream(tmp.Path("q.json")) << q.dump();
+  const auto csv = [](const Eigen::Vector3d& v) {
+    return fmt::format("{:.17g},{:.17g},{:.17g}", v.x(), v.y(), v.z());
+  };
+  ExpectError(RunCli({"lift", "--model", demo + "/model", "--out", tmp.Path("m.lcm"),
+                      "--key-store", tmp.Path("keys"), "--gravity", "1,2"}),
+              "--gravity '1,2'");
+  ASSERT_EQ(RunCli({"lift", "--model", demo + "/model", "--out", tmp.Path("m.lcm"), "--key-store",
+                    tmp.Path("keys"), "--key-file", FixedKeyFile(tmp, "g.key", 10),
+                    "--gravity", csv(3 * g_map)})
+                .code,
+            0);
+  const LineCloud cloud = ReadLineCloud(tmp.Path("m.lcm"));
+  ASSERT_TRUE(cloud.gravity.has_value());
+  EXPECT_LT((*cloud.gravity - g_map.normalized()).norm(), 1e-12);
+  EXPECT_NE(RunCli({"info", "--map", tmp.Path("m.lcm")}).out.find("gravity           ("),
+            std::string::npos);
+  // The demo's file carries the demo key's line ids: the ones of this map's key instead.
+  nlohmann::json with_lines = q;
+  const LiftingKey key = ReadKeyFile(tmp.Path("g.key"));
+  for (auto& o : with_lines["observations"]) o["line_id"] = LineIdOfPoint(key, o["id"].get<uint64_t>());
+  std::ofstream(tmp.Path("q.json")) << with_lines.dump();
+  ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--query", tmp.Path("q.json"),
+                      "--method", "p4L+u"}),
+              "gravity");
+  const CliResult r = RunCli({"localize", "--map", tmp.Path("m.lcm"), "--query", tmp.Path("q.json"),
+                              "--method", "p4L+u", "--gravity", csv(g_query)});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json result = nlohmann::json::parse(r.out);
+  ASSERT_TRUE(result["success"].get<bool>()) << r.out;
+  const Rigid3d truth = JsonPose(q["ground_truth"]["cam_from_world"], "truth");
+  EXPECT_LT(RotationDistance(JsonPose(result, "result").rotation, truth.rotation),
+            0.2 * 3.14159 / 180);
+}
+
 TEST(Cli, LiftRefusesToReplaceAMapWithOtherLines) {
   LINECLOUD_REQUIRE_DATA(kMaupertuis);
   TempDir tmp;

@@ -39,6 +39,7 @@ void RunInfo(const InfoArgs& args) {
                         {"aggregation", cloud.descriptor_aggregation}};
   }
   j["key_fingerprint"] = ToHex(cloud.key_fingerprint);
+  if (cloud.gravity) j["gravity"] = {cloud.gravity->x(), cloud.gravity->y(), cloud.gravity->z()};
   j["anchor_bbox"] = {{"min", {min.x(), min.y(), min.z()}},
                       {"max", {max.x(), max.y(), max.z()}}};
   if (args.json) {
@@ -52,6 +53,7 @@ void RunInfo(const InfoArgs& args) {
       "  encoding          {}\n"
       "  descriptors       {}\n"
       "  key fingerprint   {}\n"
+      "  gravity           {}\n"
       "  anchor bbox min   ({:.4f}, {:.4f}, {:.4f})\n"
       "  anchor bbox max   ({:.4f}, {:.4f}, {:.4f})\n"
       "  file size         {} bytes ({:.1f} bytes per line)\n",
@@ -60,7 +62,11 @@ void RunInfo(const InfoArgs& args) {
           ? fmt::format("yes: {}-D {} ({})", cloud.descriptor_dim,
                         cloud.descriptor_type, cloud.descriptor_aggregation)
           : std::string("no"),
-      ToHex(cloud.key_fingerprint), min.x(), min.y(), min.z(), max.x(),
+      ToHex(cloud.key_fingerprint),
+      cloud.gravity ? fmt::format("({:.4f}, {:.4f}, {:.4f})", cloud.gravity->x(), cloud.gravity->y(),
+                                  cloud.gravity->z())
+                    : std::string("unknown (lift --gravity x,y,z)"),
+      min.x(), min.y(), min.z(), max.x(),
       max.y(), max.z(), data.size(), j["bytes_per_line"].get<double>());
 }
 

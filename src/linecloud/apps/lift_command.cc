@@ -5,6 +5,7 @@
 #include "linecloud/apps/commands.h"
 #include "linecloud/io/lift_model.h"
 #include "linecloud/lifting/key.h"
+#include "linecloud/localize/image_query.h"
 
 namespace linecloud {
 namespace {
@@ -12,10 +13,12 @@ namespace {
 struct LiftArgs {
   LiftModelOptions options;
   std::string descriptor = "medoid";
+  std::string gravity;
 };
 
 void RunLift(LiftArgs args) {
   args.options.aggregation = DescriptorAggregationFromName(args.descriptor);
+  if (!args.gravity.empty()) args.options.gravity = ParseDirection(args.gravity, "--gravity");
   const LiftModelResult r = LiftModel(args.options);
   const LineCloud& cloud = r.cloud;
   std::cout << fmt::format(
@@ -59,6 +62,9 @@ void RegisterLiftCommand(CLI::App& app) {
   cmd->add_flag("--force", o.force,
                 "Replace OUT even if another key or other lines lifted it, and lift with a key "
                 "other than the model's (only for files never shared)");
+  cmd->add_option("--gravity", args->gravity,
+                  "The model frame's gravity direction x,y,z (stored with the map, for the +u "
+                  "methods)");
   cmd->add_flag("--allow-shared-key", o.allow_shared_key,
                 "Accept a key file that other users can read");
   cmd->callback([args] { RunLift(*args); });

@@ -34,6 +34,7 @@ struct LocalizeArgs {
   std::string format = "json";
   std::string ply;
   std::string overlay;
+  std::string gravity, map_gravity;
   bool with_inliers = false;
   bool quiet = false;
   int min_inliers = -1;
@@ -88,6 +89,18 @@ void RunLocalize(LocalizeArgs args) {
     query = ReadQueryJson(args.query_path);
   }
   const std::string source = args.image_path.empty() ? args.query_path : args.image_path;
+  // Gravity: the query's from --gravity, the map's from the .lcm (lift
+  // --gravity) or --map-gravity; QUERY.json fields win when present.
+  if (!args.gravity.empty() && !query.gravity_query) {
+    query.gravity_query = ParseDirection(args.gravity, "--gravity");
+  }
+  if (!query.gravity_map) {
+    if (!args.map_gravity.empty()) {
+      query.gravity_map = ParseDirection(args.map_gravity, "--map-gravity");
+    } else if (cloud && cloud->gravity) {
+      query.gravity_map = cloud->gravity;
+    }
+  }
   const LocalizationMap map =
       model ? LocalizationMap(PointMapFromModel(*model)) : LocalizationMap(LineMapFromCloud(*cloud));
   LocalizeOptions& options = args.options;
@@ -175,6 +188,11 @@ void RegisterLocalizeCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--cross-check", args->image.matching.cross_check,
                 "Keep only mutual nearest neighbours");
+  cmd->add_option("--gravity", args->gravity,
+                  "Gravity direction x,y,z in the query's (camera or rig) frame, for +u methods");
+  cmd->add_option("--map-gravity", args->map_gravity,
+                  "Gravity direction x,y,z in the map frame (default: the one lift --gravity "
+                  "stored in the .lcm)");
   cmd->add_option("--max-image-size", args->image.sift.max_image_size,
                   "Photos with a larger side are downscaled before SIFT (COLMAP's "
                   "SiftExtraction.max_image_size)")

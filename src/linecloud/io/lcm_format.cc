@@ -82,6 +82,7 @@ std::string BuildHeader(const LineCloud& cloud, Layout* layout) {
             : "direction index (uint8, fibonacci-hemisphere-256-v1), "
               "position in the plane orthogonal to it (2 x float32)";
     j["key_fingerprint"] = ToHex(cloud.key_fingerprint);
+    if (cloud.gravity) j["gravity"] = {cloud.gravity->x(), cloud.gravity->y(), cloud.gravity->z()};
     j["line_ids"] = cloud.keyed_line_ids
                         ? "keyed permutation of the point ids, stored in increasing order"
                         : "point ids (format version 1)";
@@ -260,6 +261,15 @@ LineCloud ParseLineCloud(std::string_view data, const std::string& source) {
       Fail("{}: section '{}' does not match the layout of version {}", source,
            name, header.version);
     }
+  }
+  if (j.contains("gravity")) {
+    const auto g = Field<std::vector<double>>(j, "gravity", source);
+    if (g.size() != 3) Fail("{}: header field 'gravity' must be [x, y, z]", source);
+    const Eigen::Vector3d v(g[0], g[1], g[2]);
+    if (!v.allFinite() || std::abs(v.norm() - 1.0) > 1e-6) {
+      Fail("{}: header field 'gravity' is not a unit vector", source);
+    }
+    cloud.gravity = v;
   }
   const std::string fingerprint = Field<std::string>(j, "key_fingerprint", source);
   if (!ParseHex(fingerprint, cloud.key_fingerprint.data(),

@@ -149,6 +149,12 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
     c.descriptor_type = "colmap-sift-uint8";
     c.descriptor_aggregation = DescriptorAggregationName(o.aggregation);
   }
+  if (o.gravity) {
+    if (!o.gravity->allFinite() || !(o.gravity->norm() > 0)) {
+      Fail("--gravity must be a non-zero direction x,y,z");
+    }
+    result.cloud.gravity = o.gravity->normalized();
+  }
   CheckExistingOutput(o, result.cloud, key.key);
   WriteLineCloud(result.cloud, o.out_path);
   result.num_points = ids.size();

@@ -9,7 +9,10 @@
 // (e.g. a version-1 compact map); the compact encoding under a sphere key.
 #pragma once
 
+#include <optional>
 #include <string>
+
+#include <Eigen/Core>
 
 #include "linecloud/io/track_descriptors.h"
 #include "linecloud/lifting/key_store.h"
@@ -27,6 +30,7 @@ struct LiftModelOptions {
   bool compact = false;
   bool force = false;             // replace an output lifted with another key
   bool allow_shared_key = false;  // accept a key file others can read
+  std::optional<Eigen::Vector3d> gravity;  // the model frame's gravity direction
 
   void Check() const;
 };

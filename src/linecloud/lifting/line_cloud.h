@@ -6,6 +6,7 @@
 #pragma once
 
 #include <array>
+#include <optional>
 #include <cstdint>
 #include <span>
 #include <string>
@@ -54,6 +55,9 @@ struct LineCloud {
   std::string descriptor_type;        // e.g. "sift-uint8"
   std::string descriptor_aggregation; // e.g. "medoid"
   std::array<uint8_t, 16> key_fingerprint = {};
+  // The map frame's gravity direction (unit), when known (lift --gravity):
+  // what the +u methods align a query's gravity with. A direction, no point.
+  std::optional<Eigen::Vector3d> gravity;
 
   size_t size() const { return ids.size(); }
   bool has_descriptors() const { return descriptor_dim > 0; }

@@ -84,6 +84,23 @@ Camera ParseCameraString(const std::string& text) {
   return camera;
 }
 
+Eigen::Vector3d ParseDirection(const std::string& text, const std::string& option) {
+  Eigen::Vector3d v;
+  size_t start = 0;
+  for (int k = 0; k < 3; ++k) {
+    const size_t end = k < 2 ? text.find(',', start) : text.size();
+    if (end == std::string::npos) Fail("{} '{}': expected x,y,z", option, text);
+    const std::string_view t(text.data() + start, end - start);
+    const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), v[k]);
+    if (ec != std::errc() || ptr != t.data() + t.size() || !std::isfinite(v[k])) {
+      Fail("{} '{}': expected x,y,z with three finite numbers", option, text);
+    }
+    start = end + 1;
+  }
+  if (!(v.norm() > 0)) Fail("{} '{}': a direction cannot be zero", option, text);
+  return v.normalized();
+}
+
 ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
                           const MapDescriptors& map, const ImageQueryOptions& options) {
   const auto say = [&](const std::string& what) {

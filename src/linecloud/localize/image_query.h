@@ -37,6 +37,10 @@ MapDescriptors MapDescriptorsFromModel(const Reconstruction& model, const std::s
 // or a wrong parameter count.
 Camera ParseCameraString(const std::string& text);
 
+// "x,y,z" (a direction, e.g. --gravity); throws Error naming `option` on
+// anything else, a non-finite or a zero vector. Returns it normalised.
+Eigen::Vector3d ParseDirection(const std::string& text, const std::string& option);
+
 struct ImageQueryOptions {
   SiftOptions sift;
   DescriptorMatchOptions matching;
