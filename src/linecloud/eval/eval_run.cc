@@ -575,7 +575,11 @@ json RunEvaluation(const EvalRunOptions& options) {
     }
   }
 
-  if (options.direct_matching) {
+  // Direct matching needs the images and COLMAP's database (eval prepare).
+  if (options.direct_matching &&
+      !FileExists(JoinPaths(options.work_dir, "colmap/database.db"))) {
+    fmt::print("[eval] direct matching skipped: {} has no COLMAP database\n", options.work_dir);
+  } else if (options.direct_matching) {
     DirectMatchingOptions dm;
     dm.threshold_px = options.threshold_px;
     dm.seed = options.seed;
