@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/eval/match_bench.h"
 #include "linecloud/eval/localization_bench.h"
 #include "linecloud/eval/solver_bench.h"
 
@@ -177,6 +178,42 @@ void RegisterBenchCommand(CLI::App& app) {
       ->capture_default_str();
   localize->add_option("--methods", loc->options.methods, "Only these methods")->delimiter(',');
   localize->callback([loc] { RunBenchLocalize(*loc); });
+
+  auto match = std::make_shared<MatchBenchOptions>();
+  auto match_json = std::make_shared<bool>(false);
+  CLI::App* m = bench->add_subcommand(
+      "match", "Descriptor matching on seeded SIFT-like bytes: the approximate index (hnswlib) "
+               "against exact matching, time and recall of the exact ratio-test matches");
+  m->add_option("--map-sizes", match->map_sizes, "Map descriptor counts")->capture_default_str();
+  m->add_option("--queries", match->queries, "Query descriptors")->capture_default_str();
+  m->add_option("--recall-queries", match->recall_queries,
+                "Queries also matched exactly (recall)")->capture_default_str();
+  m->add_option("--threads", match->index.threads, "Threads building the index")
+      ->capture_default_str();
+  m->add_option("--search-ef", match->index.search_ef, "hnswlib ef at search")
+      ->capture_default_str();
+  m->add_option("--seed", match->seed, "Random seed")->capture_default_str();
+  m->add_flag("--json", *match_json, "Print JSON");
+  m->callback([match, match_json] {
+    const nlohmann::json rows = RunMatchBench(*match);
+    if (*match_json) {
+      std::cout << rows.dump(2) << "\n";
+      return;
+    }
+    std::cout << fmt::format(
+        "bench match: {} query descriptors (half noisy copies of map descriptors), ratio 0.8; "
+        "matching on one thread; index built on {} thread(s)\n"
+        "| map size | index build s | ANN ms (all queries) | exact ms (extrapolated) | recall of "
+        "exact matches |\n|---|---|---|---|---|\n",
+        match->queries, match->index.threads);
+    for (const auto& r : rows) {
+      std::cout << fmt::format("| {} | {:.1f} | {:.0f} | {:.0f} | {:.3f} ({} of {} queries) |\n",
+                               r["map_size"].get<size_t>(), r["index_build_s"].get<double>(),
+                               r["ann_ms"].get<double>(), r["exact_ms_extrapolated"].get<double>(),
+                               r["recall"].get<double>(), r["recall_queries"].get<size_t>(),
+                               r["queries"].get<size_t>());
+    }
+  });
 }
 
 }  // namespace linecloud
