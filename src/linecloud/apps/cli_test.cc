@@ -290,6 +290,13 @@ TEST(Cli, NewcomerPathOnARealModel) {
         << method;
     EXPECT_GT(result["num_inliers"].get<int>(), 900) << method;
   }
+  // Without --method: p6L on a line cloud, p3P on a point model.
+  for (const auto& [flag, map, expected] : {std::tuple{"--map", tmp.Path("m.lcm"), "p6L"},
+                                            std::tuple{"--model", model, "p3P"}}) {
+    r = RunCli({"localize", flag, map, "--query", tmp.Path("q.json")});
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(nlohmann::json::parse(r.out)["method"].get<std::string>(), expected);
+  }
 }
 
 // localize --image on bad input: one clear error line each; a photo that

@@ -48,6 +48,8 @@ void PrintProgress(int iterations, int needed, int inliers, double seconds) {
 }
 
 void RunLocalize(LocalizeArgs args) {
+  // Default: the single-image method without gravity for the map's kind.
+  if (args.method.empty()) args.method = args.map_path.empty() ? "p3P" : "p6L";
   const MethodInfo& method = FindMethod(args.method);
   if (args.map_path.empty() == args.model_dir.empty()) {
     Fail("give exactly one of --map MAP.lcm (line cloud) or --model DIR (point model)");
@@ -197,8 +199,9 @@ void RegisterLocalizeCommand(CLI::App& app) {
                   "Photos with a larger side are downscaled before SIFT (COLMAP's "
                   "SiftExtraction.max_image_size)")
       ->capture_default_str();
-  cmd->add_option("--method", args->method, "One of the 16 methods, e.g. p6L, p3P, m-P3P+l")
-      ->required();
+  cmd->add_option("--method", args->method,
+                  "One of the 16 methods, e.g. p6L, p3P, m-P3P+l (default: p6L with --map, p3P "
+                  "with --model)");
   cmd->add_flag("--no-refine", args->no_refine, "Skip the final LM refinement");
   cmd->add_flag("--refine-focal", args->options.refine_focal,
                 "Refine the focal length with the pose (single camera; the given focal is a "
