@@ -343,6 +343,24 @@ TEST(Cli, LocalizeImageRejectsBadInput) {
   ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--image", photo, "--query",
                       tmp.Path("q.json"), "--camera", camera, "--method", "p6L"}),
               "exactly one of --query");
+  // Several photos: a rig file and an m- method are needed, with as many poses.
+  const std::string photo2 = SharedDataPath("colmap-maupertuis/images/03.jpg");
+  ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--image", photo, "--image", photo2,
+                      "--camera", camera, "--method", "m-p6L"}),
+              "need --rig RIG.json");
+  std::ofstream(tmp.Path("rig1.json"))
+      << R"({"cam_from_rig": [{"q": [1, 0, 0, 0], "t": [0, 0, 0]}]})";
+  ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--image", photo, "--image", photo2,
+                      "--camera", camera, "--rig", tmp.Path("rig1.json"), "--method", "p6L"}),
+              "use an m- method");
+  ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--image", photo, "--image", photo2,
+                      "--camera", camera, "--rig", tmp.Path("rig1.json"), "--quiet",
+                      "--max-image-size", "480"}),
+              "2 photos but 1 cam_from_rig poses");
+  ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--image", photo, "--image", photo2,
+                      "--camera", camera, "--camera", camera, "--camera", camera, "--rig",
+                      tmp.Path("rig1.json")}),
+              "2 photos but 3 --camera strings");
   // A ratio test no match passes: ran fine, no pose.
   const CliResult none = localize(tmp.Path("m.lcm"), photo, camera,
                                   {"--max-ratio", "0.05", "--overlay", tmp.Path("o.png")});
@@ -368,7 +386,7 @@ TEST(Cli, LocalizeImageRejectsBadInput) {
             0);
   ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--query", tmp.Path("q.json"),
                       "--method", "p6L", "--overlay", tmp.Path("o2.png")}),
-              "--overlay draws on the photo: it needs --image");
+              "--overlay draws on one photo: it needs exactly one --image");
   EXPECT_FALSE(FileExists(tmp.Path("o2.png")));
 }
 

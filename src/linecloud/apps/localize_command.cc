@@ -22,8 +22,9 @@ struct LocalizeArgs {
   std::string map_path;
   std::string model_dir;
   std::string query_path;
-  std::string image_path;
-  std::string camera;
+  std::vector<std::string> image_paths;
+  std::vector<std::string> cameras;
+  std::string rig;
   std::string database;
   ImageQueryOptions image;
   std::string method;
@@ -48,16 +49,19 @@ void PrintProgress(int iterations, int needed, int inliers, double seconds) {
 }
 
 void RunLocalize(LocalizeArgs args) {
-  // Default: the single-image method without gravity for the map's kind.
-  if (args.method.empty()) args.method = args.map_path.empty() ? "p3P" : "p6L";
+  // Default: the method without gravity for the map's kind and the photo count.
+  if (args.method.empty()) {
+    const bool several = args.image_paths.size() > 1;
+    args.method = args.map_path.empty() ? (several ? "m-p3P" : "p3P") : (several ? "m-p6L" : "p6L");
+  }
   const MethodInfo& method = FindMethod(args.method);
   if (args.map_path.empty() == args.model_dir.empty()) {
     Fail("give exactly one of --map MAP.lcm (line cloud) or --model DIR (point model)");
   }
-  if (!args.overlay.empty() && args.image_path.empty()) {
-    Fail("--overlay draws on the photo: it needs --image");
+  if (!args.overlay.empty() && args.image_paths.size() != 1) {
+    Fail("--overlay draws on one photo: it needs exactly one --image");
   }
-  if (args.query_path.empty() == args.image_path.empty()) {
+  if (args.query_path.empty() == args.image_paths.empty()) {
     Fail("give exactly one of --query QUERY.json (correspondences) or --image PHOTO (with "
          "--camera)");
   }
@@ -69,10 +73,21 @@ void RunLocalize(LocalizeArgs args) {
     cloud = ReadLineCloud(args.map_path);
   }
   Query query;
-  std::optional<ImageQuery> image_query;
-  if (!args.image_path.empty()) {
-    if (args.camera.empty()) Fail("--image needs --camera \"MODEL WIDTH HEIGHT PARAMS...\"");
-    const Camera camera = ParseCameraString(args.camera);
+  std::vector<ImageQuery> photos;
+  if (!args.image_paths.empty()) {
+    const size_t n = args.image_paths.size();
+    if (args.cameras.empty()) Fail("--image needs --camera \"MODEL WIDTH HEIGHT PARAMS...\"");
+    if (args.cameras.size() != 1 && args.cameras.size() != n) {
+      Fail("{} photos but {} --camera strings (give one for all, or one per photo)", n,
+           args.cameras.size());
+    }
+    if (n > 1 && args.rig.empty()) {
+      Fail("{} photos need --rig RIG.json (their cam_from_rig poses)", n);
+    }
+    if (n > 1 && !method.multi) {
+      Fail("{} photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not {}",
+           n, method.name);
+    }
     MapDescriptors descriptors;
     if (cloud) {
       descriptors = MapDescriptorsFromCloud(*cloud, args.map_path);
@@ -85,12 +100,15 @@ void RunLocalize(LocalizeArgs args) {
     if (!args.quiet) {
       args.image.progress = [](const std::string& what) { std::cerr << what << "\n"; };
     }
-    image_query = QueryFromImage(args.image_path, camera, descriptors, args.image);
-    query = image_query->query;
+    for (size_t k = 0; k < n; ++k) {
+      const Camera camera = ParseCameraString(args.cameras[args.cameras.size() == 1 ? 0 : k]);
+      photos.push_back(QueryFromImage(args.image_paths[k], camera, descriptors, args.image));
+    }
+    query = n == 1 ? photos[0].query : CombineImageQueries(photos, ReadRigJson(args.rig));
   } else {
     query = ReadQueryJson(args.query_path);
   }
-  const std::string source = args.image_path.empty() ? args.query_path : args.image_path;
+  const std::string source = photos.empty() ? args.query_path : args.image_paths[0];
   // Gravity: the query's from --gravity, the map's from the .lcm (lift
   // --gravity) or --map-gravity; QUERY.json fields win when present.
   if (!args.gravity.empty() && !query.gravity_query) {
@@ -120,7 +138,7 @@ void RunLocalize(LocalizeArgs args) {
     };
   }
   LocalizeResult result;
-  if (image_query && query.observations.size() < static_cast<size_t>(method.sample_size)) {
+  if (!photos.empty() && query.observations.size() < static_cast<size_t>(method.sample_size)) {
     result.num_correspondences = static_cast<int>(query.observations.size());
     result.failure = fmt::format("{} matches, fewer than the {} the method's sample needs",
                                  query.observations.size(), method.sample_size);
@@ -139,19 +157,26 @@ void RunLocalize(LocalizeArgs args) {
                           : "# no pose: " + result.failure + "\n";
   } else {
     nlohmann::ordered_json j = LocalizeResultToJson(method, result, args.with_inliers);
-    if (image_query) {
-      j["num_features"] = image_query->features.size();
-      j["num_matches"] = image_query->matches.size();
-      j["times_ms"] = {{"decode", image_query->times.decode_ms},
-                       {"extract", image_query->times.extract_ms},
-                       {"match", image_query->times.match_ms},
-                       {"ransac", result.stats.ransac_ms},
+    if (!photos.empty()) {
+      size_t features = 0, matches = 0;
+      ImageQueryTimes t;
+      for (const ImageQuery& p : photos) {
+        features += p.features.size();
+        matches += p.matches.size();
+        t.decode_ms += p.times.decode_ms;
+        t.extract_ms += p.times.extract_ms;
+        t.match_ms += p.times.match_ms;
+      }
+      j["num_features"] = features;
+      j["num_matches"] = matches;
+      j["times_ms"] = {{"decode", t.decode_ms},   {"extract", t.extract_ms},
+                       {"match", t.match_ms},     {"ransac", result.stats.ransac_ms},
                        {"refine", result.refine_ms}};
     }
     text = j.dump(2) + "\n";
   }
-  if (image_query && !args.overlay.empty()) {
-    WriteLocalizationOverlay(args.overlay, ReadGreyImage(args.image_path), query, result, map);
+  if (!photos.empty() && !args.overlay.empty()) {
+    WriteLocalizationOverlay(args.overlay, ReadGreyImage(args.image_paths[0]), query, result, map);
   }
   if (!args.ply.empty() && result.has_pose) {
     WriteLocalizationPly(args.ply, cloud ? &*cloud : nullptr, model ? &*model : nullptr,
@@ -178,11 +203,15 @@ void RegisterLocalizeCommand(CLI::App& app) {
   auto* model = cmd->add_option("--model", args->model_dir, "COLMAP sparse model folder");
   map->excludes(model);
   cmd->add_option("--query", args->query_path, "Query file of correspondences (SPEC.md)");
-  cmd->add_option("--image", args->image_path,
+  cmd->add_option("--image", args->image_paths,
                   "A photo to localize: SIFT as COLMAP computes it, matched to the map's "
-                  "descriptors");
-  cmd->add_option("--camera", args->camera,
-                  "The photo's camera, \"MODEL WIDTH HEIGHT PARAMS...\" in COLMAP's order");
+                  "descriptors; repeat for the photos of a rig (with --rig)");
+  cmd->add_option("--camera", args->cameras,
+                  "The photo's camera, \"MODEL WIDTH HEIGHT PARAMS...\" in COLMAP's order; one "
+                  "for all photos or one per photo");
+  cmd->add_option("--rig", args->rig,
+                  "Several photos: RIG.json {\"cam_from_rig\": [{\"q\": [w,x,y,z], \"t\": "
+                  "[x,y,z]}, ...]}, one pose per --image");
   cmd->add_option("--database", args->database,
                   "With --model and --image: the COLMAP database of the model (descriptors)");
   cmd->add_option("--max-ratio", args->image.matching.max_ratio,

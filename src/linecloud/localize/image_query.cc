@@ -134,4 +134,21 @@ ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
   return out;
 }
 
+Query CombineImageQueries(const std::vector<ImageQuery>& photos,
+                          const std::vector<Rigid3d>& cam_from_rig) {
+  if (photos.size() != cam_from_rig.size()) {
+    Fail("{} photos but {} cam_from_rig poses in the rig", photos.size(), cam_from_rig.size());
+  }
+  Query q;
+  q.cam_from_rig = cam_from_rig;
+  for (size_t k = 0; k < photos.size(); ++k) {
+    q.cameras.push_back(photos[k].query.cameras.at(0));
+    for (QueryObservation o : photos[k].query.observations) {
+      o.camera = static_cast<int>(k);
+      q.observations.push_back(o);
+    }
+  }
+  return q;
+}
+
 }  // namespace linecloud

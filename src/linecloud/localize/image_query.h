@@ -63,4 +63,10 @@ struct ImageQuery {
 ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
                           const MapDescriptors& map, const ImageQueryOptions& options);
 
+// Several photos of a calibrated rig (or of a short trajectory whose relative
+// poses are known) as one query for the m- methods: camera k is photo k, with
+// cam_from_rig[k]. Throws Error when the counts differ.
+Query CombineImageQueries(const std::vector<ImageQuery>& photos,
+                          const std::vector<Rigid3d>& cam_from_rig);
+
 }  // namespace linecloud

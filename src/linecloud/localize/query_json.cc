@@ -101,6 +101,20 @@ Query ParseQueryJson(const nlohmann::json& j, const std::string& source) {
 
 Query ReadQueryJson(const std::string& path) { return ParseQueryJson(ReadJsonFile(path), path); }
 
+std::vector<Rigid3d> ReadRigJson(const std::string& path) {
+  const nlohmann::json j = ReadJsonFile(path);
+  if (!j.is_object() || !j.contains("cam_from_rig") || !j["cam_from_rig"].is_array() ||
+      j["cam_from_rig"].empty()) {
+    Fail("{}: expected {{\"cam_from_rig\": [{{\"q\": [w, x, y, z], \"t\": [x, y, z]}}, ...]}}",
+         path);
+  }
+  std::vector<Rigid3d> poses;
+  for (size_t i = 0; i < j["cam_from_rig"].size(); ++i) {
+    poses.push_back(JsonPose(j["cam_from_rig"][i], fmt::format("{}: cam_from_rig[{}]", path, i)));
+  }
+  return poses;
+}
+
 nlohmann::json QueryToJson(const Query& q) {
   nlohmann::json j;
   j["cameras"] = nlohmann::json::array();

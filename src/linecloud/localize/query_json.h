@@ -15,6 +15,10 @@ Query ReadQueryJson(const std::string& path);
 
 nlohmann::json QueryToJson(const Query& query);
 
+// RIG.json: {"cam_from_rig": [{"q": [w, x, y, z], "t": [x, y, z]}, ...]}, one
+// pose per camera. Throws Error naming the file and the field.
+std::vector<Rigid3d> ReadRigJson(const std::string& path);
+
 // The pose and a summary first — {"method", "success", "reason" (failures),
 // "q", "t", "scale", "center", "num_correspondences", "num_inliers",
 // "inlier_ratio", "uncertainty", "stats"} — then "inliers" (observation
