@@ -2,7 +2,9 @@
 
 #include <sqlite3.h>
 
+#include <cctype>
 #include <cstring>
+#include <filesystem>
 #include <tuple>
 
 #include <fmt/format.h>
@@ -114,7 +116,22 @@ std::pair<uint32_t, uint32_t> PairIdToImagePair(uint64_t pair_id) {
 ColmapDatabase::ColmapDatabase(const std::string& path) : path_(path) {
   if (!FileExists(path)) Fail("{}: database file not found", path);
   if (IsDirectory(path)) Fail("{}: is a directory, expected a COLMAP database", path);
-  if (sqlite3_open_v2(path.c_str(), &db_, SQLITE_OPEN_READONLY, nullptr) !=
+  // Reading must not write: a database in WAL mode (as COLMAP leaves them)
+  // opened read-only still gets -shm / -wal files created beside it, and fails
+  // on read-only media. Opened as immutable it gets none — unless a non-empty
+  // write-ahead log holds data COLMAP has not checkpointed, which only a normal
+  // (read-only) open reads.
+  std::error_code ec;
+  const bool pending_wal = std::filesystem::exists(path + "-wal", ec) &&
+                           std::filesystem::file_size(path + "-wal", ec) > 0;
+  std::string uri = "file:";
+  for (const char c : std::filesystem::absolute(path, ec).string()) {
+    const bool plain = std::isalnum(static_cast<unsigned char>(c)) || c == '/' || c == '.' ||
+                       c == '-' || c == '_' || c == '~';
+    uri += plain ? std::string(1, c) : fmt::format("%{:02X}", static_cast<unsigned char>(c));
+  }
+  uri += pending_wal ? "?mode=ro" : "?mode=ro&immutable=1";
+  if (sqlite3_open_v2(uri.c_str(), &db_, SQLITE_OPEN_READONLY | SQLITE_OPEN_URI, nullptr) !=
       SQLITE_OK) {
     const std::string message = db_ ? sqlite3_errmsg(db_) : "out of memory";
     sqlite3_close(db_);

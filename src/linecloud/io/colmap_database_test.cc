@@ -67,6 +67,26 @@ TEST(ColmapDatabase, ReadsMaupertuis) {
   EXPECT_GT(geometries[0].F.norm(), 0.0);
 }
 
+// Reading a database writes nothing beside it (COLMAP leaves databases in WAL
+// mode, where even a read-only open creates -shm / -wal files).
+TEST(ColmapDatabase, ReadingLeavesNoFileBehind) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
+  testing::TempDir tmp;
+  std::filesystem::create_directories(tmp.Path("ro dir"));
+  const std::string db = tmp.Path("ro dir/colmap.db");
+  std::filesystem::copy_file(testing::SharedDataPath("colmap-maupertuis/colmap.db"), db);
+  {
+    const ColmapDatabase database(db);
+    EXPECT_EQ(database.ReadImages().size(), 4u);
+  }
+  size_t files = 0;
+  for (const auto& e : std::filesystem::directory_iterator(tmp.Path("ro dir"))) {
+    ++files;
+    EXPECT_EQ(e.path().filename(), "colmap.db") << "created " << e.path();
+  }
+  EXPECT_EQ(files, 1u);
+}
+
 TEST(ColmapDatabase, DescriptorsPerPointFromTracks) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
   const ColmapDatabase db(SharedDataPath("colmap-maupertuis/colmap.db"));
