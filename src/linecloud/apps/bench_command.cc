@@ -1,10 +1,13 @@
+#include <filesystem>
 #include <iostream>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/eval/feature_bench.h"
 #include "linecloud/eval/match_bench.h"
+#include "linecloud/util/file.h"
 #include "linecloud/eval/localization_bench.h"
 #include "linecloud/eval/solver_bench.h"
 
@@ -212,6 +215,31 @@ void RegisterBenchCommand(CLI::App& app) {
                                r["ann_ms"].get<double>(), r["exact_ms_extrapolated"].get<double>(),
                                r["recall"].get<double>(), r["recall_queries"].get<size_t>(),
                                r["queries"].get<size_t>());
+    }
+  });
+
+  auto images = std::make_shared<std::vector<std::string>>();
+  auto colmap = std::make_shared<std::string>("colmap");
+  CLI::App* f = bench->add_subcommand(
+      "features", "Our SIFT against COLMAP's CPU extractor on the same images: keypoints and "
+                  "descriptors that agree, ms per megapixel of each (one thread)");
+  f->add_option("--image", *images, "Images (repeat)")->required();
+  f->add_option("--colmap", *colmap, "COLMAP's command")->capture_default_str();
+  f->callback([images, colmap] {
+    std::cout << "| image | size | COLMAP keypoints | ours | same place and orientation | "
+                 "descriptors identical / within ±1 | ours ms/MP | COLMAP CLI ms/MP | ratio |\n"
+                 "|---|---|---|---|---|---|---|---|---|\n";
+    const std::string scratch = JoinPaths(std::filesystem::temp_directory_path().string(),
+                                          "linecloud-bench-features");
+    for (const std::string& path : *images) {
+      const std::filesystem::path p(path);
+      const SiftAgreement a = CompareSiftWithColmap(p.parent_path().string(),
+                                                    p.filename().string(), scratch, *colmap);
+      const double mp = a.width * a.height / 1e6;
+      std::cout << fmt::format("| {} | {}x{} | {} | {} | {} | {} / {} | {:.0f} | {:.0f} | {:.2f} |\n",
+                               path, a.width, a.height, a.colmap, a.ours, a.located, a.identical,
+                               a.within_one, a.ours_ms / mp, a.colmap_ms / mp,
+                               a.ours_ms / a.colmap_ms);
     }
   });
 }
