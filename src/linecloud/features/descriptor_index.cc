@@ -1,5 +1,15 @@
 #include "linecloud/features/descriptor_index.h"
 
+// hnswlib 0.6.2's SSE path prefetches one entry past the end of a neighbour
+// list (the value only feeds _mm_prefetch; harmless, but AddressSanitizer
+// reports the read). Sanitizer builds take its portable path instead.
+#if defined(__SANITIZE_ADDRESS__)
+#define NO_MANUAL_VECTORIZATION
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define NO_MANUAL_VECTORIZATION
+#endif
+#endif
 #include <hnswlib/hnswlib.h>
 #include <sodium.h>
 
