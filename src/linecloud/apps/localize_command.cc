@@ -1,4 +1,5 @@
 #include <cstdio>
+#include <filesystem>
 #include <iostream>
 #include <memory>
 
@@ -73,42 +74,23 @@ void RunLocalize(LocalizeArgs args) {
     cloud = ReadLineCloud(args.map_path);
   }
   Query query;
-  std::vector<ImageQuery> photos;
+  std::optional<PhotoQuery> photos;
   if (!args.image_paths.empty()) {
-    const size_t n = args.image_paths.size();
-    if (args.cameras.empty()) Fail("--image needs --camera \"MODEL WIDTH HEIGHT PARAMS...\"");
-    if (args.cameras.size() != 1 && args.cameras.size() != n) {
-      Fail("{} photos but {} --camera strings (give one for all, or one per photo)", n,
-           args.cameras.size());
-    }
-    if (n > 1 && args.rig.empty()) {
-      Fail("{} photos need --rig RIG.json (their cam_from_rig poses)", n);
-    }
-    if (n > 1 && !method.multi) {
-      Fail("{} photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not {}",
-           n, method.name);
-    }
-    MapDescriptors descriptors;
-    if (cloud) {
-      descriptors = MapDescriptorsFromCloud(*cloud, args.map_path);
-    } else {
-      if (args.database.empty()) {
-        Fail("--image with --model needs the model's --database colmap.db for descriptors");
-      }
-      descriptors = MapDescriptorsFromModel(*model, args.database);
-    }
     if (!args.quiet) {
       args.image.progress = [](const std::string& what) { std::cerr << what << "\n"; };
     }
-    for (size_t k = 0; k < n; ++k) {
-      const Camera camera = ParseCameraString(args.cameras[args.cameras.size() == 1 ? 0 : k]);
-      photos.push_back(QueryFromImage(args.image_paths[k], camera, descriptors, args.image));
+    if (model && args.database.empty()) {
+      Fail("--image with --model needs the model's --database colmap.db for descriptors");
     }
-    query = n == 1 ? photos[0].query : CombineImageQueries(photos, ReadRigJson(args.rig));
+    photos = QueryFromPhotos(args.image_paths, args.cameras, args.rig, method,
+                             cloud ? MapDescriptorsFromCloud(*cloud, args.map_path)
+                                   : MapDescriptorsFromModel(*model, args.database),
+                             args.image);
+    query = photos->query;
   } else {
     query = ReadQueryJson(args.query_path);
   }
-  const std::string source = photos.empty() ? args.query_path : args.image_paths[0];
+  const std::string source = photos ? args.image_paths[0] : args.query_path;
   // Gravity: the query's from --gravity, the map's from the .lcm (lift
   // --gravity) or --map-gravity; QUERY.json fields win when present.
   if (!args.gravity.empty() && !query.gravity_query) {
@@ -138,7 +120,7 @@ void RunLocalize(LocalizeArgs args) {
     };
   }
   LocalizeResult result;
-  if (!photos.empty() && query.observations.size() < static_cast<size_t>(method.sample_size)) {
+  if (photos && query.observations.size() < static_cast<size_t>(method.sample_size)) {
     result.num_correspondences = static_cast<int>(query.observations.size());
     result.failure = fmt::format("{} matches, fewer than the {} the method's sample needs",
                                  query.observations.size(), method.sample_size);
@@ -153,29 +135,20 @@ void RunLocalize(LocalizeArgs args) {
       Fail("--format colmap writes one image's pose; this query has {} cameras (use JSON)",
            query.cameras.size());
     }
-    text = result.success ? LocalizeResultToColmapImagesTxt(result, "query")
+    const std::string name =
+        photos ? std::filesystem::path(args.image_paths[0]).filename().string() : "query";
+    text = result.success ? LocalizeResultToColmapImagesTxt(result, name)
                           : "# no pose: " + result.failure + "\n";
   } else {
     nlohmann::ordered_json j = LocalizeResultToJson(method, result, args.with_inliers);
-    if (!photos.empty()) {
-      size_t features = 0, matches = 0;
-      ImageQueryTimes t;
-      for (const ImageQuery& p : photos) {
-        features += p.features.size();
-        matches += p.matches.size();
-        t.decode_ms += p.times.decode_ms;
-        t.extract_ms += p.times.extract_ms;
-        t.match_ms += p.times.match_ms;
-      }
-      j["num_features"] = features;
-      j["num_matches"] = matches;
-      j["times_ms"] = {{"decode", t.decode_ms},   {"extract", t.extract_ms},
-                       {"match", t.match_ms},     {"ransac", result.stats.ransac_ms},
-                       {"refine", result.refine_ms}};
+    if (photos) {
+      const ImageQueryTimes t = photos->times();
+      AddPhotoStats(photos->num_features(), photos->num_matches(), t.decode_ms, t.extract_ms,
+                    t.match_ms, result, &j);
     }
     text = j.dump(2) + "\n";
   }
-  if (!photos.empty() && !args.overlay.empty()) {
+  if (photos && !args.overlay.empty()) {
     WriteLocalizationOverlay(args.overlay, ReadGreyImage(args.image_paths[0]), query, result, map);
   }
   if (!args.ply.empty() && result.has_pose) {

@@ -24,8 +24,7 @@ struct GroupMap {
   LineMap lines;               // keyed by point id (the owner's view)
 };
 
-GroupMap LoadGroupMap(const EvalWork& work, const std::string& work_dir, const EvalGroup& g,
-                      const LiftingKey& key) {
+GroupMap LoadGroupMap(const std::string& work_dir, const EvalGroup& g, const LiftingKey& key) {
   const Reconstruction model = ReadColmapModel(JoinPaths(work_dir, g.map_dir));
   std::vector<std::string> names;
   for (const EvalImage& im : g.images) names.push_back(im.name);
@@ -36,7 +35,6 @@ GroupMap LoadGroupMap(const EvalWork& work, const std::string& work_dir, const E
   for (const uint64_t id : m.descriptors.ids) xyz.push_back(model.points3D.at(id).xyz);
   m.points = PointMapFromModel(model);
   m.lines = LineMapByPointId(LiftPoints(m.descriptors.ids, xyz, key, {}), key);
-  (void)work;
   return m;
 }
 
@@ -68,7 +66,7 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
   json per_query = json::array();
   for (const EvalGroup& g : work.groups) {
     const auto t0 = std::chrono::steady_clock::now();
-    const GroupMap map = LoadGroupMap(work, work_dir, g, key);
+    const GroupMap map = LoadGroupMap(work_dir, g, key);
     for (const EvalImage& im : g.images) {
       const std::string path = JoinPaths(JoinPaths(work.dataset_dir, "images"), im.name);
       const ImageQuery q =

@@ -8,6 +8,7 @@
 
 #include "linecloud/io/colmap_database.h"
 #include "linecloud/io/track_descriptors.h"
+#include "linecloud/localize/query_json.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/text_parser.h"
 
@@ -131,6 +132,55 @@ ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
     out.query.observations.push_back(
         {0, Eigen::Vector2d(k.x, k.y), map.ids[m.map], std::nullopt});
   }
+  return out;
+}
+
+size_t PhotoQuery::num_features() const {
+  size_t n = 0;
+  for (const ImageQuery& p : photos) n += p.features.size();
+  return n;
+}
+
+size_t PhotoQuery::num_matches() const {
+  size_t n = 0;
+  for (const ImageQuery& p : photos) n += p.matches.size();
+  return n;
+}
+
+ImageQueryTimes PhotoQuery::times() const {
+  ImageQueryTimes t;
+  for (const ImageQuery& p : photos) {
+    t.decode_ms += p.times.decode_ms;
+    t.extract_ms += p.times.extract_ms;
+    t.match_ms += p.times.match_ms;
+  }
+  return t;
+}
+
+PhotoQuery QueryFromPhotos(const std::vector<std::string>& images,
+                           const std::vector<std::string>& cameras, const std::string& rig_json,
+                           const MethodInfo& method, const MapDescriptors& map,
+                           const ImageQueryOptions& options) {
+  const size_t n = images.size();
+  if (n == 0) Fail("no photo given (--image)");
+  if (cameras.empty()) Fail("--image needs --camera \"MODEL WIDTH HEIGHT PARAMS...\"");
+  if (cameras.size() != 1 && cameras.size() != n) {
+    Fail("{} photos but {} --camera strings (give one for all, or one per photo)", n,
+         cameras.size());
+  }
+  if (n > 1 && rig_json.empty()) Fail("{} photos need --rig RIG.json (their cam_from_rig poses)", n);
+  if (n > 1 && !method.multi) {
+    Fail("{} photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not {}", n,
+         method.name);
+  }
+  std::vector<Rigid3d> rig;
+  if (n > 1) rig = ReadRigJson(rig_json);  // before the long work
+  PhotoQuery out;
+  for (size_t k = 0; k < n; ++k) {
+    const Camera camera = ParseCameraString(cameras[cameras.size() == 1 ? 0 : k]);
+    out.photos.push_back(QueryFromImage(images[k], camera, map, options));
+  }
+  out.query = n == 1 ? out.photos[0].query : CombineImageQueries(out.photos, rig);
   return out;
 }
 

@@ -63,6 +63,25 @@ struct ImageQuery {
 ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
                           const MapDescriptors& map, const ImageQueryOptions& options);
 
+// One query from photos: one photo with its camera, or several (one camera
+// string for all or one each) with their rig (RIG.json, ReadRigJson) for an
+// m- method. `map` gives the descriptors: a line cloud, or a point model with
+// its COLMAP database. Throws Error on inconsistent counts, a single-image
+// method for several photos, a map without descriptors.
+struct PhotoQuery {
+  Query query;
+  std::vector<ImageQuery> photos;
+
+  // Totals over the photos (num_features, num_matches, stage times).
+  size_t num_features() const;
+  size_t num_matches() const;
+  ImageQueryTimes times() const;
+};
+PhotoQuery QueryFromPhotos(const std::vector<std::string>& images,
+                           const std::vector<std::string>& cameras, const std::string& rig_json,
+                           const MethodInfo& method, const MapDescriptors& map,
+                           const ImageQueryOptions& options);
+
 // Several photos of a calibrated rig (or of a short trajectory whose relative
 // poses are known) as one query for the m- methods: camera k is photo k, with
 // cam_from_rig[k]. Throws Error when the counts differ.

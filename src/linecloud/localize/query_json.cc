@@ -194,6 +194,17 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
   return j;
 }
 
+void AddPhotoStats(size_t num_features, size_t num_matches, double decode_ms, double extract_ms,
+                   double match_ms, const LocalizeResult& result, nlohmann::ordered_json* j) {
+  (*j)["num_features"] = num_features;
+  (*j)["num_matches"] = num_matches;
+  (*j)["times_ms"] = {{"decode", decode_ms},
+                      {"extract", extract_ms},
+                      {"match", match_ms},
+                      {"ransac", result.stats.ransac_ms},
+                      {"refine", result.refine_ms}};
+}
+
 std::string LocalizeResultToColmapImagesTxt(const LocalizeResult& r, const std::string& name,
                                             uint32_t image_id, uint32_t camera_id) {
   if (!r.success) Fail("no pose to write in COLMAP's format: {}", r.failure);

@@ -26,6 +26,11 @@ std::vector<Rigid3d> ReadRigJson(const std::string& path);
 nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const LocalizeResult& result,
                                             bool with_inliers = true);
 
+// Adds a photo query's num_features, num_matches and times_ms (decode,
+// extract, match, RANSAC, refine) to a result.
+void AddPhotoStats(size_t num_features, size_t num_matches, double decode_ms, double extract_ms,
+                   double match_ms, const LocalizeResult& result, nlohmann::ordered_json* j);
+
 // One line of COLMAP's images.txt for the pose (cam_from_world):
 // IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME, followed by an empty
 // points2D line, so that the pose drops into COLMAP's tools.
