@@ -11,7 +11,7 @@ packages=(
   libceres-dev   # the peer of our LM in the refinement benchmark only
   libcairo2-dev  # eval: PNG plots
   libvlfeat-dev libfreeimage-dev  # features: SIFT as COLMAP's CPU extractor, image decoding
-  libhnswlib-dev  # features: approximate nearest neighbours for large maps
+  libflann-dev liblz4-dev  # features: approximate nearest neighbours for large maps
   colmap         # eval: structure from motion (its command line)
   "$@"
 )

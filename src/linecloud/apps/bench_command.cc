@@ -185,16 +185,15 @@ void RegisterBenchCommand(CLI::App& app) {
   auto match = std::make_shared<MatchBenchOptions>();
   auto match_json = std::make_shared<bool>(false);
   CLI::App* m = bench->add_subcommand(
-      "match", "Descriptor matching on seeded SIFT-like bytes: the approximate index (hnswlib) "
+      "match", "Descriptor matching on seeded SIFT-like bytes: the approximate index (FLANN kd-trees) "
                "against exact matching, time and recall of the exact ratio-test matches");
   m->add_option("--map-sizes", match->map_sizes, "Map descriptor counts")->capture_default_str();
   m->add_option("--queries", match->queries, "Query descriptors")->capture_default_str();
   m->add_option("--recall-queries", match->recall_queries,
                 "Queries also matched exactly (recall)")->capture_default_str();
-  m->add_option("--threads", match->index.threads, "Threads building the index")
+  m->add_option("--checks", match->index.checks, "kd-tree leaves visited per query")
       ->capture_default_str();
-  m->add_option("--search-ef", match->index.search_ef, "hnswlib ef at search")
-      ->capture_default_str();
+  m->add_option("--trees", match->index.trees, "Randomised kd-trees")->capture_default_str();
   m->add_option("--seed", match->seed, "Random seed")->capture_default_str();
   m->add_flag("--json", *match_json, "Print JSON");
   m->callback([match, match_json] {
@@ -205,10 +204,10 @@ void RegisterBenchCommand(CLI::App& app) {
     }
     std::cout << fmt::format(
         "bench match: {} query descriptors (half noisy copies of map descriptors), ratio 0.8; "
-        "matching on one thread; index built on {} thread(s)\n"
+        "one thread\n"
         "| map size | index build s | ANN ms (all queries) | exact ms (extrapolated) | recall of "
         "exact matches |\n|---|---|---|---|---|\n",
-        match->queries, match->index.threads);
+        match->queries);
     for (const auto& r : rows) {
       std::cout << fmt::format("| {} | {:.1f} | {:.0f} | {:.0f} | {:.3f} ({} of {} queries) |\n",
                                r["map_size"].get<size_t>(), r["index_build_s"].get<double>(),

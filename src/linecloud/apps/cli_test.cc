@@ -370,6 +370,14 @@ TEST(Cli, LocalizeImageRejectsBadInput) {
   EXPECT_NE(j["reason"].get<std::string>().find("matches"), std::string::npos) << none.out;
   EXPECT_GT(j["num_features"].get<int>(), 100);
   EXPECT_TRUE(j["times_ms"].contains("extract"));
+  // The approximate index (forced on this small map): same kind of result,
+  // and the index cached beside the map for the next photo.
+  for (int run = 0; run < 2; ++run) {
+    const CliResult ann = localize(tmp.Path("m.lcm"), photo, camera, {"--approximate-from", "10"});
+    ASSERT_EQ(ann.code, 0) << ann.err;
+    EXPECT_GT(nlohmann::json::parse(ann.out)["num_matches"].get<int>(), 0);
+    EXPECT_TRUE(FileExists(tmp.Path("m.lcm.flann")));
+  }
   // The overlay is the photo's size (PNG header: width and height, big-endian).
   const std::string png = ReadFileToString(tmp.Path("o.png"));
   ASSERT_GT(png.size(), 24u);

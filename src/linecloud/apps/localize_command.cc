@@ -26,6 +26,7 @@ struct LocalizeArgs {
   std::vector<std::string> image_paths;
   std::vector<std::string> cameras;
   std::string rig;
+  bool exact_matching = false;
   std::string database;
   ImageQueryOptions image;
   std::string method;
@@ -82,6 +83,8 @@ void RunLocalize(LocalizeArgs args) {
     if (model && args.database.empty()) {
       Fail("--image with --model needs the model's --database colmap.db for descriptors");
     }
+    if (cloud && !args.exact_matching) args.image.index_cache = args.map_path + ".flann";
+    if (args.exact_matching) args.image.approximate_from = 0;
     photos = QueryFromPhotos(args.image_paths, args.cameras, args.rig, method,
                              cloud ? MapDescriptorsFromCloud(*cloud, args.map_path)
                                    : MapDescriptorsFromModel(*model, args.database),
@@ -191,7 +194,13 @@ void RegisterLocalizeCommand(CLI::App& app) {
                   "Lowe's ratio test on descriptor angles (COLMAP's default)")
       ->capture_default_str();
   cmd->add_flag("--cross-check", args->image.matching.cross_check,
-                "Keep only mutual nearest neighbours");
+                "Keep only mutual nearest neighbours (exact matching)");
+  cmd->add_option("--approximate-from", args->image.approximate_from,
+                  "Maps with at least this many descriptors use the approximate index")
+      ->capture_default_str();
+  cmd->add_flag("--exact-matching", args->exact_matching,
+                "Match exactly even on large maps (default: maps of 20 000 descriptors or more "
+                "use the approximate index, cached as MAP.lcm.flann)");
   cmd->add_option("--gravity", args->gravity,
                   "Gravity direction x,y,z in the query's (camera or rig) frame, for +u methods");
   cmd->add_option("--map-gravity", args->map_gravity,

@@ -95,7 +95,6 @@ nlohmann::json RunMatchBench(const MatchBenchOptions& o) {
     rows.push_back({{"map_size", n},
                     {"queries", o.queries},
                     {"index_build_s", build_s},
-                    {"index_threads", o.index.threads},
                     {"ann_ms", ann_ms},
                     {"exact_ms_per_query", exact_ms / o.recall_queries},
                     {"exact_ms_extrapolated", exact_ms / o.recall_queries * o.queries},

@@ -3,7 +3,7 @@
 // seeded SIFT-like bytes: RootSIFT of gamma-distributed gradient histograms
 // for the map; queries half noisy copies of map descriptors (each bin scaled
 // by exp(N(0, 0.2)) plus N(0, 3), renormalised) and half unrelated ones. One
-// thread for matching; the index build may use more.
+// thread.
 #pragma once
 
 #include <cstdint>

@@ -1,16 +1,6 @@
 #include "linecloud/features/descriptor_index.h"
 
-// hnswlib 0.6.2's SSE path prefetches one entry past the end of a neighbour
-// list (the value only feeds _mm_prefetch; harmless, but AddressSanitizer
-// reports the read). Sanitizer builds take its portable path instead.
-#if defined(__SANITIZE_ADDRESS__)
-#define NO_MANUAL_VECTORIZATION
-#elif defined(__has_feature)
-#if __has_feature(address_sanitizer)
-#define NO_MANUAL_VECTORIZATION
-#endif
-#endif
-#include <hnswlib/hnswlib.h>
+#include <flann/flann.hpp>
 #include <sodium.h>
 
 #include <algorithm>
@@ -18,7 +8,6 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <thread>
 
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
@@ -27,7 +16,7 @@ namespace linecloud {
 namespace {
 
 constexpr int kDim = 128;
-constexpr char kMagic[] = "linecloud-hnsw-v1";
+constexpr char kMagic[] = "linecloud-flann-kdtree-v1";
 
 std::array<unsigned char, 32> DescriptorsHash(std::span<const uint8_t> d) {
   std::array<unsigned char, 32> h;
@@ -54,16 +43,19 @@ float Angle(float dot) {
 
 struct DescriptorIndex::Impl {
   std::span<const uint8_t> descriptors;
-  hnswlib::L2Space space{kDim};
-  std::unique_ptr<hnswlib::HierarchicalNSW<float>> graph;
+  std::vector<float> data;  // the descriptors as float rows (FLANN indexes these)
+  std::unique_ptr<flann::Index<flann::L2<float>>> index;
   DescriptorIndexOptions options;
+
+  flann::Matrix<float> Matrix() {
+    return flann::Matrix<float>(data.data(), data.size() / kDim, kDim);
+  }
 };
 
 void DescriptorIndexOptions::Check() const {
-  if (graph_degree < 2 || construction_ef < 2 || search_ef < 2 || threads < 1) {
-    Fail("descriptor index: degree {}, construction ef {}, search ef {} and threads {} must be "
-         "at least 2, 2, 2 and 1",
-         graph_degree, construction_ef, search_ef, threads);
+  if (trees < 1 || checks < 2 || threads < 1) {
+    Fail("descriptor index: trees {}, checks {} and threads {} must be at least 1, 2 and 1",
+         trees, checks, threads);
   }
 }
 
@@ -74,32 +66,15 @@ DescriptorIndex::DescriptorIndex(std::span<const uint8_t> descriptors,
   if (descriptors.size() % kDim != 0) Fail("descriptor index: rows of {} bytes expected", kDim);
   impl_->descriptors = descriptors;
   impl_->options = options;
-  const size_t n = descriptors.size() / kDim;
-  impl_->graph = std::make_unique<hnswlib::HierarchicalNSW<float>>(
-      &impl_->space, std::max<size_t>(n, 1), options.graph_degree, options.construction_ef,
-      /*random_seed=*/100);
-  const auto add = [&](size_t begin, size_t step) {
-    std::array<float, kDim> v;
-    for (size_t i = begin; i < n; i += step) {
-      ToFloat(descriptors.data() + i * kDim, v.data());
-      impl_->graph->addPoint(v.data(), i);
-    }
-  };
-  if (n > 0) {
-    add(0, n);  // the first point alone: the graph's entry point
-    std::vector<std::thread> workers;
-    const size_t t = static_cast<size_t>(options.threads);
-    for (size_t w = 0; w < t; ++w) {
-      workers.emplace_back([&, w] {
-        std::array<float, kDim> v;
-        for (size_t i = 1 + w; i < n; i += t) {
-          ToFloat(descriptors.data() + i * kDim, v.data());
-          impl_->graph->addPoint(v.data(), i);
-        }
-      });
-    }
-    for (std::thread& w : workers) w.join();
-  }
+  impl_->data.resize(descriptors.size());
+  for (size_t i = 0; i < descriptors.size(); i += kDim) ToFloat(descriptors.data() + i, &impl_->data[i]);
+  if (impl_->data.empty()) return;
+  // FLANN's randomised kd-trees draw their split dimensions with rand():
+  // seeded, so that an index (and its matches) is the same on every run.
+  std::srand(1);
+  impl_->index = std::make_unique<flann::Index<flann::L2<float>>>(
+      impl_->Matrix(), flann::KDTreeIndexParams(options.trees));
+  impl_->index->buildIndex();
 }
 
 DescriptorIndex::~DescriptorIndex() = default;
@@ -107,9 +82,10 @@ DescriptorIndex::~DescriptorIndex() = default;
 size_t DescriptorIndex::size() const { return impl_->descriptors.size() / kDim; }
 
 void DescriptorIndex::Save(const std::string& path) const {
-  // hnswlib writes to a path: write it beside, then prepend our header.
-  const std::string raw = path + ".hnswlib.tmp";
-  impl_->graph->saveIndex(raw);
+  if (!impl_->index) Fail("{}: an empty index has nothing to save", path);
+  // FLANN writes to a path: write it beside, then prepend our header.
+  const std::string raw = path + ".flann.tmp";
+  impl_->index->save(raw);
   std::string body = ReadFileToString(raw);
   std::remove(raw.c_str());
   const auto hash = DescriptorsHash(impl_->descriptors);
@@ -123,7 +99,7 @@ void DescriptorIndex::Save(const std::string& path) const {
 std::unique_ptr<DescriptorIndex> DescriptorIndex::Load(const std::string& path,
                                                        std::span<const uint8_t> descriptors,
                                                        const DescriptorIndexOptions& options) {
-  if (!FileExists(path)) return nullptr;
+  if (!FileExists(path) || descriptors.empty()) return nullptr;
   std::string data;
   try {
     data = ReadFileToString(path);
@@ -134,21 +110,24 @@ std::unique_ptr<DescriptorIndex> DescriptorIndex::Load(const std::string& path,
   if (data.compare(0, magic.size(), magic) != 0 || data.size() < magic.size() + 32) return nullptr;
   const auto hash = DescriptorsHash(descriptors);
   if (std::memcmp(data.data() + magic.size(), hash.data(), 32) != 0) return nullptr;  // stale
-  const std::string raw = path + ".hnswlib.tmp";
+  const std::string raw = path + ".flann.tmp";
   WriteFileAtomically(raw, [&](std::ostream& os) { os << data.substr(magic.size() + 32); });
   std::unique_ptr<DescriptorIndex> index(new DescriptorIndex());
   index->impl_ = std::make_unique<Impl>();
-  index->impl_->descriptors = descriptors;
-  index->impl_->options = options;
+  Impl& impl = *index->impl_;
+  impl.descriptors = descriptors;
+  impl.options = options;
+  impl.data.resize(descriptors.size());
+  for (size_t i = 0; i < descriptors.size(); i += kDim) ToFloat(descriptors.data() + i, &impl.data[i]);
   try {
-    index->impl_->graph = std::make_unique<hnswlib::HierarchicalNSW<float>>(
-        &index->impl_->space, raw, false, descriptors.size() / kDim);
+    impl.index = std::make_unique<flann::Index<flann::L2<float>>>(impl.Matrix(),
+                                                                   flann::SavedIndexParams(raw));
   } catch (const std::exception&) {
     std::remove(raw.c_str());
     return nullptr;
   }
   std::remove(raw.c_str());
-  if (index->impl_->graph->cur_element_count != descriptors.size() / kDim) return nullptr;
+  if (impl.index->size() != descriptors.size() / kDim) return nullptr;
   return index;
 }
 
@@ -158,24 +137,27 @@ std::vector<DescriptorMatch> DescriptorIndex::Match(std::span<const uint8_t> que
   if (options.cross_check) Fail("matching: the approximate index has no mutual check");
   if (query.size() % kDim != 0) Fail("matching: query rows of {} bytes expected", kDim);
   std::vector<DescriptorMatch> matches;
-  if (size() < 2) return matches;
-  impl_->graph->setEf(static_cast<size_t>(impl_->options.search_ef));
-  std::array<float, kDim> v;
+  if (size() < 2 || query.empty()) return matches;
   const size_t nq = query.size() / kDim;
+  std::vector<float> q(query.size());
+  for (size_t i = 0; i < query.size(); i += kDim) ToFloat(query.data() + i, &q[i]);
+  std::vector<int> indices(2 * nq, -1);
+  std::vector<float> distances(2 * nq);
+  flann::Matrix<int> ind(indices.data(), nq, 2);
+  flann::Matrix<float> dist(distances.data(), nq, 2);
+  flann::SearchParams params(impl_->options.checks);
+  params.cores = 1;
+  impl_->index->knnSearch(flann::Matrix<float>(q.data(), nq, kDim), ind, dist, 2, params);
   for (size_t i = 0; i < nq; ++i) {
-    const uint8_t* q = query.data() + i * kDim;
-    ToFloat(q, v.data());
-    auto result = impl_->graph->searchKnn(v.data(), 2);
-    if (result.size() < 2) continue;
-    const size_t second = result.top().second;
-    result.pop();
-    const size_t best = result.top().second;
-    const float best_angle = Angle(Dot(q, impl_->descriptors.data() + best * kDim));
-    const float second_angle = Angle(Dot(q, impl_->descriptors.data() + second * kDim));
+    const int best = indices[2 * i], second = indices[2 * i + 1];
+    if (best < 0 || second < 0) continue;
+    const uint8_t* qi = query.data() + i * kDim;
+    const float best_angle = Angle(Dot(qi, impl_->descriptors.data() + size_t(best) * kDim));
+    const float second_angle = Angle(Dot(qi, impl_->descriptors.data() + size_t(second) * kDim));
     if (best_angle > options.max_distance || best_angle >= options.max_ratio * second_angle) {
       continue;
     }
-    matches.push_back({static_cast<int>(i), static_cast<int>(best),
+    matches.push_back({static_cast<int>(i), best,
                        second_angle > 0 ? best_angle / second_angle : 1.0f});
   }
   return matches;

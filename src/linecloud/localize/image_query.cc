@@ -103,7 +103,8 @@ Eigen::Vector3d ParseDirection(const std::string& text, const std::string& optio
 }
 
 ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
-                          const MapDescriptors& map, const ImageQueryOptions& options) {
+                          const MapDescriptors& map, const ImageQueryOptions& options,
+                          const DescriptorIndex* index) {
   const auto say = [&](const std::string& what) {
     if (options.progress) options.progress(what);
   };
@@ -123,7 +124,8 @@ ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
   say(fmt::format("{} features in {:.0f} ms; matching to {} map descriptors",
                   out.features.size(), out.times.extract_ms, map.ids.size()));
   start = Clock::now();
-  out.matches = MatchDescriptors(out.features.descriptors, map.descriptors, options.matching);
+  out.matches = index ? index->Match(out.features.descriptors, options.matching)
+                      : MatchDescriptors(out.features.descriptors, map.descriptors, options.matching);
   out.times.match_ms = MsSince(start);
   say(fmt::format("{} matches in {:.0f} ms", out.matches.size(), out.times.match_ms));
   out.query.cameras.push_back(camera);
@@ -175,10 +177,33 @@ PhotoQuery QueryFromPhotos(const std::vector<std::string>& images,
   }
   std::vector<Rigid3d> rig;
   if (n > 1) rig = ReadRigJson(rig_json);  // before the long work
+  std::vector<Camera> parsed;
+  for (size_t k = 0; k < n; ++k) parsed.push_back(ParseCameraString(cameras[cameras.size() == 1 ? 0 : k]));
+  // Large maps: the approximate index, built once and cached beside the map.
+  std::unique_ptr<DescriptorIndex> index;
+  if (options.approximate_from > 0 && map.ids.size() >= options.approximate_from &&
+      !options.matching.cross_check) {
+    if (!options.index_cache.empty()) {
+      index = DescriptorIndex::Load(options.index_cache, map.descriptors, {});
+    }
+    if (!index) {
+      if (options.progress) {
+        options.progress(fmt::format("building the descriptor index of {} map descriptors",
+                                     map.ids.size()));
+      }
+      index = std::make_unique<DescriptorIndex>(map.descriptors, DescriptorIndexOptions{});
+      if (!options.index_cache.empty()) {
+        try {
+          index->Save(options.index_cache);
+        } catch (const Error& e) {
+          if (options.progress) options.progress(std::string("index not cached: ") + e.what());
+        }
+      }
+    }
+  }
   PhotoQuery out;
   for (size_t k = 0; k < n; ++k) {
-    const Camera camera = ParseCameraString(cameras[cameras.size() == 1 ? 0 : k]);
-    out.photos.push_back(QueryFromImage(images[k], camera, map, options));
+    out.photos.push_back(QueryFromImage(images[k], parsed[k], map, options, index.get()));
   }
   out.query = n == 1 ? out.photos[0].query : CombineImageQueries(out.photos, rig);
   return out;

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "linecloud/features/descriptor_index.h"
 #include "linecloud/features/matching.h"
 #include "linecloud/features/sift.h"
 #include "linecloud/geometry/camera.h"
@@ -44,6 +45,11 @@ Eigen::Vector3d ParseDirection(const std::string& text, const std::string& optio
 struct ImageQueryOptions {
   SiftOptions sift;
   DescriptorMatchOptions matching;
+  // Maps with at least this many descriptors are matched through the
+  // approximate index (DescriptorIndex), smaller ones exactly; 0: always
+  // exact. The index is loaded from / saved to `index_cache` when given.
+  size_t approximate_from = 20000;
+  std::string index_cache;
   std::function<void(const std::string&)> progress;  // stage messages
 };
 
@@ -60,8 +66,10 @@ struct ImageQuery {
 
 // Throws Error naming the image when it cannot be read or its size differs
 // from the camera's.
+// `index`, when given, matches instead of the exact search.
 ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
-                          const MapDescriptors& map, const ImageQueryOptions& options);
+                          const MapDescriptors& map, const ImageQueryOptions& options,
+                          const DescriptorIndex* index = nullptr);
 
 // One query from photos: one photo with its camera, or several (one camera
 // string for all or one each) with their rig (RIG.json, ReadRigJson) for an
