@@ -53,8 +53,8 @@ TEST(DescriptorIndex, FindsTheExactRatioTestMatchesAndSurvivesASaveAndLoad) {
   EXPECT_LE(approx.size(), exact.size() + 5);  // the same tests decide: no extra matches to speak of
 
   testing::TempDir tmp;
-  index.Save(tmp.Path("map.hnsw"));
-  const auto loaded = DescriptorIndex::Load(tmp.Path("map.hnsw"), map, {});
+  index.Save(tmp.Path("map.flann"));
+  const auto loaded = DescriptorIndex::Load(tmp.Path("map.flann"), map, {});
   ASSERT_NE(loaded, nullptr);
   const auto again = loaded->Match(query, options);
   ASSERT_EQ(again.size(), approx.size());
@@ -62,10 +62,10 @@ TEST(DescriptorIndex, FindsTheExactRatioTestMatchesAndSurvivesASaveAndLoad) {
   // Other descriptors: the saved index is stale and not used.
   std::vector<uint8_t> other = map;
   other[17] ^= 1;
-  EXPECT_EQ(DescriptorIndex::Load(tmp.Path("map.hnsw"), other, {}), nullptr);
-  EXPECT_EQ(DescriptorIndex::Load(tmp.Path("missing.hnsw"), map, {}), nullptr);
-  WriteFileAtomically(tmp.Path("junk.hnsw"), [](std::ostream& os) { os << "junk"; });
-  EXPECT_EQ(DescriptorIndex::Load(tmp.Path("junk.hnsw"), map, {}), nullptr);
+  EXPECT_EQ(DescriptorIndex::Load(tmp.Path("map.flann"), other, {}), nullptr);
+  EXPECT_EQ(DescriptorIndex::Load(tmp.Path("missing.flann"), map, {}), nullptr);
+  WriteFileAtomically(tmp.Path("junk.flann"), [](std::ostream& os) { os << "junk"; });
+  EXPECT_EQ(DescriptorIndex::Load(tmp.Path("junk.flann"), map, {}), nullptr);
 }
 
 }  // namespace
