@@ -16,7 +16,6 @@ namespace {
 
 constexpr char kDirectionPurpose[] = "linecloud/lift/direction/v1";
 constexpr char kLineIdPurpose[] = "linecloud/lift/line-id/v1";
-constexpr int kFeistelRounds = 8;
 // ChaCha20's 8-byte nonce; the 64-bit block counter carries the point id.
 constexpr unsigned char kNonce[crypto_stream_chacha20_NONCEBYTES] = {
     'l', 'c', 'd', 'i', 'r', 'v', '0', '1'};
@@ -36,68 +35,74 @@ Eigen::Vector3d SphereFromUniforms(double u1, double u2) {
   return Eigen::Vector3d(r * std::cos(phi), r * std::sin(phi), z);
 }
 
-// The Feistel network's round keys: the first 16 bytes of a purpose subkey.
-using ShortKey = std::array<unsigned char, crypto_shorthash_KEYBYTES>;
+// Speck64/128 (Beaulieu, Shors, Smith, Treatman-Clark, Weeks, Wingers, "The
+// SIMON and SPECK lightweight block ciphers", DAC 2015): a 64-bit block
+// cipher, i.e. a keyed permutation of the 64-bit ids. 27 rounds of
+//   x ← ((x ⋙ 8) + y) ⊕ k_i,   y ← (y ⋘ 3) ⊕ x
+// on 32-bit words, round keys from the 128-bit key by the same round function.
+constexpr int kSpeckRounds = 27;
+using RoundKeys = std::array<uint32_t, kSpeckRounds>;
 
-ShortKey LineIdKey(const LiftingKey& key) {
-  const LiftingKey::Bytes subkey = key.DeriveSubkey(kLineIdPurpose);
-  ShortKey k;
-  std::memcpy(k.data(), subkey.data(), k.size());
+constexpr uint32_t Rotr(uint32_t v, int r) { return (v >> r) | (v << (32 - r)); }
+constexpr uint32_t Rotl(uint32_t v, int r) { return (v << r) | (v >> (32 - r)); }
+
+RoundKeys SpeckKeySchedule(const std::array<uint32_t, 4>& key) {
+  RoundKeys k;
+  std::array<uint32_t, kSpeckRounds + 2> l;
+  k[0] = key[0];
+  l[0] = key[1], l[1] = key[2], l[2] = key[3];
+  for (int i = 0; i < kSpeckRounds - 1; ++i) {
+    l[i + 3] = (k[i] + Rotr(l[i], 8)) ^ static_cast<uint32_t>(i);
+    k[i + 1] = Rotl(k[i], 3) ^ l[i + 3];
+  }
   return k;
 }
 
-uint32_t FeistelRound(const ShortKey& k, int round, uint32_t half) {
-  unsigned char in[5] = {static_cast<unsigned char>(round), static_cast<unsigned char>(half),
-                         static_cast<unsigned char>(half >> 8),
-                         static_cast<unsigned char>(half >> 16),
-                         static_cast<unsigned char>(half >> 24)};
-  unsigned char out[crypto_shorthash_BYTES];
-  crypto_shorthash(out, in, sizeof(in), k.data());
-  uint32_t f;
-  std::memcpy(&f, out, 4);
-  return f;
+// The block is (x, y) = (high word, low word) of the id.
+uint64_t SpeckEncrypt(const RoundKeys& k, uint64_t block) {
+  uint32_t x = static_cast<uint32_t>(block >> 32), y = static_cast<uint32_t>(block);
+  for (int i = 0; i < kSpeckRounds; ++i) {
+    x = (Rotr(x, 8) + y) ^ k[i];
+    y = Rotl(y, 3) ^ x;
+  }
+  return (static_cast<uint64_t>(x) << 32) | y;
 }
 
-// A keyed permutation of the 64-bit ids (Luby–Rackoff: a balanced Feistel
-// network with pseudo-random round functions is a pseudo-random permutation).
-uint64_t FeistelForward(const ShortKey& k, uint64_t x) {
-  uint32_t left = static_cast<uint32_t>(x >> 32), right = static_cast<uint32_t>(x);
-  for (int r = 0; r < kFeistelRounds; ++r) {
-    const uint32_t next = left ^ FeistelRound(k, r, right);
-    left = right;
-    right = next;
+uint64_t SpeckDecrypt(const RoundKeys& k, uint64_t block) {
+  uint32_t x = static_cast<uint32_t>(block >> 32), y = static_cast<uint32_t>(block);
+  for (int i = kSpeckRounds - 1; i >= 0; --i) {
+    y = Rotr(y ^ x, 3);
+    x = Rotl((x ^ k[i]) - y, 8);
   }
-  return (static_cast<uint64_t>(left) << 32) | right;
+  return (static_cast<uint64_t>(x) << 32) | y;
 }
 
-uint64_t FeistelInverse(const ShortKey& k, uint64_t y) {
-  uint32_t left = static_cast<uint32_t>(y >> 32), right = static_cast<uint32_t>(y);
-  for (int r = kFeistelRounds - 1; r >= 0; --r) {
-    const uint32_t previous = right ^ FeistelRound(k, r, left);
-    right = left;
-    left = previous;
-  }
-  return (static_cast<uint64_t>(left) << 32) | right;
+RoundKeys LineIdKey(const LiftingKey& key) {
+  const LiftingKey::Bytes subkey = key.DeriveSubkey(kLineIdPurpose);
+  std::array<uint32_t, 4> words;
+  std::memcpy(words.data(), subkey.data(), sizeof(words));
+  return SpeckKeySchedule(words);
 }
 
 }  // namespace
 
 uint64_t LineIdOfPoint(const LiftingKey& key, uint64_t point_id) {
-  EnsureSodiumInitialized();
-  return FeistelForward(LineIdKey(key), point_id);
+  return SpeckEncrypt(LineIdKey(key), point_id);
 }
 
 uint64_t PointIdOfLine(const LiftingKey& key, uint64_t line_id) {
-  EnsureSodiumInitialized();
-  return FeistelInverse(LineIdKey(key), line_id);
+  return SpeckDecrypt(LineIdKey(key), line_id);
+}
+
+uint64_t Speck64Encrypt(const std::array<uint32_t, 4>& key, uint64_t block) {
+  return SpeckEncrypt(SpeckKeySchedule(key), block);
 }
 
 std::vector<uint64_t> LineIdsOfPoints(const LiftingKey& key,
                                       std::span<const uint64_t> point_ids) {
-  EnsureSodiumInitialized();
-  const ShortKey k = LineIdKey(key);
+  const RoundKeys k = LineIdKey(key);
   std::vector<uint64_t> out(point_ids.size());
-  for (size_t i = 0; i < point_ids.size(); ++i) out[i] = FeistelForward(k, point_ids[i]);
+  for (size_t i = 0; i < point_ids.size(); ++i) out[i] = SpeckEncrypt(k, point_ids[i]);
   return out;
 }
 
@@ -149,12 +154,14 @@ LineCloud LiftPoints(std::span<const uint64_t> ids,
   std::vector<Eigen::Vector3d> directions(ids.size());
   std::vector<uint8_t> indices(compact_key ? ids.size() : 0);
   KeyedDirections(key, ids, directions.data(), compact_key ? indices.data() : nullptr);
-  const std::vector<uint64_t> line_ids = LineIdsOfPoints(key, ids);
   // Stored in increasing line-id order: a pseudo-random order of the points.
-  std::vector<size_t> order(ids.size());
-  std::iota(order.begin(), order.end(), size_t{0});
-  std::sort(order.begin(), order.end(),
-            [&](size_t a, size_t b) { return line_ids[a] < line_ids[b]; });
+  // (line id, input index) pairs sort contiguously.
+  std::vector<std::pair<uint64_t, size_t>> order(ids.size());
+  {
+    const RoundKeys k = LineIdKey(key);
+    for (size_t i = 0; i < ids.size(); ++i) order[i] = {SpeckEncrypt(k, ids[i]), i};
+  }
+  std::sort(order.begin(), order.end());
 
   LineCloud cloud;
   cloud.encoding = options.encoding;
@@ -163,8 +170,8 @@ LineCloud LiftPoints(std::span<const uint64_t> ids,
   cloud.lines.resize(ids.size());
   if (options.encoding == LineEncoding::kCompact) cloud.compact.resize(ids.size());
   for (size_t k = 0; k < ids.size(); ++k) {
-    const size_t i = order[k];
-    cloud.ids[k] = line_ids[i];
+    const size_t i = order[k].second;
+    cloud.ids[k] = order[k].first;
     if (!compact_key) {
       cloud.lines[k] = PluckerLine(directions[i], points[i].cross(directions[i]));
       continue;

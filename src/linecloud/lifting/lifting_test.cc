@@ -96,6 +96,14 @@ TEST(Lifting, EveryEncodingOfAKeyStoresTheSameLine) {
   EXPECT_NE(KeyFromSeed(11).Fingerprint(), key.Fingerprint());
 }
 
+// Speck64/128's test vector from its authors' paper (key words k0, l0, l1,
+// l2 = 03020100, 0b0a0908, 13121110, 1b1a1918; plaintext 3b726574 7475432d).
+TEST(Lifting, Speck64MatchesItsPublishedTestVector) {
+  EXPECT_EQ(Speck64Encrypt({0x03020100u, 0x0b0a0908u, 0x13121110u, 0x1b1a1918u},
+                           0x3b7265747475432dULL),
+            0x8c6fa548454e028bULL);
+}
+
 TEST(Lifting, LineIdsAreAKeyedPermutationStoredInOrder) {
   std::vector<uint64_t> ids;
   std::vector<Eigen::Vector3d> points;
