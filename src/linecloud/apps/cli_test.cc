@@ -595,6 +595,18 @@ TEST(Cli, BadInputGivesOneErrorLineAndNoOutput) {
   EXPECT_EQ(RunCli({"lift", "--help"}).code, 0);
 }
 
+// A tiny demo scene, whose queries see fewer points than some samples need,
+// still runs and says why those queries have no pose.
+TEST(Cli, ATinyDemoSaysWhyQueriesHaveNoPose) {
+  TempDir tmp;
+  const CliResult r = RunCli({"demo", "--out", tmp.Path("d"), "--points", "500", "--images", "6",
+                              "--queries", "2"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("no pose: p6L query_000: method p6L needs at least 6 observations"),
+            std::string::npos)
+      << r.out;
+}
+
 TEST(Cli, DemoIsReproducibleAndItsFilesDoNotIntersect) {
   TempDir tmp;
   CliResult r = RunCli({"demo", "--out", tmp.Path("demo"), "--points", "800", "--images", "8",
