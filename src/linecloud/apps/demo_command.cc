@@ -31,7 +31,10 @@ struct DemoArgs {
 // Each observation carries the point id (for --model) and the line id (for
 // --map), as only the key's owner can write them.
 void AddLineIds(const LiftingKey& key, Query* query) {
-  for (QueryObservation& o : query->observations) o.line_id = LineIdOfPoint(key, o.id);
+  std::vector<uint64_t> point_ids;
+  for (const QueryObservation& o : query->observations) point_ids.push_back(o.id);
+  const std::vector<uint64_t> line_ids = LineIdsOfPoints(key, point_ids);
+  for (size_t i = 0; i < line_ids.size(); ++i) query->observations[i].line_id = line_ids[i];
 }
 
 nlohmann::json QueryJson(const SyntheticQuery& q, const Eigen::Vector3d& gravity_world,

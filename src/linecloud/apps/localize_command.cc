@@ -152,7 +152,7 @@ void RunLocalize(LocalizeArgs args) {
     text = j.dump(2) + "\n";
   }
   if (photos && !args.overlay.empty()) {
-    WriteLocalizationOverlay(args.overlay, ReadGreyImage(args.image_paths[0]), query, result, map);
+    WriteLocalizationOverlay(args.overlay, photos->photos[0].image, query, result, map);
   }
   if (!args.ply.empty() && result.has_pose) {
     WriteLocalizationPly(args.ply, cloud ? &*cloud : nullptr, model ? &*model : nullptr,

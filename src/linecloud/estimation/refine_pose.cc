@@ -130,33 +130,52 @@ RefineSummary RefinePose(const PoseData& data, std::span<const int> indices,
   return summary;
 }
 
-PoseUncertainty EstimatePoseUncertainty(const PoseData& data, std::span<const int> indices,
-                                        const Sim3d& query_from_world, bool similarity) {
-  constexpr double kInf = std::numeric_limits<double>::infinity();
-  const PoseLinearization linearization(data, query_from_world);
+namespace {
+
+// What the correspondences say about a pose: the Gauss–Newton information
+// F = Σᵢ JᵢᵀJᵢ of their residuals at `pose` on its first `dim` parameters,
+// F⁻¹ (empty when F is singular), and the residuals' Σ r² and row count.
+struct PoseInformation {
+  Eigen::MatrixXd inverse;
+  double sum_sq = 0;
+  int rows = 0;
+};
+
+PoseInformation InformationAt(const PoseData& data, std::span<const int> indices,
+                              const Sim3d& pose, int dim) {
+  const PoseLinearization linearization(data, pose);
   Eigen::Matrix<double, 7, 7> fisher = Eigen::Matrix<double, 7, 7>::Zero();
   Eigen::Vector2d r;
   Eigen::Matrix<double, 2, 7> j;
-  double sum_sq = 0;
-  int rows = 0;
+  PoseInformation info;
   for (const int i : indices) {
     const int n = ReprojectionResidual(data, linearization, static_cast<size_t>(i), &r, &j);
     for (int row = 0; row < n; ++row) fisher.noalias() += j.row(row).transpose() * j.row(row);
-    sum_sq += r[0] * r[0] + (n == 2 ? r[1] * r[1] : 0.0);
-    rows += n;
+    info.sum_sq += r[0] * r[0] + (n == 2 ? r[1] * r[1] : 0.0);
+    info.rows += n;
   }
-  const int dim = similarity ? 7 : 6;
-  PoseUncertainty u;
-  u.rotation_deg = u.position = kInf;
-  if (rows <= dim) return u;
-  u.sigma_px = std::sqrt(sum_sq / (rows - dim));
   const Eigen::MatrixXd f = fisher.topLeftCorner(dim, dim);
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(f);
   const Eigen::VectorXd& values = eigen.eigenvalues();  // ascending
-  if (!(values[0] > 1e-12 * values[dim - 1])) return u;
-  const Eigen::MatrixXd covariance = u.sigma_px * u.sigma_px * eigen.eigenvectors() *
-                                     values.cwiseInverse().asDiagonal() *
-                                     eigen.eigenvectors().transpose();
+  if (values[0] > 1e-12 * values[dim - 1]) {
+    info.inverse =
+        eigen.eigenvectors() * values.cwiseInverse().asDiagonal() * eigen.eigenvectors().transpose();
+  }
+  return info;
+}
+
+}  // namespace
+
+PoseUncertainty EstimatePoseUncertainty(const PoseData& data, std::span<const int> indices,
+                                        const Sim3d& query_from_world, bool similarity) {
+  const int dim = similarity ? 7 : 6;
+  const PoseInformation info = InformationAt(data, indices, query_from_world, dim);
+  PoseUncertainty u;
+  u.rotation_deg = u.position = std::numeric_limits<double>::infinity();
+  if (info.rows <= dim) return u;
+  u.sigma_px = std::sqrt(info.sum_sq / (info.rows - dim));
+  if (info.inverse.size() == 0) return u;
+  const Eigen::MatrixXd covariance = u.sigma_px * u.sigma_px * info.inverse;
   u.rotation_deg = std::sqrt(covariance.topLeftCorner<3, 3>().trace()) * 180.0 / std::numbers::pi;
   // The centre's Jacobian by central differences of the perturbation.
   const Eigen::Vector3d centre = query_from_world.Inverse().translation;
@@ -177,22 +196,9 @@ PoseUncertainty EstimatePoseUncertainty(const PoseData& data, std::span<const in
 
 double RotationErrorBound(const PoseData& data, std::span<const int> indices,
                           const Sim3d& query_from_world, double sigma_px, bool similarity) {
-  const PoseLinearization linearization(data, query_from_world);
-  Eigen::Matrix<double, 7, 7> fisher = Eigen::Matrix<double, 7, 7>::Zero();
-  Eigen::Vector2d r;
-  Eigen::Matrix<double, 2, 7> j;
-  for (const int i : indices) {
-    const int n = ReprojectionResidual(data, linearization, static_cast<size_t>(i), &r, &j);
-    for (int row = 0; row < n; ++row) fisher.noalias() += j.row(row).transpose() * j.row(row);
-  }
-  const int dim = similarity ? 7 : 6;
-  const Eigen::MatrixXd f = fisher.topLeftCorner(dim, dim);
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(f);
-  const Eigen::VectorXd& values = eigen.eigenvalues();  // ascending
-  if (!(values[0] > 1e-12 * values[dim - 1])) return std::numeric_limits<double>::infinity();
-  const Eigen::MatrixXd covariance =
-      eigen.eigenvectors() * values.cwiseInverse().asDiagonal() * eigen.eigenvectors().transpose();
-  return sigma_px * std::sqrt(covariance.topLeftCorner<3, 3>().trace());
+  const PoseInformation info = InformationAt(data, indices, query_from_world, similarity ? 7 : 6);
+  if (info.inverse.size() == 0) return std::numeric_limits<double>::infinity();
+  return sigma_px * std::sqrt(info.inverse.topLeftCorner<3, 3>().trace());
 }
 
 }  // namespace linecloud

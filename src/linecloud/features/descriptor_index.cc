@@ -34,11 +34,6 @@ float Dot(const uint8_t* a, const uint8_t* b) {
   return static_cast<float>(s);
 }
 
-float Angle(float dot) {
-  constexpr float kNorm = 1.0f / (512.0f * 512.0f);
-  return std::acos(std::min(kNorm * dot, 1.0f));
-}
-
 }  // namespace
 
 struct DescriptorIndex::Impl {
@@ -152,13 +147,11 @@ std::vector<DescriptorMatch> DescriptorIndex::Match(std::span<const uint8_t> que
     const int best = indices[2 * i], second = indices[2 * i + 1];
     if (best < 0 || second < 0) continue;
     const uint8_t* qi = query.data() + i * kDim;
-    const float best_angle = Angle(Dot(qi, impl_->descriptors.data() + size_t(best) * kDim));
-    const float second_angle = Angle(Dot(qi, impl_->descriptors.data() + size_t(second) * kDim));
-    if (best_angle > options.max_distance || best_angle >= options.max_ratio * second_angle) {
-      continue;
+    const uint8_t* d = impl_->descriptors.data();
+    if (const auto m = TestMatch(static_cast<int>(i), best, Dot(qi, d + size_t(best) * kDim),
+                                 Dot(qi, d + size_t(second) * kDim), options)) {
+      matches.push_back(*m);
     }
-    matches.push_back({static_cast<int>(i), best,
-                       second_angle > 0 ? best_angle / second_angle : 1.0f});
   }
   return matches;
 }

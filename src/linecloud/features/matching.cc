@@ -22,13 +22,22 @@ FloatRows ToFloat(std::span<const uint8_t> bytes, int dim) {
   return m;
 }
 
-// Descriptor angle of a dot product of two 512-normalised byte descriptors.
-float Angle(float dot) {
+}  // namespace
+
+float DescriptorAngle(float dot) {
   constexpr float kNorm = 1.0f / (512.0f * 512.0f);
   return std::acos(std::min(kNorm * dot, 1.0f));
 }
 
-}  // namespace
+std::optional<DescriptorMatch> TestMatch(int query, int map, float best_dot, float second_dot,
+                                         const DescriptorMatchOptions& options) {
+  const float best_angle = DescriptorAngle(best_dot);
+  const float second_angle = DescriptorAngle(std::max(second_dot, 0.0f));
+  if (best_angle > options.max_distance || best_angle >= options.max_ratio * second_angle) {
+    return std::nullopt;
+  }
+  return DescriptorMatch{query, map, second_angle > 0 ? best_angle / second_angle : 1.0f};
+}
 
 void DescriptorMatchOptions::Check() const {
   if (!(max_ratio > 0 && max_ratio <= 1)) Fail("matching: max_ratio must be in (0, 1], got {}", max_ratio);
@@ -76,13 +85,9 @@ std::vector<DescriptorMatch> MatchDescriptors(std::span<const uint8_t> query,
           map_best_query[j] = static_cast<int>(start + r);
         }
       }
-      const float best_angle = Angle(best), second_angle = Angle(std::max(second, 0.0f));
-      // As COLMAP: ">=" so that a tie between the two best is rejected.
-      if (best_angle > options.max_distance || best_angle >= options.max_ratio * second_angle) {
-        continue;
+      if (const auto m = TestMatch(static_cast<int>(start + r), best_j, best, second, options)) {
+        candidates.push_back(*m);
       }
-      candidates.push_back({static_cast<int>(start + r), best_j,
-                            second_angle > 0 ? best_angle / second_angle : 1.0f});
     }
     if (progress) progress(start + rows, nq);
   }

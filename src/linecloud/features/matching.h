@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <span>
 #include <vector>
 
@@ -29,6 +30,17 @@ struct DescriptorMatch {
   int map = 0;        // row of the map descriptors
   float ratio = 0;    // best / second-best angle: lower is more distinctive (a match score)
 };
+
+// The angle between two descriptors of 512-normalised bytes from their dot
+// product (COLMAP's descriptor distance).
+float DescriptorAngle(float dot);
+
+// The tests a match passes, from the dot products of the query descriptor
+// with its best and second-best map descriptors: best angle ≤ max_distance
+// and < max_ratio × second angle (">=" rejects a tie, as COLMAP). The match,
+// with its ratio as score, or nothing.
+std::optional<DescriptorMatch> TestMatch(int query, int map, float best_dot, float second_dot,
+                                         const DescriptorMatchOptions& options);
 
 // `query` and `map` are row-major byte matrices of `options.dim` columns.
 // `progress(done, total)` is called between blocks of query rows when given.

@@ -1,5 +1,6 @@
 #include "linecloud/io/lift_model.h"
 
+#include <algorithm>
 #include <chrono>
 #include <iostream>
 
@@ -65,14 +66,13 @@ void CheckExistingOutput(const LiftModelOptions& o, const LineCloud& cloud, cons
          "--force if the old file was never shared",
          o.out_path, ToHex(existing.key_fingerprint));
   }
-  std::unordered_map<uint64_t, size_t> index;
-  for (size_t i = 0; i < cloud.size(); ++i) index.emplace(cloud.ids[i], i);
+  // The new cloud's ids are sorted: binary search. Version-1 files carry point ids.
+  const std::vector<uint64_t> existing_ids =
+      existing.keyed_line_ids ? existing.ids : LineIdsOfPoints(key, existing.ids);
   for (size_t i = 0; i < existing.size(); ++i) {
-    const uint64_t id =
-        existing.keyed_line_ids ? existing.ids[i] : LineIdOfPoint(key, existing.ids[i]);
-    const auto it = index.find(id);
-    if (it == index.end()) continue;
-    if (existing.lines[i].v.cross(cloud.lines[it->second].v).norm() > 1e-9) {
+    const auto it = std::lower_bound(cloud.ids.begin(), cloud.ids.end(), existing_ids[i]);
+    if (it == cloud.ids.end() || *it != existing_ids[i]) continue;
+    if (existing.lines[i].v.cross(cloud.lines[it - cloud.ids.begin()].v).norm() > 1e-9) {
       Fail("{}: holds other lines through the same points (an older {} lifting under this key); "
            "writing these too would reveal the points where the two lines cross. Keep the old "
            "file's encoding, or pass --force if it was never shared",
@@ -135,15 +135,14 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
   LiftModelResult result;
   result.cloud = LiftPoints(ids, points, key.key, lifting);
   if (descriptors.dim > 0) {
-    // Descriptors follow the lines' (line-id) order.
-    const std::vector<uint64_t> line_ids = LineIdsOfPoints(key.key, ids);
-    std::unordered_map<uint64_t, size_t> row;
-    for (size_t i = 0; i < line_ids.size(); ++i) row.emplace(line_ids[i], i);
+    // Descriptors follow the lines' (line-id) order; `ids` (their rows) is sorted.
     LineCloud& c = result.cloud;
+    const std::vector<uint64_t> point_ids = PointIdsOfLines(key.key, c.ids);
     c.descriptor_dim = descriptors.dim;
     c.descriptors.resize(c.size() * descriptors.dim);
     for (size_t k = 0; k < c.size(); ++k) {
-      std::copy_n(descriptors.data.data() + row.at(c.ids[k]) * descriptors.dim, descriptors.dim,
+      const size_t row = std::lower_bound(ids.begin(), ids.end(), point_ids[k]) - ids.begin();
+      std::copy_n(descriptors.data.data() + row * descriptors.dim, descriptors.dim,
                   c.descriptors.data() + k * descriptors.dim);
     }
     c.descriptor_type = "colmap-sift-uint8";

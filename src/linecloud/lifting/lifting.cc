@@ -94,6 +94,13 @@ uint64_t PointIdOfLine(const LiftingKey& key, uint64_t line_id) {
   return SpeckDecrypt(LineIdKey(key), line_id);
 }
 
+std::vector<uint64_t> PointIdsOfLines(const LiftingKey& key, std::span<const uint64_t> line_ids) {
+  const RoundKeys k = LineIdKey(key);
+  std::vector<uint64_t> out(line_ids.size());
+  for (size_t i = 0; i < line_ids.size(); ++i) out[i] = SpeckDecrypt(k, line_ids[i]);
+  return out;
+}
+
 uint64_t Speck64Encrypt(const std::array<uint32_t, 4>& key, uint64_t block) {
   return SpeckEncrypt(SpeckKeySchedule(key), block);
 }

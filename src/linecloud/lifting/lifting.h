@@ -45,8 +45,10 @@ void KeyedDirections(const LiftingKey& key, std::span<const uint64_t> ids,
 // The line id of point id `point_id` under `key`, and back.
 uint64_t LineIdOfPoint(const LiftingKey& key, uint64_t point_id);
 uint64_t PointIdOfLine(const LiftingKey& key, uint64_t line_id);
+// Many at once: the key's subkey and round keys are derived once.
 std::vector<uint64_t> LineIdsOfPoints(const LiftingKey& key,
                                       std::span<const uint64_t> point_ids);
+std::vector<uint64_t> PointIdsOfLines(const LiftingKey& key, std::span<const uint64_t> line_ids);
 // The block cipher itself (exposed for its published test vector).
 uint64_t Speck64Encrypt(const std::array<uint32_t, 4>& key, uint64_t block);
 

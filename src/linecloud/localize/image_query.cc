@@ -110,7 +110,8 @@ ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
   };
   ImageQuery out;
   auto start = Clock::now();
-  const GreyImage image = ReadGreyImage(image_path);
+  out.image = ReadGreyImage(image_path);
+  const GreyImage& image = out.image;
   out.times.decode_ms = MsSince(start);
   if (static_cast<uint64_t>(image.width) != camera.width ||
       static_cast<uint64_t>(image.height) != camera.height) {

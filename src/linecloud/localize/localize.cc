@@ -101,12 +101,11 @@ LineMap LineMapByPointId(const LineCloud& cloud, const LiftingKey& key) {
     Fail("line cloud was lifted with another key (fingerprint {}, key {})",
          ToHex(cloud.key_fingerprint), ToHex(key.Fingerprint()));
   }
+  const std::vector<uint64_t> point_ids =
+      cloud.keyed_line_ids ? PointIdsOfLines(key, cloud.ids) : cloud.ids;
   LineMap map;
   map.lines.reserve(cloud.size());
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    const uint64_t point_id = cloud.keyed_line_ids ? PointIdOfLine(key, cloud.ids[i]) : cloud.ids[i];
-    map.lines.emplace(point_id, cloud.lines[i]);
-  }
+  for (size_t i = 0; i < cloud.size(); ++i) map.lines.emplace(point_ids[i], cloud.lines[i]);
   return map;
 }
 

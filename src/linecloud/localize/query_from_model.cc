@@ -17,9 +17,13 @@ ModelQuery QueryFromModelImage(const Reconstruction& model, const std::string& m
   out.query.cameras.push_back(model.cameras.at(image->camera_id));
   for (const Point2D& p : image->points2D) {
     if (p.point3D_id == kInvalidPoint3DId) continue;
-    QueryObservation o{0, p.xy, p.point3D_id, std::nullopt};
-    if (key) o.line_id = LineIdOfPoint(*key, p.point3D_id);
-    out.query.observations.push_back(o);
+    out.query.observations.push_back({0, p.xy, p.point3D_id, std::nullopt});
+  }
+  if (key) {
+    std::vector<uint64_t> point_ids;
+    for (const QueryObservation& o : out.query.observations) point_ids.push_back(o.id);
+    const std::vector<uint64_t> line_ids = LineIdsOfPoints(*key, point_ids);
+    for (size_t i = 0; i < line_ids.size(); ++i) out.query.observations[i].line_id = line_ids[i];
   }
   if (out.query.observations.empty()) {
     Fail("{}: image '{}' sees no 3D point of the model", model_name, image_name);
