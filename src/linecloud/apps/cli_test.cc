@@ -861,3 +861,92 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
 
 }  // namespace
 }  // namespace linecloud
+
+namespace linecloud {
+namespace {
+
+// The owner's audit of a real map: the density attack scored against the
+// secret model, the two-key attack on a second lifting, every output file,
+// and the inputs that do not belong together.
+TEST(Cli, AuditMeasuresWhatLeaksFromARealMap) {
+  TempDir tmp;
+  const std::string model = SharedDataPath(kMaupertuis);
+  const std::string key = FixedKeyFile(tmp, "model.key", 3);
+  ASSERT_EQ(RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out", tmp.Path("map.lcm"), "--key-file", key}).code, 0);
+  // A second lifting with another key (refused unless forced: never share it).
+  ASSERT_EQ(RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out", tmp.Path("other.lcm"), "--key-file",
+                    FixedKeyFile(tmp, "other.key", 4), "--force"})
+                .code,
+            0);
+  const std::string map_before = ReadFileToString(tmp.Path("map.lcm"));
+  CliResult r = RunCli({"audit", "--map", tmp.Path("map.lcm"), "--model", model, "--key-file", key,
+                        "--other", tmp.Path("other.lcm"), "--out", tmp.Path("audit"), "--quiet"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json report = nlohmann::json::parse(r.out);
+  EXPECT_EQ(report["lines"], 1039);
+  // Measured on maupertuis (1 039 points): 59 % within 1 % of the diagonal.
+  const double within1 = report["density_attack"]["recovery"]["within_diagonal_percent"]["1"];
+  EXPECT_GT(within1, 0.45);
+  EXPECT_LT(within1, 0.75);
+  EXPECT_EQ(report["two_keys"]["pairing"], "crossing");
+  EXPECT_GE(report["two_keys"]["share_recovered_exactly"].get<double>(), 0.999);
+  for (const char* f : {"report.json", "report.md", "recovered.ply", "audit.png"}) {
+    EXPECT_TRUE(FileExists(tmp.Path(std::string("audit/") + f))) << f;
+  }
+  EXPECT_NE(ReadFileToString(tmp.Path("audit/report.md")).find("| 1 % of the diagonal |"),
+            std::string::npos);
+  EXPECT_EQ(ReadFileToString(tmp.Path("map.lcm")), map_before);
+  // The attacker's own command: the same recovery, without the model.
+  r = RunCli({"attack", "--map", tmp.Path("map.lcm"), "--out", tmp.Path("rec.ply"), "--quiet"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(ReadFileToString(tmp.Path("rec.ply")).substr(0, 3), "ply");
+
+  // Inputs that do not belong together.
+  ExpectError(RunCli({"audit", "--map", tmp.Path("map.lcm"), "--model", model, "--key-file",
+                      tmp.Path("other.key"), "--quiet"}),
+              "lifted with another key");
+  RunCli({"demo", "--out", tmp.Path("demo"), "--points", "600", "--images", "6", "--queries", "1"});
+  ExpectError(RunCli({"audit", "--map", tmp.Path("demo/map.lcm"), "--model", model, "--quiet"}),
+              "does not pass through its model point");
+  ExpectError(RunCli({"attack", "--map", tmp.Path("map.lcm"), "--out", tmp.Path("map.lcm")}),
+              "is the input map");
+  EXPECT_EQ(ReadFileToString(tmp.Path("map.lcm")), map_before);
+  // A map of another scene as --other: nothing comes back, and the report says why.
+  r = RunCli({"audit", "--map", tmp.Path("map.lcm"), "--model", model, "--key-file", key, "--other",
+              tmp.Path("demo/map.lcm"), "--no-density-attack", "--quiet"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json other = nlohmann::json::parse(r.out);
+  EXPECT_EQ(other["two_keys"]["recovered_exactly"], 0);
+  EXPECT_TRUE(other["two_keys"].contains("why_nothing"));
+  // A tiny map: a clear error.
+  ASSERT_EQ(RunCli({"demo", "--out", tmp.Path("tiny"), "--points", "12", "--images", "3",
+                    "--queries", "0"}).code, 0);
+  ExpectError(RunCli({"attack", "--map", tmp.Path("tiny/map.lcm"), "--out", tmp.Path("t.ply")}),
+              "needs at least 10");
+}
+
+// A sparsified map is a subset of the full map's lines (one point, one line).
+TEST(Cli, SparsifiedMapsHoldTheSameLines) {
+  TempDir tmp;
+  const std::string model = SharedDataPath(kMaupertuis);
+  const std::string key = FixedKeyFile(tmp, "model.key", 5);
+  ASSERT_EQ(RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out", tmp.Path("full.lcm"), "--key-file", key}).code, 0);
+  for (const char* mode : {"uniform", "balanced"}) {
+    const std::string out = tmp.Path(std::string(mode) + ".lcm");
+    const CliResult r = RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out", out, "--key-file", key,
+                                "--sparsify", "0.75", "--sparsify-mode", mode});
+    ASSERT_EQ(r.code, 0) << r.err;
+    const LineCloud full = ReadLineCloud(tmp.Path("full.lcm")), sparse = ReadLineCloud(out);
+    EXPECT_NEAR(sparse.size(), 0.25 * full.size(), 40) << mode;
+    const TwoLiftingsAttack attack = IntersectLinesOfEqualId(full, sparse);
+    EXPECT_EQ(attack.shared_ids, sparse.size()) << mode;
+    EXPECT_EQ(attack.points.size(), 0u) << mode;
+  }
+  ExpectError(RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out", tmp.Path("x.lcm"), "--key-file", key,
+                      "--sparsify", "1"}),
+              "--sparsify");
+  EXPECT_FALSE(FileExists(tmp.Path("x.lcm")));
+}
+
+}  // namespace
+}  // namespace linecloud

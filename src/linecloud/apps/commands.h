@@ -15,6 +15,8 @@ void RegisterLocalizeCommand(CLI::App& app);
 void RegisterMakeQueryCommand(CLI::App& app);
 void RegisterBenchCommand(CLI::App& app);
 void RegisterEvalCommand(CLI::App& app);
+void RegisterAttackCommand(CLI::App& app);
+void RegisterAuditCommand(CLI::App& app);
 
 // Runs the CLI; returns the process exit code. Errors are printed to stderr
 // as one line `error: ...`.

@@ -38,12 +38,17 @@ void RegisterEvalCommand(CLI::App& app) {
   run->add_option("--work", run_options->work_dir, "work directory of `eval prepare`")->required();
   run->add_option("--out", run_options->out_dir, "results directory")->required();
   run->add_option("--methods", run_options->methods, "methods to run (default: all 16)");
-  run->add_option("--sparsify", run_options->sparsify, "share of map points/lines dropped at random")
+  auto sparsify_mode = std::make_shared<std::string>("uniform");
+  run->add_option("--sparsify", run_options->sparsify,
+                  "share of map points/lines dropped (keyed, as lift --sparsify)")
+      ->capture_default_str();
+  run->add_option("--sparsify-mode", *sparsify_mode, "uniform or balanced (as lift --sparsify-mode)")
+      ->check(CLI::IsMember({"uniform", "balanced"}))
       ->capture_default_str();
   run->add_option("--noise", run_options->noise_px, "Gaussian noise (px) added to the query pixels")
       ->capture_default_str();
   run->add_option("--threshold", run_options->threshold_px, "RANSAC inlier threshold (px)")->capture_default_str();
-  run->add_option("--seed", run_options->seed, "RANSAC / sparsification seed")->capture_default_str();
+  run->add_option("--seed", run_options->seed, "RANSAC seed")->capture_default_str();
   run->add_option("--density-sweep", run_options->density_sweep, "dropped shares for the density plot")
       ->capture_default_str();
   run->add_option("--noise-sweep", run_options->noise_sweep, "synthetic pixel noise levels for the noise plot")
@@ -53,8 +58,9 @@ void RegisterEvalCommand(CLI::App& app) {
   run->add_flag("--no-sweeps", *no_sweeps, "skip the density and noise sweeps (and their plots)");
   run->add_flag("!--no-direct-matching", run_options->direct_matching,
                 "skip the direct-matching protocol (query images' own SIFT features)");
-  run->callback([run_options, no_sweeps] {
+  run->callback([run_options, no_sweeps, sparsify_mode] {
     EvalRunOptions o = *run_options;
+    o.sparsify_mode = SparsifyModeFromName(*sparsify_mode, "--sparsify-mode");
     if (*no_sweeps) {
       o.density_sweep.clear();
       o.noise_sweep.clear();

@@ -14,10 +14,12 @@ struct LiftArgs {
   LiftModelOptions options;
   std::string descriptor = "medoid";
   std::string gravity;
+  std::string sparsify_mode = "uniform";
 };
 
 void RunLift(LiftArgs args) {
   args.options.aggregation = DescriptorAggregationFromName(args.descriptor);
+  args.options.sparsify_mode = SparsifyModeFromName(args.sparsify_mode, "--sparsify-mode");
   if (!args.gravity.empty()) args.options.gravity = ParseDirection(args.gravity, "--gravity");
   const LiftModelResult r = LiftModel(args.options);
   const LineCloud& cloud = r.cloud;
@@ -65,6 +67,15 @@ void RegisterLiftCommand(CLI::App& app) {
   cmd->add_option("--gravity", args->gravity,
                   "The model frame's gravity direction x,y,z (stored with the map, for the +u "
                   "methods)");
+  cmd->add_option("--sparsify", o.sparsify,
+                  "Drop this share of the points (keyed, reproducible; the kept points get the "
+                  "same lines as in the full map)")
+      ->capture_default_str();
+  cmd->add_option("--sparsify-mode", args->sparsify_mode,
+                  "uniform (each point alike) or balanced (cap the local density: at most one "
+                  "point per cell of a keyed grid)")
+      ->check(CLI::IsMember({"uniform", "balanced"}))
+      ->capture_default_str();
   cmd->add_flag("--allow-shared-key", o.allow_shared_key,
                 "Accept a key file that other users can read");
   cmd->callback([args] { RunLift(*args); });

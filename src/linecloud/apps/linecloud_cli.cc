@@ -21,6 +21,8 @@ int RunLinecloud(int argc, const char* const* argv) {
   RegisterMakeQueryCommand(app);
   RegisterBenchCommand(app);
   RegisterEvalCommand(app);
+  RegisterAttackCommand(app);
+  RegisterAuditCommand(app);
   if (argc >= 2 && argv[1][0] != '-') {
     const std::string name = argv[1];
     bool known = false;

@@ -1,5 +1,6 @@
 #include "linecloud/eval/direct_matching.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <numbers>
@@ -24,13 +25,30 @@ struct GroupMap {
   LineMap lines;               // keyed by point id (the owner's view)
 };
 
-GroupMap LoadGroupMap(const std::string& work_dir, const EvalGroup& g, const LiftingKey& key) {
+GroupMap LoadGroupMap(const std::string& work_dir, const EvalGroup& g, const LiftingKey& key,
+                      const DirectMatchingOptions& options) {
   const Reconstruction model = ReadColmapModel(JoinPaths(work_dir, g.map_dir));
   std::vector<std::string> names;
   for (const EvalImage& im : g.images) names.push_back(im.name);
   GroupMap m;
-  m.descriptors =
+  const MapDescriptors all =
       MapDescriptorsExcluding(model, JoinPaths(work_dir, "colmap/database.db"), names);
+  // The same keyed sparsification as `lift --sparsify` (decided on all points).
+  const std::vector<uint64_t> model_ids = model.SortedPoint3DIds();
+  std::vector<Eigen::Vector3d> model_xyz;
+  for (const uint64_t id : model_ids) model_xyz.push_back(model.points3D.at(id).xyz);
+  std::vector<uint64_t> kept;
+  for (const size_t i :
+       SparsifyPoints(key, model_ids, model_xyz, options.sparsify, options.sparsify_mode)) {
+    kept.push_back(model_ids[i]);
+  }
+  for (size_t k = 0; k < all.ids.size(); ++k) {
+    if (!std::binary_search(kept.begin(), kept.end(), all.ids[k])) continue;
+    m.descriptors.ids.push_back(all.ids[k]);
+    m.descriptors.descriptors.insert(m.descriptors.descriptors.end(),
+                                     all.descriptors.begin() + k * 128,
+                                     all.descriptors.begin() + (k + 1) * 128);
+  }
   std::vector<Eigen::Vector3d> xyz;
   for (const uint64_t id : m.descriptors.ids) xyz.push_back(model.points3D.at(id).xyz);
   m.points = PointMapFromModel(model);
@@ -66,7 +84,7 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
   json per_query = json::array();
   for (const EvalGroup& g : work.groups) {
     const auto t0 = std::chrono::steady_clock::now();
-    const GroupMap map = LoadGroupMap(work_dir, g, key);
+    const GroupMap map = LoadGroupMap(work_dir, g, key, options);
     for (const EvalImage& im : g.images) {
       const std::string path = JoinPaths(JoinPaths(work.dataset_dir, "images"), im.name);
       const ImageQuery q =

@@ -22,6 +22,7 @@
 #include "linecloud/io/json_util.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/lifting/lifting.h"
+#include "linecloud/lifting/sparsify.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/synthetic/localization_instances.h"
 #include "linecloud/synthetic/scene.h"
@@ -62,21 +63,6 @@ const PaperRow* PaperFor(std::string_view method) {
 
 // Recall thresholds (rotation °, translation in the work's units).
 constexpr std::pair<double, double> kRecall[] = {{0.25, 0.025}, {0.5, 0.05}, {1, 0.1}, {2, 0.25}, {5, 1}};
-
-uint64_t SplitMix(uint64_t x) {
-  x += 0x9E3779B97F4A7C15ull;
-  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
-  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
-  return x ^ (x >> 31);
-}
-
-// Keeps a point when a hash of (seed, id) is at least `drop`: the same points
-// (and their lines) go for every method, and nested levels drop supersets.
-bool KeepPoint(uint64_t id, double drop, uint64_t seed) {
-  if (drop <= 0) return true;
-  const double u = static_cast<double>(SplitMix(id ^ SplitMix(seed)) >> 11) * 0x1.0p-53;
-  return u >= drop;
-}
 
 struct GroupMaps {
   PointMap points;
@@ -337,16 +323,19 @@ json MethodReport(const std::vector<QueryRecord>& records) {
 }
 
 std::vector<GroupMaps> LoadMaps(const EvalWork& work, const std::string& work_dir,
-                                const LiftingKey& key, double drop, uint64_t seed) {
+                                const LiftingKey& key, double drop, SparsifyMode mode) {
   std::vector<GroupMaps> maps;
   for (const EvalGroup& g : work.groups) {
     const Reconstruction model = ReadColmapModel(JoinPaths(work_dir, g.map_dir));
+    const std::vector<uint64_t> all_ids = model.SortedPoint3DIds();
+    std::vector<Eigen::Vector3d> all_xyz;
+    for (const uint64_t id : all_ids) all_xyz.push_back(model.points3D.at(id).xyz);
+    // The same keyed sparsification as `lift --sparsify`.
     std::vector<uint64_t> ids;
     std::vector<Eigen::Vector3d> xyz;
-    for (uint64_t id : model.SortedPoint3DIds()) {
-      if (!KeepPoint(id, drop, seed)) continue;
-      ids.push_back(id);
-      xyz.push_back(model.points3D.at(id).xyz);
+    for (const size_t i : SparsifyPoints(key, all_ids, all_xyz, drop, mode)) {
+      ids.push_back(all_ids[i]);
+      xyz.push_back(all_xyz[i]);
     }
     GroupMaps m;
     for (size_t i = 0; i < ids.size(); ++i) m.points.points[ids[i]] = xyz[i];
@@ -553,12 +542,13 @@ json RunEvaluation(const EvalRunOptions& options) {
 
   json report = {{"dataset", work.dataset}, {"units", work.units},
                  {"threshold_px", options.threshold_px}, {"sparsify", options.sparsify},
+                 {"sparsify_mode", SparsifyModeName(options.sparsify_mode)},
                  {"noise_px", options.noise_px}, {"seed", options.seed},
                  {"gravity_source", work.gravity_source}, {"reconstruction", work.reconstruction}};
   report["methods"] = json::object();
   std::map<std::string, std::vector<QueryRecord>> all_records;
   {
-    const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, options.sparsify, options.seed);
+    const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, options.sparsify, options.sparsify_mode);
     for (const MethodInfo* m : methods) {
       const auto t0 = std::chrono::steady_clock::now();
       std::vector<QueryRecord> records = RunMethod(work, *m, maps, options);
@@ -583,6 +573,8 @@ json RunEvaluation(const EvalRunOptions& options) {
     DirectMatchingOptions dm;
     dm.threshold_px = options.threshold_px;
     dm.seed = options.seed;
+    dm.sparsify = options.sparsify;
+    dm.sparsify_mode = options.sparsify_mode;
     report["direct_matching"] = RunDirectMatching(work, options.work_dir, key, dm);
   }
 
@@ -619,7 +611,7 @@ json RunEvaluation(const EvalRunOptions& options) {
     std::map<std::string, std::vector<double>> rot, pos;
     for (double drop : options.density_sweep) {
       const auto t0 = std::chrono::steady_clock::now();
-      const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, drop, options.seed);
+      const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, drop, options.sparsify_mode);
       for (const MethodInfo* m : methods) {
         std::vector<QueryRecord> records = drop == options.sparsify ? all_records[std::string(m->name)]
                                                                     : RunMethod(work, *m, maps, options);

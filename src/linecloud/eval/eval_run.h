@@ -11,6 +11,7 @@
 #include <nlohmann/json.hpp>
 
 #include "linecloud/eval/eval_work.h"
+#include "linecloud/lifting/sparsify.h"
 
 namespace linecloud {
 
@@ -18,7 +19,8 @@ struct EvalRunOptions {
   std::string work_dir;
   std::string out_dir;
   std::vector<std::string> methods;  // empty: all 16
-  double sparsify = 0.0;             // share of map points (and lines) dropped at random
+  double sparsify = 0.0;             // share of map points (and lines) dropped (lift --sparsify)
+  SparsifyMode sparsify_mode = SparsifyMode::kUniform;
   double noise_px = 0.0;             // Gaussian noise added to the query pixels
   double threshold_px = 4.0;         // RANSAC inlier threshold, every method
   uint64_t seed = 1;

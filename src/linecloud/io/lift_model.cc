@@ -1,5 +1,7 @@
 #include "linecloud/io/lift_model.h"
 
+#include "linecloud/lifting/sparsify.h"
+
 #include <algorithm>
 #include <chrono>
 #include <iostream>
@@ -86,6 +88,7 @@ void CheckExistingOutput(const LiftModelOptions& o, const LineCloud& cloud, cons
 void LiftModelOptions::Check() const {
   if (model_dir.empty()) Fail("lift: no model folder given (--model)");
   if (out_path.empty()) Fail("lift: no output given (--out)");
+  if (!(sparsify >= 0 && sparsify < 1)) Fail("--sparsify: {} is not a share in [0, 1)", sparsify);
 }
 
 std::vector<uint64_t> ModelSketchElements(const Reconstruction& model) {
@@ -133,7 +136,14 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
   LiftingOptions lifting;
   lifting.encoding = o.compact ? LineEncoding::kCompact : LineEncoding::kPlucker;
   LiftModelResult result;
-  result.cloud = LiftPoints(ids, points, key.key, lifting);
+  // A sparse map holds a subset of the full map's lines (sparsify.h).
+  std::vector<uint64_t> kept_ids;
+  std::vector<Eigen::Vector3d> kept_points;
+  for (const size_t i : SparsifyPoints(key.key, ids, points, o.sparsify, o.sparsify_mode)) {
+    kept_ids.push_back(ids[i]);
+    kept_points.push_back(points[i]);
+  }
+  result.cloud = LiftPoints(kept_ids, kept_points, key.key, lifting);
   if (descriptors.dim > 0) {
     // Descriptors follow the lines' (line-id) order; `ids` (their rows) is sorted.
     LineCloud& c = result.cloud;

@@ -17,6 +17,7 @@
 #include "linecloud/io/track_descriptors.h"
 #include "linecloud/lifting/key_store.h"
 #include "linecloud/lifting/line_cloud.h"
+#include "linecloud/lifting/sparsify.h"
 
 namespace linecloud {
 
@@ -31,6 +32,8 @@ struct LiftModelOptions {
   bool force = false;             // replace an output lifted with another key
   bool allow_shared_key = false;  // accept a key file others can read
   std::optional<Eigen::Vector3d> gravity;  // the model frame's gravity direction
+  double sparsify = 0;                      // share of the points dropped (sparsify.h)
+  SparsifyMode sparsify_mode = SparsifyMode::kUniform;
 
   void Check() const;
 };

@@ -1,6 +1,8 @@
 // PLY export for viewing in MeshLab / CloudCompare (binary little-endian).
 #pragma once
 
+#include <array>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -19,6 +21,10 @@ void WriteLineCloudPly(const LineCloud& cloud, const std::string& path,
 
 // The model's 3D points with their colours.
 void WriteModelPly(const Reconstruction& reconstruction, const std::string& path);
+
+// Points, optionally coloured (`colors` empty or one RGB triple per point).
+void WritePointsPly(const std::string& path, const std::vector<Eigen::Vector3d>& points,
+                    const std::vector<std::array<uint8_t, 3>>& colors, const std::string& comment);
 
 // A localized camera to draw: its frustum (centre and the rays through the
 // image corners, cut at `depth` world units) in world coordinates.

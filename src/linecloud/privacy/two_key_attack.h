@@ -10,6 +10,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -19,9 +20,12 @@
 namespace linecloud {
 
 struct TwoLiftingsAttack {
-  size_t shared_ids = 0;  // ids present in both clouds
+  // How the lines were paired: "equal ids", or "crossing" (lines that meet).
+  std::string pairing;
+  size_t shared_ids = 0;  // ids present in both clouds / pairs of crossing lines
   size_t parallel = 0;    // pairs too close to parallel to cross (same line or shifted copy)
-  std::vector<uint64_t> ids;             // the ids of the recovered points
+  std::vector<uint64_t> ids;             // the ids (in `a`) of the recovered points
+  std::vector<size_t> indices;           // their indices in `a`
   std::vector<Eigen::Vector3d> points;   // midpoint of the two lines' closest points
 };
 
@@ -29,5 +33,18 @@ struct TwoLiftingsAttack {
 // parallel: they have no crossing, so nothing is recovered from them.
 TwoLiftingsAttack IntersectLinesOfEqualId(const LineCloud& a, const LineCloud& b,
                                           double min_angle_rad = 1e-6);
+
+// Without shared ids (each key also permutes the ids differently), the
+// attacker pairs the lines geometrically: two liftings of one point cross
+// exactly, while lines of different points miss each other. For each line of
+// `a`, the line of `b` nearest to it (line_neighbours.h, then in double
+// precision); a pair whose distance is below `max_relative_distance` times the
+// anchors' diagonal is intersected. Brute force, O(|a|·|b|), on `threads`.
+TwoLiftingsAttack IntersectCrossingLines(const LineCloud& a, const LineCloud& b,
+                                         double max_relative_distance = 1e-6, int threads = 0);
+
+// Equal ids when at least half of a's ids are in b, else crossing lines
+// (within 1e-9 of the diagonal for full-precision maps, 1e-6 for compact ones).
+TwoLiftingsAttack AttackTwoLiftings(const LineCloud& a, const LineCloud& b, int threads = 0);
 
 }  // namespace linecloud

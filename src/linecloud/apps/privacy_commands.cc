@@ -1,0 +1,117 @@
+#include <filesystem>
+#include <iostream>
+
+#include <fmt/format.h>
+
+#include "linecloud/apps/commands.h"
+#include "linecloud/io/lcm_format.h"
+#include "linecloud/io/ply.h"
+#include "linecloud/privacy/audit.h"
+#include "linecloud/util/error.h"
+
+namespace linecloud {
+namespace {
+
+struct AttackArgs {
+  std::string map_path, out_path;
+  DensityAttackOptions attack;
+  bool quiet = false;
+};
+
+void AddAttackOptions(CLI::App* cmd, DensityAttackOptions& o) {
+  cmd->add_option("--neighbours", o.line_neighbours,
+                  "K nearest lines voting for each line's point (0: min(500, 5 % of the lines), "
+                  "as published)")
+      ->capture_default_str();
+  cmd->add_option("--refine-rounds", o.refine_rounds, "refinement rounds")->capture_default_str();
+  cmd->add_option("--refine-neighbours", o.refine_neighbours,
+                  "neighbours of the refinement (line-to-point and point-to-line)")
+      ->capture_default_str();
+  cmd->add_option("--min-shared", o.min_shared,
+                  "use the two refinement sets' intersection when larger than this")
+      ->capture_default_str();
+  cmd->add_option("--threads", o.threads, "threads (0: all cores)")->capture_default_str();
+}
+
+void SetProgress(DensityAttackOptions& o, bool quiet) {
+  if (quiet) return;
+  o.progress = [](const std::string& stage, size_t done, size_t total) {
+    std::cerr << fmt::format("attack: {} {:.0f} % ({}/{} lines)\n", stage, 100.0 * done / total,
+                             done, total);
+  };
+}
+
+void RefuseOutputOverInput(const std::string& out, const std::string& in) {
+  std::error_code ec;
+  if (out == in || std::filesystem::equivalent(out, in, ec)) {
+    Fail("--out {} is the input map: refusing to overwrite it", out);
+  }
+}
+
+void RunAttack(AttackArgs args) {
+  RefuseOutputOverInput(args.out_path, args.map_path);
+  SetProgress(args.attack, args.quiet);
+  const LineCloud cloud = ReadLineCloud(args.map_path);
+  const DensityAttackResult r = RunDensityAttack(cloud, args.attack);
+  WritePointsPly(args.out_path, r.points, {},
+                 "linecloud attack: points recovered from a line cloud by its density "
+                 "(Chelani, Kahl, Sattler, CVPR 2021)");
+  std::cout << fmt::format(
+      "recovered {} points from {} lines ({} nearest lines, {} refinement rounds, {} lines "
+      "without votes) in {:.1f} s -> {}\n",
+      r.points.size(), cloud.size(), r.line_neighbours, args.attack.refine_rounds,
+      r.lines_without_votes, r.seconds, args.out_path);
+}
+
+void RunAuditCommand(AuditOptions options, bool quiet) {
+  SetProgress(options.attack, quiet);
+  if (!options.out_dir.empty()) {
+    for (const std::string& in : {options.map_path, options.other_map_path, options.model_dir}) {
+      if (!in.empty()) RefuseOutputOverInput(options.out_dir, in);
+    }
+  }
+  const nlohmann::ordered_json report = RunAudit(options);
+  std::cout << report.dump(2) << "\n";
+}
+
+}  // namespace
+
+void RegisterAttackCommand(CLI::App& app) {
+  auto args = std::make_shared<AttackArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "attack",
+      "The attacker's view: recover points from a line cloud by its density (Chelani et al., "
+      "CVPR 2021)");
+  cmd->add_option("--map", args->map_path, "line-cloud map (.lcm)")->required();
+  cmd->add_option("--out", args->out_path, "recovered points (.ply)")->required();
+  AddAttackOptions(cmd, args->attack);
+  cmd->add_flag("--quiet", args->quiet, "no progress on standard error");
+  cmd->callback([args] { RunAttack(*args); });
+}
+
+void RegisterAuditCommand(CLI::App& app) {
+  auto options = std::make_shared<AuditOptions>();
+  auto quiet = std::make_shared<bool>(false);
+  CLI::App* cmd = app.add_subcommand(
+      "audit",
+      "The owner's view: run the published attacks on a map and score them against the secret "
+      "model (report.json, report.md, recovered.ply, audit.png)");
+  cmd->add_option("--map", options->map_path, "line-cloud map (.lcm)")->required();
+  cmd->add_option("--model", options->model_dir, "the secret COLMAP model the map was lifted from")
+      ->required();
+  cmd->add_option("--other", options->other_map_path,
+                  "a second lifting of the model (another key): the two-key attack");
+  cmd->add_option("--out", options->out_dir, "output folder");
+  cmd->add_option("--key-file", options->key_file, "the model's key (default: the key store's)");
+  cmd->add_option("--key-store", options->key_store, "per-user key store");
+  cmd->add_option("--metric-scale", options->metric_scale,
+                  "metres per model unit: also report errors in metres")
+      ->capture_default_str();
+  cmd->add_flag("--no-density-attack", options->skip_density_attack,
+                "only the two-key attack (with --other)");
+  AddAttackOptions(cmd, options->attack);
+  cmd->add_flag("--quiet", *quiet, "no progress on standard error");
+  cmd->callback([options, quiet] { RunAuditCommand(*options, *quiet); });
+}
+
+}  // namespace linecloud

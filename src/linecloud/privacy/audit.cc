@@ -1,0 +1,228 @@
+#include "linecloud/privacy/audit.h"
+
+#include <cmath>
+#include <filesystem>
+#include <unordered_map>
+
+#include <fmt/format.h>
+
+#include "linecloud/io/lcm_format.h"
+#include "linecloud/io/lift_model.h"
+#include "linecloud/io/ply.h"
+#include "linecloud/lifting/lifting.h"
+#include "linecloud/privacy/audit_figure.h"
+#include "linecloud/privacy/recovery_score.h"
+#include "linecloud/privacy/two_key_attack.h"
+#include "linecloud/util/error.h"
+#include "linecloud/util/file.h"
+
+namespace linecloud {
+namespace {
+
+using ojson = nlohmann::ordered_json;
+
+std::vector<std::array<uint8_t, 3>> ErrorColours(const RecoveryScore& s) {
+  std::vector<std::array<uint8_t, 3>> c;
+  for (const double e : s.errors) {
+    const double x = s.diagonal > 0 ? std::clamp(e / (0.02 * s.diagonal), 0.0, 1.0) : 1.0;
+    // green (0) → yellow (1 % of the diagonal) → red (≥ 2 %), as in audit.png
+    c.push_back(x < 0.5 ? std::array<uint8_t, 3>{static_cast<uint8_t>(26 + 434 * x), 180, 38}
+                        : std::array<uint8_t, 3>{242, static_cast<uint8_t>(217 - 408 * (x - 0.5)), 38});
+  }
+  return c;
+}
+
+ojson DensityAttackJson(const DensityAttackResult& r, const DensityAttackOptions& o,
+                        const RecoveryScore& score) {
+  ojson j = {{"method", "Chelani, Kahl, Sattler, CVPR 2021 (density of the line cloud)"},
+             {"line_neighbours", r.line_neighbours},
+             {"refine_rounds", o.refine_rounds},
+             {"refine_neighbours", o.refine_neighbours},
+             {"lines_without_votes", r.lines_without_votes},
+             {"seconds", r.seconds}};
+  j["recovery"] = RecoveryJson(score);
+  return j;
+}
+
+ojson TwoKeyJson(const TwoLiftingsAttack& attack, const std::vector<Eigen::Vector3d>& secret,
+                 double diagonal, size_t lines, const std::string& other) {
+  size_t exact = 0;
+  for (size_t k = 0; k < attack.points.size(); ++k) {
+    exact += (attack.points[k] - secret[attack.indices[k]]).norm() <= 1e-6 * diagonal;
+  }
+  ojson j = {{"other_map", other},
+             {"pairing", attack.pairing},
+             {"pairs", attack.shared_ids},
+             {"parallel_pairs", attack.parallel},
+             {"recovered", attack.points.size()},
+             {"recovered_exactly", exact},
+             {"share_recovered_exactly", lines ? static_cast<double>(exact) / lines : 0.0},
+             {"exact_means", "within 1e-6 of the scene diagonal"}};
+  if (exact == 0) {
+    j["why_nothing"] = "no line of the other map crosses a line of this map in one of its points: "
+                       "the maps hold no common point (another scene, or a disjoint part of it)";
+  }
+  return j;
+}
+
+std::string Percent(double share) { return fmt::format("{:.1f} %", 100 * share); }
+
+}  // namespace
+
+void AuditOptions::Check() const {
+  if (map_path.empty()) Fail("audit: --map is required");
+  if (model_dir.empty()) Fail("audit: --model (the secret model the map was lifted from) is required");
+  if (!(metric_scale >= 0) || !std::isfinite(metric_scale)) {
+    Fail("--metric-scale: {} is not a finite non-negative number", metric_scale);
+  }
+  if (skip_density_attack && other_map_path.empty()) {
+    Fail("audit: nothing to do (--no-density-attack without --other)");
+  }
+  attack.Check();
+}
+
+std::vector<Eigen::Vector3d> SecretPointsOfLines(const LineCloud& cloud,
+                                                 const Reconstruction& model,
+                                                 const LiftingKey& key,
+                                                 const std::string& map_name) {
+  if (cloud.key_fingerprint != key.Fingerprint()) {
+    Fail("{}: lifted with another key than the model's (fingerprint {} vs {}): the map and the "
+         "model do not belong together",
+         map_name, ToHex(cloud.key_fingerprint), ToHex(key.Fingerprint()));
+  }
+  const std::vector<uint64_t> point_ids =
+      cloud.keyed_line_ids ? PointIdsOfLines(key, cloud.ids) : cloud.ids;
+  std::vector<Eigen::Vector3d> secret;
+  secret.reserve(point_ids.size());
+  size_t missing = 0;
+  for (const uint64_t id : point_ids) {
+    const auto it = model.points3D.find(id);
+    if (it == model.points3D.end()) {
+      ++missing;
+      continue;
+    }
+    secret.push_back(it->second.xyz);
+  }
+  if (missing > 0) {
+    Fail("{}: {} of its {} lines name no point of the model: the map was lifted from another "
+         "model (or another version of it)",
+         map_name, missing, point_ids.size());
+  }
+  // A line must pass through its point, or the map is not this model's.
+  for (size_t i = 0; i < secret.size(); ++i) {
+    const PluckerLine& l = cloud.lines[i];
+    const double d = (secret[i].cross(l.v) - l.w).norm() / l.v.norm();
+    if (!(d <= 1e-3 * (1 + secret[i].norm()))) {
+      Fail("{}: line {} does not pass through its model point (off by {:.3g}): the map was "
+           "lifted from another model",
+           map_name, i, d);
+    }
+  }
+  return secret;
+}
+
+ojson RunAudit(const AuditOptions& o) {
+  o.Check();
+  const LineCloud cloud = ReadLineCloud(o.map_path);
+  const Reconstruction model = ReadColmapModel(o.model_dir);
+  // The public demo key needs no key store (anyone can compute it).
+  const LiftingKey key = o.key_file.empty() && cloud.key_fingerprint == DemoLiftingKey().Fingerprint()
+                             ? DemoLiftingKey()
+                             : ModelKey(model, o.model_dir, o.key_file, o.key_store);
+  const std::vector<Eigen::Vector3d> secret = SecretPointsOfLines(cloud, model, key, o.map_path);
+  if (secret.empty()) Fail("{}: the map has no lines", o.map_path);
+  const double diagonal = SceneDiagonal(secret);
+
+  ojson report = {{"map", o.map_path},
+                  {"model", o.model_dir},
+                  {"lines", cloud.size()},
+                  {"model_points", model.points3D.size()},
+                  {"encoding", LineEncodingName(cloud.encoding)},
+                  {"diagonal", diagonal},
+                  {"metric_scale", o.metric_scale > 0 ? ojson(o.metric_scale) : ojson(nullptr)}};
+  if (!o.skip_density_attack) {
+    const DensityAttackResult attack = RunDensityAttack(cloud, o.attack);
+    const RecoveryScore score = ScoreRecovery(attack.points, secret, o.metric_scale);
+    report["density_attack"] = DensityAttackJson(attack, o.attack, score);
+    if (!o.out_dir.empty()) {
+      CreateDirectories(o.out_dir);
+      WritePointsPly(JoinPaths(o.out_dir, "recovered.ply"), attack.points, ErrorColours(score),
+                     "linecloud audit: points recovered by the density attack, coloured by error "
+                     "(green 0, yellow 1 %, red >= 2 % of the scene diagonal)");
+      WriteAuditFigure(
+          JoinPaths(o.out_dir, "audit.png"), secret, attack.points, score.errors, diagonal,
+          {fmt::format("What an attacker recovers from {} ({} lines)", std::filesystem::path(o.map_path).filename().string(),
+                       cloud.size()),
+           fmt::format("density attack: {} of the points within 1 % of the scene diagonal, {} "
+                       "within 0.5 %; median error {:.2f} % of the diagonal",
+                       Percent(ShareWithinDiagonal(score, 1.0)),
+                       Percent(ShareWithinDiagonal(score, 0.5)),
+                       100 * score.median_error / diagonal)});
+    }
+  }
+  if (!o.other_map_path.empty()) {
+    const LineCloud other = ReadLineCloud(o.other_map_path);
+    const TwoLiftingsAttack attack = AttackTwoLiftings(cloud, other, o.attack.threads);
+    report["two_keys"] = TwoKeyJson(attack, secret, diagonal, cloud.size(), o.other_map_path);
+  }
+  if (!o.out_dir.empty()) {
+    CreateDirectories(o.out_dir);
+    WriteFileAtomically(JoinPaths(o.out_dir, "report.json"),
+                        [&](std::ostream& out) { out << report.dump(2) << "\n"; });
+    WriteFileAtomically(JoinPaths(o.out_dir, "report.md"),
+                        [&](std::ostream& out) { out << AuditMarkdown(report); });
+  }
+  return report;
+}
+
+std::string AuditMarkdown(const ojson& r) {
+  std::string md = fmt::format("# Privacy audit of {}\n\n", r["map"].get<std::string>());
+  md += fmt::format("{} lines ({} encoding) lifted from {} ({} points); scene diagonal {:.4g} model "
+                    "units{}.\n\n",
+                    r["lines"].get<size_t>(), r["encoding"].get<std::string>(),
+                    r["model"].get<std::string>(), r["model_points"].get<size_t>(),
+                    r["diagonal"].get<double>(),
+                    r["metric_scale"].is_null()
+                        ? ""
+                        : fmt::format(" ({:.3g} m)", r["diagonal"].get<double>() *
+                                                         r["metric_scale"].get<double>()));
+  if (r.contains("density_attack")) {
+    const ojson& a = r["density_attack"];
+    const ojson& rec = a["recovery"];
+    md += "## Density attack (Chelani, Kahl, Sattler, CVPR 2021)\n\n";
+    md += fmt::format(
+        "What anyone holding only the map recovers: for each line, the points where its {} "
+        "nearest lines pass closest vote for the hidden point; {} refinement rounds. {:.1f} s.\n\n",
+        a["line_neighbours"].get<int>(), a["refine_rounds"].get<int>(), a["seconds"].get<double>());
+    md += "| recovered within | share of the points |\n|---|---|\n";
+    for (const auto& [p, share] : rec["within_diagonal_percent"].items()) {
+      md += fmt::format("| {} % of the diagonal | {} |\n", p, Percent(share.get<double>()));
+    }
+    if (rec.contains("within_m")) {
+      for (const auto& [m, share] : rec["within_m"].items()) {
+        md += fmt::format("| {:.0f} cm | {} |\n", 100 * std::stod(m), Percent(share.get<double>()));
+      }
+    }
+    md += fmt::format("\nMedian error: {:.2f} % of the diagonal{}. `audit.png` shows the secret and "
+                      "the recovered points side by side; `recovered.ply` the recovered points "
+                      "coloured by error.\n\n",
+                      rec["median_error_diagonal_percent"].get<double>(),
+                      rec.contains("median_error_m")
+                          ? fmt::format(" ({:.3f} m)", rec["median_error_m"].get<double>())
+                          : "");
+  }
+  if (r.contains("two_keys")) {
+    const ojson& t = r["two_keys"];
+    md += "## Two liftings of one model (Speciale et al., CVPR 2019, Sec. 3.1)\n\n";
+    md += fmt::format("With {} as well, an attacker pairs the lines by {} and intersects them: "
+                      "{} points recovered, {} of them exactly ({} of the map's points).\n",
+                      t["other_map"].get<std::string>(), t["pairing"].get<std::string>(),
+                      t["recovered"].get<size_t>(), t["recovered_exactly"].get<size_t>(),
+                      Percent(t["share_recovered_exactly"].get<double>()));
+    if (t.contains("why_nothing")) md += fmt::format("Nothing recovered: {}.\n", t["why_nothing"].get<std::string>());
+    md += "\nThis is why a model must only ever be lifted with its one key.\n";
+  }
+  return md;
+}
+
+}  // namespace linecloud
