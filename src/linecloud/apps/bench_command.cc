@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/privacy/attack_bench.h"
 #include "linecloud/eval/feature_bench.h"
 #include "linecloud/eval/match_bench.h"
 #include "linecloud/util/file.h"
@@ -214,6 +215,30 @@ void RegisterBenchCommand(CLI::App& app) {
                                r["ann_ms"].get<double>(), r["exact_ms_extrapolated"].get<double>(),
                                r["recall"].get<double>(), r["recall_queries"].get<size_t>(),
                                r["queries"].get<size_t>());
+    }
+  });
+
+  auto attack = std::make_shared<AttackBenchOptions>();
+  CLI::App* a = bench->add_subcommand(
+      "attack", "The density attack (Chelani et al., CVPR 2021) on seeded dense façades: time "
+                "and recovery per size");
+  a->add_option("--sizes", attack->sizes, "Points (lines) per façade")->capture_default_str();
+  a->add_option("--texture", attack->texture_share, "Share of points in texture spots")
+      ->capture_default_str();
+  a->add_option("--threads", attack->threads, "Threads (0: all cores)")->capture_default_str();
+  a->add_option("--seed", attack->seed, "Random seed")->capture_default_str();
+  a->callback([attack] {
+    AttackBenchOptions o = *attack;
+    o.progress = [](const std::string& s) { std::cerr << "bench attack: " << s << "\n"; };
+    std::cout << "| lines | threads | seconds | µs per line | within 0.5 % / 1 % / 2 % of the "
+                 "diagonal |\n|---|---|---|---|---|\n";
+    for (const auto& r : RunAttackBench(o)) {
+      std::cout << fmt::format("| {} | {} | {:.1f} | {:.0f} | {:.1f} % / {:.1f} % / {:.1f} % |\n",
+                               r["lines"].get<size_t>(), r["threads"].get<int>(),
+                               r["seconds"].get<double>(), r["us_per_line"].get<double>(),
+                               100 * r["within_0.5_percent"].get<double>(),
+                               100 * r["within_1_percent"].get<double>(),
+                               100 * r["within_2_percent"].get<double>());
     }
   });
 

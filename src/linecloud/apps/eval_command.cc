@@ -45,6 +45,9 @@ void RegisterEvalCommand(CLI::App& app) {
   run->add_option("--sparsify-mode", *sparsify_mode, "uniform or balanced (as lift --sparsify-mode)")
       ->check(CLI::IsMember({"uniform", "balanced"}))
       ->capture_default_str();
+  run->add_option("--resist-attack", run_options->resist_attack,
+                  "as lift --resist-attack (after --sparsify); negative: off")
+      ->capture_default_str();
   run->add_option("--noise", run_options->noise_px, "Gaussian noise (px) added to the query pixels")
       ->capture_default_str();
   run->add_option("--threshold", run_options->threshold_px, "RANSAC inlier threshold (px)")->capture_default_str();

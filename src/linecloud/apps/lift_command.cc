@@ -6,6 +6,7 @@
 #include "linecloud/io/lift_model.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/localize/image_query.h"
+#include "linecloud/privacy/resist.h"
 
 namespace linecloud {
 namespace {
@@ -15,11 +16,30 @@ struct LiftArgs {
   std::string descriptor = "medoid";
   std::string gravity;
   std::string sparsify_mode = "uniform";
+  double resist_attack = -1;  // < 0: off
+  bool quiet = false;
 };
 
 void RunLift(LiftArgs args) {
   args.options.aggregation = DescriptorAggregationFromName(args.descriptor);
   args.options.sparsify_mode = SparsifyModeFromName(args.sparsify_mode, "--sparsify-mode");
+  if (args.resist_attack >= 0) {
+    ResistOptions resist;
+    resist.max_recovered = args.resist_attack;
+    resist.Check();
+    const bool quiet = args.quiet;
+    args.options.select_points = [resist, quiet](const LiftingKey& key, std::span<const uint64_t> ids,
+                                                 std::span<const Eigen::Vector3d> points) {
+      const ResistResult r = SelectAttackResistantPoints(key, ids, points, resist);
+      if (!quiet) {
+        for (size_t k = 0; k < r.recovered_share.size(); ++k) {
+          std::cerr << fmt::format("resist: round {}: the attack recovers {:.1f} % of the points kept\n",
+                                   k + 1, 100 * r.recovered_share[k]);
+        }
+      }
+      return r.kept;
+    };
+  }
   if (!args.gravity.empty()) args.options.gravity = ParseDirection(args.gravity, "--gravity");
   const LiftModelResult r = LiftModel(args.options);
   const LineCloud& cloud = r.cloud;
@@ -76,6 +96,11 @@ void RegisterLiftCommand(CLI::App& app) {
                   "point per cell of a keyed grid)")
       ->check(CLI::IsMember({"uniform", "balanced"}))
       ->capture_default_str();
+  cmd->add_option("--resist-attack", args->resist_attack,
+                  "Attack-aware sparsification: drop the points the density attack recovers "
+                  "(within 1 % of the diagonal), re-attack, until at most this share is recovered")
+      ->check(CLI::Range(0.0, 0.99));
+  cmd->add_flag("--quiet", args->quiet, "no progress on standard error");
   cmd->add_flag("--allow-shared-key", o.allow_shared_key,
                 "Accept a key file that other users can read");
   cmd->callback([args] { RunLift(*args); });

@@ -10,6 +10,7 @@
 #include "linecloud/eval/statistics.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/lifting/lifting.h"
+#include "linecloud/privacy/resist.h"
 #include "linecloud/synthetic/localization_instances.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
@@ -39,7 +40,8 @@ GroupMap LoadGroupMap(const std::string& work_dir, const EvalGroup& g, const Lif
   for (const uint64_t id : model_ids) model_xyz.push_back(model.points3D.at(id).xyz);
   std::vector<uint64_t> kept;
   for (const size_t i :
-       SparsifyPoints(key, model_ids, model_xyz, options.sparsify, options.sparsify_mode)) {
+       SelectMapPoints(key, model_ids, model_xyz, options.sparsify, options.sparsify_mode,
+                       options.resist_attack)) {
     kept.push_back(model_ids[i]);
   }
   for (size_t k = 0; k < all.ids.size(); ++k) {

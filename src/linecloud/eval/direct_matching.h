@@ -27,6 +27,7 @@ struct DirectMatchingOptions {
   uint64_t seed = 1;
   double sparsify = 0;  // share of each map's points dropped (lift --sparsify)
   SparsifyMode sparsify_mode = SparsifyMode::kUniform;
+  double resist_attack = -1;  // >= 0: lift --resist-attack after sparsifying
 };
 
 // The map's descriptors (medoid of each track) from `database`; throws Error

@@ -23,6 +23,7 @@
 #include "linecloud/lifting/key.h"
 #include "linecloud/lifting/lifting.h"
 #include "linecloud/lifting/sparsify.h"
+#include "linecloud/privacy/resist.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/synthetic/localization_instances.h"
 #include "linecloud/synthetic/scene.h"
@@ -323,7 +324,8 @@ json MethodReport(const std::vector<QueryRecord>& records) {
 }
 
 std::vector<GroupMaps> LoadMaps(const EvalWork& work, const std::string& work_dir,
-                                const LiftingKey& key, double drop, SparsifyMode mode) {
+                                const LiftingKey& key, double drop, SparsifyMode mode,
+                                double resist_attack) {
   std::vector<GroupMaps> maps;
   for (const EvalGroup& g : work.groups) {
     const Reconstruction model = ReadColmapModel(JoinPaths(work_dir, g.map_dir));
@@ -333,7 +335,7 @@ std::vector<GroupMaps> LoadMaps(const EvalWork& work, const std::string& work_di
     // The same keyed sparsification as `lift --sparsify`.
     std::vector<uint64_t> ids;
     std::vector<Eigen::Vector3d> xyz;
-    for (const size_t i : SparsifyPoints(key, all_ids, all_xyz, drop, mode)) {
+    for (const size_t i : SelectMapPoints(key, all_ids, all_xyz, drop, mode, resist_attack)) {
       ids.push_back(all_ids[i]);
       xyz.push_back(all_xyz[i]);
     }
@@ -543,12 +545,13 @@ json RunEvaluation(const EvalRunOptions& options) {
   json report = {{"dataset", work.dataset}, {"units", work.units},
                  {"threshold_px", options.threshold_px}, {"sparsify", options.sparsify},
                  {"sparsify_mode", SparsifyModeName(options.sparsify_mode)},
+                 {"resist_attack", options.resist_attack >= 0 ? json(options.resist_attack) : json(nullptr)},
                  {"noise_px", options.noise_px}, {"seed", options.seed},
                  {"gravity_source", work.gravity_source}, {"reconstruction", work.reconstruction}};
   report["methods"] = json::object();
   std::map<std::string, std::vector<QueryRecord>> all_records;
   {
-    const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, options.sparsify, options.sparsify_mode);
+    const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, options.sparsify, options.sparsify_mode, options.resist_attack);
     for (const MethodInfo* m : methods) {
       const auto t0 = std::chrono::steady_clock::now();
       std::vector<QueryRecord> records = RunMethod(work, *m, maps, options);
@@ -575,6 +578,7 @@ json RunEvaluation(const EvalRunOptions& options) {
     dm.seed = options.seed;
     dm.sparsify = options.sparsify;
     dm.sparsify_mode = options.sparsify_mode;
+    dm.resist_attack = options.resist_attack;
     report["direct_matching"] = RunDirectMatching(work, options.work_dir, key, dm);
   }
 
@@ -611,7 +615,7 @@ json RunEvaluation(const EvalRunOptions& options) {
     std::map<std::string, std::vector<double>> rot, pos;
     for (double drop : options.density_sweep) {
       const auto t0 = std::chrono::steady_clock::now();
-      const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, drop, options.sparsify_mode);
+      const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, drop, options.sparsify_mode, options.resist_attack);
       for (const MethodInfo* m : methods) {
         std::vector<QueryRecord> records = drop == options.sparsify ? all_records[std::string(m->name)]
                                                                     : RunMethod(work, *m, maps, options);

@@ -21,6 +21,7 @@ struct EvalRunOptions {
   std::vector<std::string> methods;  // empty: all 16
   double sparsify = 0.0;             // share of map points (and lines) dropped (lift --sparsify)
   SparsifyMode sparsify_mode = SparsifyMode::kUniform;
+  double resist_attack = -1;         // >= 0: lift --resist-attack after sparsifying
   double noise_px = 0.0;             // Gaussian noise added to the query pixels
   double threshold_px = 4.0;         // RANSAC inlier threshold, every method
   uint64_t seed = 1;

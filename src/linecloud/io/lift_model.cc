@@ -143,6 +143,16 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
     kept_ids.push_back(ids[i]);
     kept_points.push_back(points[i]);
   }
+  if (o.select_points) {
+    std::vector<uint64_t> selected_ids;
+    std::vector<Eigen::Vector3d> selected_points;
+    for (const size_t k : o.select_points(key.key, kept_ids, kept_points)) {
+      selected_ids.push_back(kept_ids.at(k));
+      selected_points.push_back(kept_points.at(k));
+    }
+    kept_ids.swap(selected_ids);
+    kept_points.swap(selected_points);
+  }
   result.cloud = LiftPoints(kept_ids, kept_points, key.key, lifting);
   if (descriptors.dim > 0) {
     // Descriptors follow the lines' (line-id) order; `ids` (their rows) is sorted.

@@ -9,7 +9,9 @@
 // (e.g. a version-1 compact map); the compact encoding under a sphere key.
 #pragma once
 
+#include <functional>
 #include <optional>
+#include <span>
 #include <string>
 
 #include <Eigen/Core>
@@ -34,6 +36,11 @@ struct LiftModelOptions {
   std::optional<Eigen::Vector3d> gravity;  // the model frame's gravity direction
   double sparsify = 0;                      // share of the points dropped (sparsify.h)
   SparsifyMode sparsify_mode = SparsifyMode::kUniform;
+  // Optional further selection after sparsifying (e.g. privacy/resist.h):
+  // indices into (ids, points) of the points to keep.
+  std::function<std::vector<size_t>(const LiftingKey&, std::span<const uint64_t>,
+                                    std::span<const Eigen::Vector3d>)>
+      select_points;
 
   void Check() const;
 };

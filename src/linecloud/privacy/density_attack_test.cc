@@ -9,6 +9,7 @@
 #include "linecloud/lifting/lifting.h"
 #include "linecloud/lifting/sparsify.h"
 #include "linecloud/privacy/recovery_score.h"
+#include "linecloud/privacy/resist.h"
 #include "linecloud/privacy/two_key_attack.h"
 #include "linecloud/synthetic/surfaces.h"
 #include "linecloud/util/error.h"
@@ -188,6 +189,40 @@ TEST(Sparsify, KeyedSubsetsOfTheSameLines) {
   EXPECT_LT(nn_cv(SparsifyPoints(key, ids, points, 0.75, SparsifyMode::kBalanced)),
             0.7 * nn_cv(SparsifyPoints(key, ids, points, 0.75, SparsifyMode::kUniform)));
   EXPECT_THROW(SparsifyPoints(key, ids, points, 1.0, SparsifyMode::kUniform), Error);
+}
+
+// Attack-aware sparsification: the attack run again on the kept points (by
+// the audit, or an attacker) recovers at most about the share asked for, far
+// less than on a blind subset of the same size.
+TEST(Resist, KeepsPointsTheAttackCannotRecover) {
+  FacadeOptions fo;
+  fo.num_points = 8000;
+  fo.texture_share = 0.8;
+  const std::vector<Eigen::Vector3d> points = SampleFacade(fo);
+  std::vector<uint64_t> ids(points.size());
+  std::iota(ids.begin(), ids.end(), 0);
+  const LiftingKey key = FixedKey(12);
+  ResistOptions o;
+  o.max_recovered = 0.2;
+  const ResistResult r = SelectAttackResistantPoints(key, ids, points, o);
+  ASSERT_GE(r.recovered_share.size(), 2u);
+  EXPECT_LE(r.recovered_share.back(), 0.2);
+  EXPECT_EQ(r.kept, SelectAttackResistantPoints(key, ids, points, o).kept) << "deterministic";
+  // Each kept point with its own id, i.e. its own line (what the map holds).
+  auto recovered = [&](const std::vector<size_t>& kept) {
+    std::vector<uint64_t> kept_ids;
+    std::vector<Eigen::Vector3d> kept_points;
+    for (const size_t i : kept) kept_ids.push_back(ids[i]), kept_points.push_back(points[i]);
+    Lifted l;
+    l.cloud = LiftPoints(kept_ids, kept_points, key, {});
+    for (const uint64_t id : PointIdsOfLines(key, l.cloud.ids)) l.secret.push_back(points[id]);
+    return RecoveredWithin1Percent(l);
+  };
+  const double resisting = recovered(r.kept);
+  const double drop = 1.0 - static_cast<double>(r.kept.size()) / points.size();
+  const double blind = recovered(SparsifyPoints(key, ids, points, drop, SparsifyMode::kUniform));
+  EXPECT_LT(resisting, 0.3);
+  EXPECT_LT(2 * resisting, blind) << "resisting " << resisting << ", uniform " << blind;
 }
 
 }  // namespace
