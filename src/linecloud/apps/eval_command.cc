@@ -3,6 +3,8 @@
 #include "linecloud/apps/commands.h"
 #include "linecloud/eval/eval_prepare.h"
 #include "linecloud/eval/eval_run.h"
+#include "linecloud/eval/privacy_tradeoff.h"
+#include "linecloud/util/file.h"
 
 namespace linecloud {
 
@@ -31,6 +33,32 @@ void RegisterEvalCommand(CLI::App& app) {
   prepare->add_option("--seed", prepare_options->seed, "seed of the gravity noise")->capture_default_str();
   prepare->callback([prepare_options] { PrepareEvaluation(*prepare_options); });
 
+  auto tradeoff = std::make_shared<PrivacyTradeoffOptions>();
+  auto tradeoff_quick = std::make_shared<bool>(false);
+  CLI::App* privacy = eval->add_subcommand(
+      "privacy",
+      "privacy against accuracy: the density attack and localization on the maps of each lifting "
+      "(plain, --sparsify uniform/balanced, --resist-attack, compact): tradeoff.md, .json, .png");
+  privacy->add_option("--work", tradeoff->work_dir, "work directory of `eval prepare`")->required();
+  privacy->add_option("--out", tradeoff->out_dir, "results directory")->required();
+  privacy->add_option("--methods", tradeoff->methods, "methods (paper protocol)")->capture_default_str();
+  privacy->add_flag("!--no-direct-matching", tradeoff->direct_matching,
+                    "skip the direct matching of the query photos");
+  privacy->add_flag("--quick", *tradeoff_quick, "only plain, uniform 90 %, balanced 90 %, resist 0.2");
+  privacy->callback([tradeoff, tradeoff_quick] {
+    PrivacyTradeoffOptions o = *tradeoff;
+    if (*tradeoff_quick) {
+      MapLifting uniform, balanced, resist;
+      uniform.sparsify = balanced.sparsify = 0.9;
+      balanced.sparsify_mode = SparsifyMode::kBalanced;
+      resist.resist_attack = 0.2;
+      o.liftings = {MapLifting{}, uniform, balanced, resist};
+    }
+    o.progress = [](const std::string& s) { std::cout << "[eval privacy] " << s << std::endl; };
+    RunPrivacyTradeoff(o);
+    std::cout << ReadFileToString(JoinPaths(o.out_dir, "tradeoff.md"));
+  });
+
   auto run_options = std::make_shared<EvalRunOptions>();
   auto no_sweeps = std::make_shared<bool>(false);
   CLI::App* run = eval->add_subcommand(
@@ -39,15 +67,17 @@ void RegisterEvalCommand(CLI::App& app) {
   run->add_option("--out", run_options->out_dir, "results directory")->required();
   run->add_option("--methods", run_options->methods, "methods to run (default: all 16)");
   auto sparsify_mode = std::make_shared<std::string>("uniform");
-  run->add_option("--sparsify", run_options->sparsify,
+  run->add_option("--sparsify", run_options->lifting.sparsify,
                   "share of map points/lines dropped (keyed, as lift --sparsify)")
       ->capture_default_str();
   run->add_option("--sparsify-mode", *sparsify_mode, "uniform or balanced (as lift --sparsify-mode)")
       ->check(CLI::IsMember({"uniform", "balanced"}))
       ->capture_default_str();
-  run->add_option("--resist-attack", run_options->resist_attack,
+  run->add_option("--resist-attack", run_options->lifting.resist_attack,
                   "as lift --resist-attack (after --sparsify); negative: off")
       ->capture_default_str();
+  run->add_flag("--compact", run_options->lifting.compact,
+                "the compact encoding (lines of a compact256 key derived from the evaluation's)");
   run->add_option("--noise", run_options->noise_px, "Gaussian noise (px) added to the query pixels")
       ->capture_default_str();
   run->add_option("--threshold", run_options->threshold_px, "RANSAC inlier threshold (px)")->capture_default_str();
@@ -63,7 +93,7 @@ void RegisterEvalCommand(CLI::App& app) {
                 "skip the direct-matching protocol (query images' own SIFT features)");
   run->callback([run_options, no_sweeps, sparsify_mode] {
     EvalRunOptions o = *run_options;
-    o.sparsify_mode = SparsifyModeFromName(*sparsify_mode, "--sparsify-mode");
+    o.lifting.sparsify_mode = SparsifyModeFromName(*sparsify_mode, "--sparsify-mode");
     if (*no_sweeps) {
       o.density_sweep.clear();
       o.noise_sweep.clear();

@@ -10,7 +10,7 @@
 #include "linecloud/eval/statistics.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/lifting/lifting.h"
-#include "linecloud/privacy/resist.h"
+#include "linecloud/privacy/map_lifting.h"
 #include "linecloud/synthetic/localization_instances.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
@@ -34,27 +34,24 @@ GroupMap LoadGroupMap(const std::string& work_dir, const EvalGroup& g, const Lif
   GroupMap m;
   const MapDescriptors all =
       MapDescriptorsExcluding(model, JoinPaths(work_dir, "colmap/database.db"), names);
-  // The same keyed sparsification as `lift --sparsify` (decided on all points).
+  // The map `lift --database` would write with these options: the kept
+  // points that have a descriptor.
   const std::vector<uint64_t> model_ids = model.SortedPoint3DIds();
   std::vector<Eigen::Vector3d> model_xyz;
   for (const uint64_t id : model_ids) model_xyz.push_back(model.points3D.at(id).xyz);
-  std::vector<uint64_t> kept;
-  for (const size_t i :
-       SelectMapPoints(key, model_ids, model_xyz, options.sparsify, options.sparsify_mode,
-                       options.resist_attack)) {
-    kept.push_back(model_ids[i]);
-  }
+  const LiftingKey lines_key = MapLiftingKey(key, options.lifting);
+  const LineMap all_lines =
+      LineMapByPointId(LiftMap(key, model_ids, model_xyz, options.lifting), lines_key);
   for (size_t k = 0; k < all.ids.size(); ++k) {
-    if (!std::binary_search(kept.begin(), kept.end(), all.ids[k])) continue;
+    const auto line = all_lines.lines.find(all.ids[k]);
+    if (line == all_lines.lines.end()) continue;
     m.descriptors.ids.push_back(all.ids[k]);
     m.descriptors.descriptors.insert(m.descriptors.descriptors.end(),
                                      all.descriptors.begin() + k * 128,
                                      all.descriptors.begin() + (k + 1) * 128);
+    m.lines.lines.emplace(line->first, line->second);
+    m.points.points[all.ids[k]] = model.points3D.at(all.ids[k]).xyz;
   }
-  std::vector<Eigen::Vector3d> xyz;
-  for (const uint64_t id : m.descriptors.ids) xyz.push_back(model.points3D.at(id).xyz);
-  m.points = PointMapFromModel(model);
-  m.lines = LineMapByPointId(LiftPoints(m.descriptors.ids, xyz, key, {}), key);
   return m;
 }
 

@@ -13,7 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "linecloud/eval/eval_work.h"
-#include "linecloud/lifting/sparsify.h"
+#include "linecloud/privacy/map_lifting.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/localize/image_query.h"
 
@@ -25,9 +25,7 @@ struct DirectMatchingOptions {
   double max_translation = 0.05;   // work units (metres with ground truth)
   double threshold_px = 4.0;
   uint64_t seed = 1;
-  double sparsify = 0;  // share of each map's points dropped (lift --sparsify)
-  SparsifyMode sparsify_mode = SparsifyMode::kUniform;
-  double resist_attack = -1;  // >= 0: lift --resist-attack after sparsifying
+  MapLifting lifting;  // how the maps are lifted (lift's --sparsify, ...)
 };
 
 // The map's descriptors (medoid of each track) from `database`; throws Error

@@ -23,7 +23,7 @@
 #include "linecloud/lifting/key.h"
 #include "linecloud/lifting/lifting.h"
 #include "linecloud/lifting/sparsify.h"
-#include "linecloud/privacy/resist.h"
+#include "linecloud/privacy/map_lifting.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/synthetic/localization_instances.h"
 #include "linecloud/synthetic/scene.h"
@@ -324,24 +324,19 @@ json MethodReport(const std::vector<QueryRecord>& records) {
 }
 
 std::vector<GroupMaps> LoadMaps(const EvalWork& work, const std::string& work_dir,
-                                const LiftingKey& key, double drop, SparsifyMode mode,
-                                double resist_attack) {
+                                const LiftingKey& key, const MapLifting& lifting) {
   std::vector<GroupMaps> maps;
+  const LiftingKey lines_key = MapLiftingKey(key, lifting);
   for (const EvalGroup& g : work.groups) {
     const Reconstruction model = ReadColmapModel(JoinPaths(work_dir, g.map_dir));
-    const std::vector<uint64_t> all_ids = model.SortedPoint3DIds();
-    std::vector<Eigen::Vector3d> all_xyz;
-    for (const uint64_t id : all_ids) all_xyz.push_back(model.points3D.at(id).xyz);
-    // The same keyed sparsification as `lift --sparsify`.
-    std::vector<uint64_t> ids;
+    const std::vector<uint64_t> ids = model.SortedPoint3DIds();
     std::vector<Eigen::Vector3d> xyz;
-    for (const size_t i : SelectMapPoints(key, all_ids, all_xyz, drop, mode, resist_attack)) {
-      ids.push_back(all_ids[i]);
-      xyz.push_back(all_xyz[i]);
-    }
+    for (const uint64_t id : ids) xyz.push_back(model.points3D.at(id).xyz);
+    // The map `lift` would write with these options; the point model holds
+    // the same (kept) points.
     GroupMaps m;
-    for (size_t i = 0; i < ids.size(); ++i) m.points.points[ids[i]] = xyz[i];
-    m.lines = LineMapByPointId(LiftPoints(ids, xyz, key, {LineEncoding::kPlucker}), key);
+    m.lines = LineMapByPointId(LiftMap(key, ids, xyz, lifting), lines_key);
+    for (const auto& [id, line] : m.lines.lines) m.points.points[id] = model.points3D.at(id).xyz;
     maps.push_back(std::move(m));
   }
   return maps;
@@ -411,7 +406,7 @@ std::string ReportMarkdown(const EvalWork& work, const EvalRunOptions& options, 
   std::string md = fmt::format("# linecloud eval — {}\n\n", work.dataset);
   md += fmt::format("Units: {}. RANSAC threshold {} px for every method; seed {}; map sparsified by {:.0f} %; "
                     "extra pixel noise σ = {} px.\n\n",
-                    work.units, options.threshold_px, options.seed, 100 * options.sparsify, options.noise_px);
+                    work.units, options.threshold_px, options.seed, 100 * options.lifting.sparsify, options.noise_px);
   if (work.reconstruction.contains("ground_truth")) {
     const json& g = work.reconstruction["ground_truth"];
     md += fmt::format("COLMAP reconstruction vs. ground truth, after a similarity alignment on {} cameras "
@@ -503,7 +498,7 @@ void EvalRunOptions::Check() const {
   if (work_dir.empty()) Fail("--work: empty");
   if (out_dir.empty()) Fail("--out: empty");
   for (const std::string& m : methods) FindMethod(m);
-  if (!(sparsify >= 0 && sparsify < 1)) Fail("--sparsify: {} not in [0, 1)", sparsify);
+  lifting.Check();
   if (!(noise_px >= 0 && std::isfinite(noise_px))) Fail("--noise: {} is not a pixel std. dev. >= 0", noise_px);
   if (!(threshold_px > 0 && std::isfinite(threshold_px))) Fail("--threshold: {} must be > 0", threshold_px);
   for (double f : density_sweep) {
@@ -515,11 +510,22 @@ void EvalRunOptions::Check() const {
   if (noise_sweep_queries < 1) Fail("noise sweep queries: {} < 1", noise_sweep_queries);
 }
 
+EvalWork ReadPreparedWork(const std::string& work_dir) {
+  const std::string work_path = JoinPaths(work_dir, "prepared.json");
+  if (!FileExists(work_path)) Fail("{}: not found (run `linecloud eval prepare --work {}` first)", work_path, work_dir);
+  return EvalWorkFromJson(ReadJsonFile(work_path), work_path);
+}
+
+LiftingKey EvalLiftingKey(const std::string& work_dir) {
+  // The evaluation's maps are lifted with one permanent key per work directory.
+  const std::string key_path = JoinPaths(work_dir, "lifting.key");
+  if (!FileExists(key_path)) WriteKeyFile(key_path, LiftingKey::Generate());
+  return ReadKeyFile(key_path);
+}
+
 json RunEvaluation(const EvalRunOptions& options) {
   options.Check();
-  const std::string work_path = JoinPaths(options.work_dir, "prepared.json");
-  if (!FileExists(work_path)) Fail("{}: not found (run `linecloud eval prepare --work {}` first)", work_path, options.work_dir);
-  EvalWork work = EvalWorkFromJson(ReadJsonFile(work_path), work_path);
+  EvalWork work = ReadPreparedWork(options.work_dir);
   if (options.noise_px > 0) {
     std::mt19937_64 rng(options.seed);
     std::normal_distribution<double> noise(0.0, options.noise_px);
@@ -529,10 +535,7 @@ json RunEvaluation(const EvalRunOptions& options) {
       }
     }
   }
-  // The evaluation's maps are lifted with one permanent key per work directory.
-  const std::string key_path = JoinPaths(options.work_dir, "lifting.key");
-  if (!FileExists(key_path)) WriteKeyFile(key_path, LiftingKey::Generate());
-  const LiftingKey key = ReadKeyFile(key_path);
+  const LiftingKey key = EvalLiftingKey(options.work_dir);
 
   std::vector<const MethodInfo*> methods;
   if (options.methods.empty()) {
@@ -543,15 +546,14 @@ json RunEvaluation(const EvalRunOptions& options) {
   CreateDirectories(options.out_dir);
 
   json report = {{"dataset", work.dataset}, {"units", work.units},
-                 {"threshold_px", options.threshold_px}, {"sparsify", options.sparsify},
-                 {"sparsify_mode", SparsifyModeName(options.sparsify_mode)},
-                 {"resist_attack", options.resist_attack >= 0 ? json(options.resist_attack) : json(nullptr)},
+                 {"threshold_px", options.threshold_px}, {"sparsify", options.lifting.sparsify},
+                 {"lifting", options.lifting.Name()},
                  {"noise_px", options.noise_px}, {"seed", options.seed},
                  {"gravity_source", work.gravity_source}, {"reconstruction", work.reconstruction}};
   report["methods"] = json::object();
   std::map<std::string, std::vector<QueryRecord>> all_records;
   {
-    const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, options.sparsify, options.sparsify_mode, options.resist_attack);
+    const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, options.lifting);
     for (const MethodInfo* m : methods) {
       const auto t0 = std::chrono::steady_clock::now();
       std::vector<QueryRecord> records = RunMethod(work, *m, maps, options);
@@ -576,9 +578,7 @@ json RunEvaluation(const EvalRunOptions& options) {
     DirectMatchingOptions dm;
     dm.threshold_px = options.threshold_px;
     dm.seed = options.seed;
-    dm.sparsify = options.sparsify;
-    dm.sparsify_mode = options.sparsify_mode;
-    dm.resist_attack = options.resist_attack;
+    dm.lifting = options.lifting;
     report["direct_matching"] = RunDirectMatching(work, options.work_dir, key, dm);
   }
 
@@ -595,8 +595,8 @@ json RunEvaluation(const EvalRunOptions& options) {
         r.push_back(q.rotation_deg[1]);
         t.push_back(q.position[1]);
       }
-      rs.push_back({std::string(m->name), xr, CumulativeAt(r, xr), PairColor(*m), m->lines});
-      ts.push_back({std::string(m->name), xt, CumulativeAt(t, xt), PairColor(*m), m->lines});
+      rs.push_back({std::string(m->name), xr, CumulativeAt(r, xr), PairColor(*m), m->lines, false, {}});
+      ts.push_back({std::string(m->name), xt, CumulativeAt(t, xt), PairColor(*m), m->lines, false, {}});
     }
     WriteLinePlot(JoinPaths(options.out_dir, "cumulative_rotation.png"),
                   {.title = work.dataset + ": cumulative rotation error (refined)", .x_label = "rotation error (deg)",
@@ -615,9 +615,11 @@ json RunEvaluation(const EvalRunOptions& options) {
     std::map<std::string, std::vector<double>> rot, pos;
     for (double drop : options.density_sweep) {
       const auto t0 = std::chrono::steady_clock::now();
-      const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, drop, options.sparsify_mode, options.resist_attack);
+      MapLifting at_drop = options.lifting;
+      at_drop.sparsify = drop;
+      const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, at_drop);
       for (const MethodInfo* m : methods) {
-        std::vector<QueryRecord> records = drop == options.sparsify ? all_records[std::string(m->name)]
+        std::vector<QueryRecord> records = drop == options.lifting.sparsify ? all_records[std::string(m->name)]
                                                                     : RunMethod(work, *m, maps, options);
         std::vector<double> r, t;
         for (const QueryRecord& q : records) {
@@ -637,7 +639,7 @@ json RunEvaluation(const EvalRunOptions& options) {
       d["median_translation"][n] = pos[n];
       std::vector<double> x;
       for (double f : options.density_sweep) x.push_back(100 * f);
-      series.push_back({n, x, rot[n], PairColor(*m), m->lines});
+      series.push_back({n, x, rot[n], PairColor(*m), m->lines, false, {}});
     }
     report["density"] = d;
     WriteLinePlot(JoinPaths(options.out_dir, "error_vs_density.png"),
@@ -684,7 +686,7 @@ json RunEvaluation(const EvalRunOptions& options) {
       const std::string n(m->name);
       d["median_rotation_deg"][n] = rot[n];
       d["median_translation_relative"][n] = pos[n];
-      series.push_back({n, options.noise_sweep, rot[n], PairColor(*m), m->lines});
+      series.push_back({n, options.noise_sweep, rot[n], PairColor(*m), m->lines, false, {}});
     }
     report["noise"] = d;
     WriteLinePlot(JoinPaths(options.out_dir, "error_vs_noise.png"),

@@ -11,7 +11,8 @@
 #include <nlohmann/json.hpp>
 
 #include "linecloud/eval/eval_work.h"
-#include "linecloud/lifting/sparsify.h"
+#include "linecloud/lifting/key.h"
+#include "linecloud/privacy/map_lifting.h"
 
 namespace linecloud {
 
@@ -19,9 +20,7 @@ struct EvalRunOptions {
   std::string work_dir;
   std::string out_dir;
   std::vector<std::string> methods;  // empty: all 16
-  double sparsify = 0.0;             // share of map points (and lines) dropped (lift --sparsify)
-  SparsifyMode sparsify_mode = SparsifyMode::kUniform;
-  double resist_attack = -1;         // >= 0: lift --resist-attack after sparsifying
+  MapLifting lifting;                // how the maps are lifted (lift's --sparsify, ...)
   double noise_px = 0.0;             // Gaussian noise added to the query pixels
   double threshold_px = 4.0;         // RANSAC inlier threshold, every method
   uint64_t seed = 1;
@@ -39,5 +38,11 @@ struct EvalRunOptions {
 
 // Runs everything and writes RESULTS; returns report.json's content.
 nlohmann::json RunEvaluation(const EvalRunOptions& options);
+
+// WORK/prepared.json; throws Error naming it when missing or malformed.
+EvalWork ReadPreparedWork(const std::string& work_dir);
+// The evaluation's one permanent key of a work directory (WORK/lifting.key,
+// created on first use).
+LiftingKey EvalLiftingKey(const std::string& work_dir);
 
 }  // namespace linecloud

@@ -228,7 +228,7 @@ TEST(Plot, WritesAPngOfTheRequestedSize) {
   TempDir tmp;
   const std::string path = tmp.Path("p.png");
   WriteLinePlot(path, {.title = "t", .x_label = "x", .y_label = "y", .log_x = true, .log_y = true, .width = 640, .height = 400},
-                {{"a", {0.01, 0.1, 1}, {1, 10, 100}, 0, false}, {"b", {0.01, 1}, {0, 5}, 1, true}});
+                {{"a", {0.01, 0.1, 1}, {1, 10, 100}, 0, false, false, {}}, {"b", {0.01, 1}, {0, 5}, 1, true, false, {}}});
   const std::string png = ReadFileToString(path);
   ASSERT_GT(png.size(), 24u);
   EXPECT_EQ(png.substr(1, 3), "PNG");

@@ -156,6 +156,19 @@ void WriteLinePlot(const std::string& path, const PlotOptions& o,
       pen = true;
     }
     cairo_stroke(cr);
+    cairo_set_dash(cr, dash, 0, 0);
+    for (size_t i = 0; i < std::min(s.x.size(), s.y.size()); ++i) {
+      if (!Valid(o, s.x[i], s.y[i])) continue;
+      if (s.markers) {
+        cairo_set_source_rgb(cr, c.r, c.g, c.b);
+        cairo_arc(cr, px(s.x[i]), py(s.y[i]), 4.5, 0, 2 * M_PI);
+        cairo_fill(cr);
+      }
+      if (i < s.labels.size() && !s.labels[i].empty()) {
+        cairo_set_source_rgb(cr, 0.2, 0.2, 0.2);
+        text(px(s.x[i]) + 7, py(s.y[i]) - 4, s.labels[i], 11, 0, 1);
+      }
+    }
   }
   cairo_restore(cr);
   double ly = top + 10;

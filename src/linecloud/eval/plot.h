@@ -12,6 +12,8 @@ struct PlotSeries {
   std::vector<double> x, y;
   int color = 0;        // index into a fixed palette
   bool dashed = false;  // e.g. the privacy-preserving (line) twin of a method
+  bool markers = false;  // a dot at each point
+  std::vector<std::string> labels;  // optional: a label beside each point
 };
 
 struct PlotOptions {

@@ -1,5 +1,8 @@
 #include "linecloud/privacy/resist.h"
 
+#include <algorithm>
+#include <cmath>
+#include <functional>
 #include <unordered_map>
 
 #include "linecloud/lifting/lifting.h"
@@ -11,6 +14,7 @@ namespace linecloud {
 void ResistOptions::Check() const {
   if (!(max_recovered >= 0 && max_recovered < 1)) Fail("--resist-attack: {} is not a share in [0, 1)", max_recovered);
   if (!(radius_percent > 0 && radius_percent <= 100)) Fail("resist: radius must be in (0, 100] %");
+  if (!(drop_per_round > 0 && drop_per_round <= 1)) Fail("resist: drop per round must be in (0, 1]");
   if (max_rounds < 1 || max_rounds > 100) Fail("resist: rounds must be in [1, 100]");
   attack.Check();
 }
@@ -34,18 +38,22 @@ ResistResult SelectAttackResistantPoints(const LiftingKey& key, std::span<const 
     const std::vector<uint64_t> line_points = PointIdsOfLines(key, cloud.ids);
     std::unordered_map<uint64_t, size_t> row_of;
     for (size_t r = 0; r < kept_ids.size(); ++r) row_of.emplace(kept_ids[r], r);
-    std::vector<bool> recovered(ids.size(), false);
-    size_t count = 0;
+    std::vector<std::pair<float, size_t>> found;  // (peak share, index into ids)
     for (size_t k = 0; k < cloud.size(); ++k) {
       const size_t row = row_of.at(line_points[k]);
       if ((attack.points[k] - kept_points[row]).norm() <= radius) {
-        recovered[result.kept[row]] = true;
-        ++count;
+        found.push_back({attack.peak_share[k], result.kept[row]});
       }
     }
-    const double share = static_cast<double>(count) / cloud.size();
+    const double share = static_cast<double>(found.size()) / cloud.size();
     result.recovered_share.push_back(share);
     if (share <= o.max_recovered) break;
+    std::sort(found.begin(), found.end(), std::greater<>());
+    const size_t excess = found.size() - static_cast<size_t>(o.max_recovered * cloud.size());
+    const size_t drop = std::min(found.size(), std::max<size_t>(
+        1, std::min(excess, static_cast<size_t>(std::ceil(o.drop_per_round * found.size())))));
+    std::vector<bool> recovered(ids.size(), false);
+    for (size_t k = 0; k < drop; ++k) recovered[found[k].second] = true;
     std::vector<size_t> next;
     for (const size_t i : result.kept) {
       if (!recovered[i]) next.push_back(i);

@@ -1,10 +1,12 @@
 // A lifting of our own that resists the density attack: attack-aware
 // sparsification. The owner knows the secret points, so before sharing a map
 // the owner can run the attack on it (density_attack.h) and see which points
-// come back. Those points are dropped and the attack is run again on what is
-// left (their removal changes everybody's neighbourhoods), until at most
-// `max_recovered` of the kept points are recovered within `radius_percent` %
-// of the scene's diagonal, or `max_rounds` rounds.
+// come back. The recovered points whose votes agree the most are dropped —
+// just enough of them to reach the target if nothing else changed — and the
+// attack is run again on what is left (their removal changes everybody's
+// neighbourhoods), until at most `max_recovered` of the kept points are
+// recovered within `radius_percent` % of the scene's diagonal, or
+// `max_rounds` rounds.
 //
 // Every kept point keeps its line (same key, same line as the full map), so
 // this is a subset of the full map's lines like `--sparsify`; it is
@@ -31,6 +33,10 @@ struct ResistOptions {
   double max_recovered = 0.2;   // share of the kept points recovered at the end
   double radius_percent = 1.0;  // "recovered": within this % of the diagonal
   int max_rounds = 10;
+  // Per round, only this share of the recovered points goes: those whose
+  // votes agree the most (largest peak share) — removing a point also
+  // changes its neighbours' votes, so fewer go overall.
+  double drop_per_round = 1.0;
   DensityAttackOptions attack;
 
   void Check() const;

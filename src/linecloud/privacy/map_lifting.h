@@ -1,0 +1,39 @@
+// How a map is lifted for sharing, as one value: the keyed sparsification
+// (lifting/sparsify.h), attack-aware sparsification (resist.h) and the
+// encoding. `lift` spells these as options; `eval run` and `eval privacy`
+// take the same value so that what is measured is what `lift` writes.
+#pragma once
+
+#include <span>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "linecloud/lifting/key.h"
+#include "linecloud/lifting/line_cloud.h"
+#include "linecloud/lifting/sparsify.h"
+
+namespace linecloud {
+
+struct MapLifting {
+  double sparsify = 0;  // share dropped
+  SparsifyMode sparsify_mode = SparsifyMode::kUniform;
+  double resist_attack = -1;  // >= 0: lift --resist-attack after sparsifying
+  // The compact encoding. Under a sphere key (the evaluation's) the lines
+  // then come from a compact256 key derived from it: a second lifting of the
+  // points, for measurement only, never to be shared beside the first.
+  bool compact = false;
+
+  std::string Name() const;  // e.g. "plain", "uniform 90 %", "resist 0.2", "compact"
+  void Check() const;
+};
+
+// The key whose lines the map holds (the compact variant's derived key when
+// `compact` and `key` is a sphere key).
+LiftingKey MapLiftingKey(const LiftingKey& key, const MapLifting& lifting);
+
+// The map of (ids, points): the kept points lifted under MapLiftingKey.
+LineCloud LiftMap(const LiftingKey& key, std::span<const uint64_t> ids,
+                  std::span<const Eigen::Vector3d> points, const MapLifting& lifting);
+
+}  // namespace linecloud
