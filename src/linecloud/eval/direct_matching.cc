@@ -37,8 +37,7 @@ GroupMap LoadGroupMap(const std::string& work_dir, const EvalGroup& g, const Lif
   // The map `lift --database` would write with these options: the kept
   // points that have a descriptor.
   const std::vector<uint64_t> model_ids = model.SortedPoint3DIds();
-  std::vector<Eigen::Vector3d> model_xyz;
-  for (const uint64_t id : model_ids) model_xyz.push_back(model.points3D.at(id).xyz);
+  const std::vector<Eigen::Vector3d> model_xyz = PointCoordinates(model, model_ids);
   const LiftingKey lines_key = MapLiftingKey(key, options.lifting);
   const LineMap all_lines =
       LineMapByPointId(LiftMap(key, model_ids, model_xyz, options.lifting), lines_key);

@@ -330,8 +330,7 @@ std::vector<GroupMaps> LoadMaps(const EvalWork& work, const std::string& work_di
   for (const EvalGroup& g : work.groups) {
     const Reconstruction model = ReadColmapModel(JoinPaths(work_dir, g.map_dir));
     const std::vector<uint64_t> ids = model.SortedPoint3DIds();
-    std::vector<Eigen::Vector3d> xyz;
-    for (const uint64_t id : ids) xyz.push_back(model.points3D.at(id).xyz);
+    const std::vector<Eigen::Vector3d> xyz = PointCoordinates(model, ids);
     // The map `lift` would write with these options; the point model holds
     // the same (kept) points.
     GroupMaps m;

@@ -38,11 +38,10 @@ ojson AttackGroupMaps(const EvalWork& work, const std::string& work_dir, const L
   for (const EvalGroup& g : work.groups) {
     const Reconstruction model = ReadColmapModel(JoinPaths(work_dir, g.map_dir));
     const std::vector<uint64_t> ids = model.SortedPoint3DIds();
-    std::vector<Eigen::Vector3d> xyz;
-    for (const uint64_t id : ids) xyz.push_back(model.points3D.at(id).xyz);
+    const std::vector<Eigen::Vector3d> xyz = PointCoordinates(model, ids);
     const LineCloud cloud = LiftMap(key, ids, xyz, lifting);
-    std::vector<Eigen::Vector3d> secret;
-    for (const uint64_t id : PointIdsOfLines(lines_key, cloud.ids)) secret.push_back(model.points3D.at(id).xyz);
+    const std::vector<Eigen::Vector3d> secret =
+        PointCoordinates(model, PointIdsOfLines(lines_key, cloud.ids));
     const DensityAttackResult r = RunDensityAttack(cloud, attack);
     const RecoveryScore s = ScoreRecovery(r.points, secret, metric);
     const double percents[3] = {0.5, 1.0, 2.0};

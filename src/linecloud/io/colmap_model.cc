@@ -82,6 +82,14 @@ Eigen::Quaterniond ParseQuaternion(const std::vector<std::string_view>& tok,
 
 }  // namespace
 
+std::vector<Eigen::Vector3d> PointCoordinates(const Reconstruction& model,
+                                              std::span<const uint64_t> ids) {
+  std::vector<Eigen::Vector3d> xyz;
+  xyz.reserve(ids.size());
+  for (const uint64_t id : ids) xyz.push_back(model.points3D.at(id).xyz);
+  return xyz;
+}
+
 std::vector<uint64_t> Reconstruction::SortedPoint3DIds() const {
   return SortedKeys(points3D);
 }

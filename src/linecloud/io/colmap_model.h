@@ -7,6 +7,7 @@
 #include <limits>
 #include <map>
 #include <optional>
+#include <span>
 #include <string>
 #include <string_view>
 #include <unordered_map>
@@ -84,6 +85,10 @@ struct Reconstruction {
   // track → image / point2D index) and non-finite coordinates.
   void Check(std::string_view source) const;
 };
+
+// The coordinates of the model's points `ids` (each must exist).
+std::vector<Eigen::Vector3d> PointCoordinates(const Reconstruction& model,
+                                              std::span<const uint64_t> ids);
 
 enum class ModelFormat { kBinary, kText };
 
