@@ -169,7 +169,14 @@ void TradeoffPlot(const std::string& path, const std::string& dataset, const ojs
   o.y_label = "p6L median rotation error (°)";
   o.x_min = 0, o.x_max = 100;
   std::vector<PlotSeries> series;
-  for (auto& [name, s] : families) series.push_back(s);
+  double y_max = 0;
+  for (auto& [name, s] : families) {
+    for (const double y : s.y) {
+      if (std::isfinite(y)) y_max = std::max(y_max, y);
+    }
+    series.push_back(s);
+  }
+  o.y_min = 0, o.y_max = y_max > 0 ? 1.2 * y_max : 1;  // room for the labels
   WriteLinePlot(path, o, series);
 }
 
