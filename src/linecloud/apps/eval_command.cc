@@ -2,6 +2,7 @@
 
 #include "linecloud/apps/commands.h"
 #include "linecloud/eval/eval_prepare.h"
+#include "linecloud/eval/colmap_registration.h"
 #include "linecloud/eval/eval_run.h"
 #include "linecloud/eval/privacy_tradeoff.h"
 #include "linecloud/util/file.h"
@@ -57,6 +58,20 @@ void RegisterEvalCommand(CLI::App& app) {
     o.progress = [](const std::string& s) { std::cout << "[eval privacy] " << s << std::endl; };
     RunPrivacyTradeoff(o);
     std::cout << ReadFileToString(JoinPaths(o.out_dir, "tradeoff.md"));
+  });
+
+  auto registration = std::make_shared<ColmapRegistrationOptions>();
+  CLI::App* colmap = eval->add_subcommand(
+      "colmap", "COLMAP itself registering the left-out query images on each group's point model "
+                "(one thread), beside linecloud's figures: colmap_registration.md/.json");
+  colmap->add_option("--work", registration->work_dir, "work directory of `eval prepare`")->required();
+  colmap->add_option("--out", registration->out_dir, "results directory")->required();
+  colmap->add_option("--ours", registration->ours,
+                     "report.json of `eval run` (direct matching) to set beside COLMAP's");
+  colmap->add_option("--colmap", registration->colmap.executable, "COLMAP executable")->capture_default_str();
+  colmap->callback([registration] {
+    RunColmapRegistration(*registration);
+    std::cout << ReadFileToString(JoinPaths(registration->out_dir, "colmap_registration.md"));
   });
 
   auto run_options = std::make_shared<EvalRunOptions>();

@@ -439,3 +439,23 @@ TEST(EvalPrivacy, FountainTradeoffMeetsTheMeasuredFigures) {
 
 }  // namespace
 }  // namespace linecloud
+
+namespace linecloud {
+namespace {
+
+// `eval colmap` on fountain-P11 in CI ([image]): COLMAP registers every left-out
+// photo; linecloud's p6L (photos matched straight to the line cloud) stays
+// within 1.5x of COLMAP's rotation error and takes less time per photo than
+// COLMAP's extraction + matching + registration.
+TEST(EvalColmap, P6lAgainstColmapsOwnRegistration) {
+  const char* path = std::getenv("LINECLOUD_COLMAP_REPORT");
+  if (!path) GTEST_SKIP() << "LINECLOUD_COLMAP_REPORT is not set (CI sets it after `linecloud eval colmap`)";
+  const nlohmann::json s = ReadJsonFile(path)["summary"];
+  EXPECT_EQ(s["colmap_registered"], s["images"]);
+  ASSERT_TRUE(s.contains("p6L_median_rotation_deg")) << "eval colmap without --ours";
+  EXPECT_LE(s["p6L_median_rotation_deg"].get<double>(), 1.5 * s["colmap_median_rotation_deg"].get<double>());
+  EXPECT_LT(s["p6L_mean_seconds"].get<double>(), s["colmap_mean_seconds"].get<double>());
+}
+
+}  // namespace
+}  // namespace linecloud
