@@ -46,8 +46,19 @@ void RegisterEvalCommand(CLI::App& app) {
   privacy->add_flag("!--no-direct-matching", tradeoff->direct_matching,
                     "skip the direct matching of the query photos");
   privacy->add_flag("--quick", *tradeoff_quick, "only plain, uniform 90 %, balanced 90 %, resist 0.2");
-  privacy->callback([tradeoff, tradeoff_quick] {
+  auto specs = std::make_shared<std::vector<std::string>>();
+  privacy->add_option("--lifting", *specs,
+                      "liftings to measure instead of the default set (repeat): plain, uniform:F, "
+                      "balanced:F, resist:S, compact, or several joined by + (plain is always first)");
+  privacy->callback([tradeoff, tradeoff_quick, specs] {
     PrivacyTradeoffOptions o = *tradeoff;
+    if (!specs->empty()) {
+      o.liftings = {MapLifting{}};
+      for (const std::string& spec : *specs) {
+        const MapLifting l = ParseMapLifting(spec, "--lifting");
+        if (l.Name() != "plain") o.liftings.push_back(l);
+      }
+    }
     if (*tradeoff_quick) {
       MapLifting uniform, balanced, resist;
       uniform.sparsify = balanced.sparsify = 0.9;

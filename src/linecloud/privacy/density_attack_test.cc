@@ -8,6 +8,7 @@
 
 #include "linecloud/lifting/lifting.h"
 #include "linecloud/lifting/sparsify.h"
+#include "linecloud/privacy/map_lifting.h"
 #include "linecloud/privacy/recovery_score.h"
 #include "linecloud/privacy/resist.h"
 #include "linecloud/privacy/two_key_attack.h"
@@ -223,6 +224,17 @@ TEST(Resist, KeepsPointsTheAttackCannotRecover) {
   const double blind = recovered(SparsifyPoints(key, ids, points, drop, SparsifyMode::kUniform));
   EXPECT_LT(resisting, 0.3);
   EXPECT_LT(2 * resisting, blind) << "resisting " << resisting << ", uniform " << blind;
+}
+
+TEST(MapLifting, ParsesTheLiftingsOfTheCommandLine) {
+  EXPECT_EQ(ParseMapLifting("plain", "x").Name(), "plain");
+  EXPECT_EQ(ParseMapLifting("balanced:0.5+resist:0.2", "x").Name(), "balanced 50 % + resist 0.2");
+  const MapLifting c = ParseMapLifting("uniform:0.9+compact", "x");
+  EXPECT_EQ(c.sparsify, 0.9);
+  EXPECT_TRUE(c.compact);
+  for (const char* bad : {"uniform:1.5", "resist:1", "resist:-1", "uniform", "plain:3", "x:1", "resist:1e999", ""}) {
+    EXPECT_THROW(ParseMapLifting(bad, "--lifting"), Error) << bad;
+  }
 }
 
 }  // namespace

@@ -1,5 +1,8 @@
 #include "linecloud/privacy/map_lifting.h"
 
+#include <cmath>
+#include <cstdlib>
+
 #include <fmt/format.h>
 
 #include "linecloud/lifting/lifting.h"
@@ -19,6 +22,46 @@ std::string MapLifting::Name() const {
 void MapLifting::Check() const {
   if (!(sparsify >= 0 && sparsify < 1)) Fail("--sparsify: {} is not a share in [0, 1)", sparsify);
   if (resist_attack >= 1) Fail("--resist-attack: {} is not a share in [0, 1)", resist_attack);
+}
+
+MapLifting ParseMapLifting(const std::string& spec, const std::string& source) {
+  MapLifting m;
+  size_t start = 0;
+  while (start <= spec.size()) {
+    const size_t end = std::min(spec.find('+', start), spec.size());
+    const std::string part = spec.substr(start, end - start);
+    const size_t colon = part.find(':');
+    const std::string name = part.substr(0, colon);
+    double value = 0;
+    if (colon != std::string::npos) {
+      const std::string number = part.substr(colon + 1);
+      char* rest = nullptr;
+      value = std::strtod(number.c_str(), &rest);
+      if (number.empty() || *rest != '\0' || !std::isfinite(value)) {
+        Fail("{}: '{}' is not a number in '{}'", source, number, spec);
+      }
+    }
+    const bool needs_value = name == "uniform" || name == "balanced" || name == "resist";
+    if (needs_value != (colon != std::string::npos)) {
+      Fail("{}: '{}' in '{}' (expected plain, uniform:F, balanced:F, resist:S or compact)", source,
+           part, spec);
+    }
+    if (name == "uniform" || name == "balanced") {
+      m.sparsify = value;
+      m.sparsify_mode = name == "balanced" ? SparsifyMode::kBalanced : SparsifyMode::kUniform;
+    } else if (name == "resist") {
+      m.resist_attack = value;
+      if (value < 0) Fail("{}: resist share {} < 0", source, value);
+    } else if (name == "compact") {
+      m.compact = true;
+    } else if (name != "plain") {
+      Fail("{}: unknown lifting '{}' in '{}' (plain, uniform:F, balanced:F, resist:S, compact)",
+           source, name, spec);
+    }
+    start = end + 1;
+  }
+  m.Check();
+  return m;
 }
 
 LiftingKey MapLiftingKey(const LiftingKey& key, const MapLifting& lifting) {

@@ -28,6 +28,10 @@ struct MapLifting {
   void Check() const;
 };
 
+// "plain", "uniform:F", "balanced:F", "resist:S", "compact", or several joined
+// by '+' (e.g. "balanced:0.5+resist:0.2"); throws Error naming `source`.
+MapLifting ParseMapLifting(const std::string& spec, const std::string& source);
+
 // The key whose lines the map holds (the compact variant's derived key when
 // `compact` and `key` is a sphere key).
 LiftingKey MapLiftingKey(const LiftingKey& key, const MapLifting& lifting);
