@@ -40,8 +40,10 @@ void RegisterEvalCommand(CLI::App& app) {
       "privacy",
       "privacy against accuracy: the density attack and localization on the maps of each lifting "
       "(plain, --sparsify uniform/balanced, --resist-attack, compact): tradeoff.md, .json, .png");
-  privacy->add_option("--work", tradeoff->work_dir, "work directory of `eval prepare`")->required();
+  auto render_only = std::make_shared<bool>(false);
+  privacy->add_option("--work", tradeoff->work_dir, "work directory of `eval prepare`");
   privacy->add_option("--out", tradeoff->out_dir, "results directory")->required();
+  privacy->add_flag("--render", *render_only, "only redo tradeoff.md and .png from OUT/tradeoff.json");
   privacy->add_option("--methods", tradeoff->methods, "methods (paper protocol)")->capture_default_str();
   privacy->add_flag("!--no-direct-matching", tradeoff->direct_matching,
                     "skip the direct matching of the query photos");
@@ -50,8 +52,13 @@ void RegisterEvalCommand(CLI::App& app) {
   privacy->add_option("--lifting", *specs,
                       "liftings to measure instead of the default set (repeat): plain, uniform:F, "
                       "balanced:F, resist:S, compact, or several joined by + (plain is always first)");
-  privacy->callback([tradeoff, tradeoff_quick, specs] {
+  privacy->callback([tradeoff, tradeoff_quick, specs, render_only] {
     PrivacyTradeoffOptions o = *tradeoff;
+    if (*render_only) {
+      RenderPrivacyTradeoff(o.out_dir);
+      std::cout << ReadFileToString(JoinPaths(o.out_dir, "tradeoff.md"));
+      return;
+    }
     if (!specs->empty()) {
       o.liftings = {MapLifting{}};
       for (const std::string& spec : *specs) {

@@ -36,4 +36,8 @@ std::vector<MapLifting> DefaultTradeoffLiftings();
 
 nlohmann::ordered_json RunPrivacyTradeoff(const PrivacyTradeoffOptions& options);
 
+// tradeoff.md and tradeoff.png from OUT/tradeoff.json (what RunPrivacyTradeoff
+// ends with; `eval privacy --render OUT` redoes it).
+void RenderPrivacyTradeoff(const std::string& out_dir);
+
 }  // namespace linecloud
