@@ -41,6 +41,10 @@ ojson DensityAttackJson(const DensityAttackResult& r, const DensityAttackOptions
              {"lines_without_votes", r.lines_without_votes},
              {"seconds", r.seconds}};
   j["recovery"] = RecoveryJson(score);
+  if (r.lines_without_votes == r.points.size()) {
+    j["why_nothing"] = "no two lines of the map cross at an angle (all parallel): no line has a "
+                       "vote, and every estimate is the line's anchor";
+  }
   return j;
 }
 
@@ -203,6 +207,7 @@ std::string AuditMarkdown(const ojson& r) {
         md += fmt::format("| {:.0f} cm | {} |\n", 100 * std::stod(m), Percent(share.get<double>()));
       }
     }
+    if (a.contains("why_nothing")) md += fmt::format("Nothing to vote with: {}.\n\n", a["why_nothing"].get<std::string>());
     md += fmt::format("\nMedian error: {:.2f} % of the diagonal{}. `audit.png` shows the secret and "
                       "the recovered points side by side; `recovered.ply` the recovered points "
                       "coloured by error.\n\n",
