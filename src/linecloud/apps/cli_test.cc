@@ -1,4 +1,6 @@
 // End-to-end tests of the `linecloud` command line, run in-process.
+#include <sys/stat.h>
+
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -909,7 +911,7 @@ TEST(Cli, AuditMeasuresWhatLeaksFromARealMap) {
   ExpectError(RunCli({"audit", "--map", tmp.Path("demo/map.lcm"), "--model", model, "--quiet"}),
               "does not pass through its model point");
   ExpectError(RunCli({"attack", "--map", tmp.Path("map.lcm"), "--out", tmp.Path("map.lcm")}),
-              "is the input map");
+              "is one of the command's inputs");
   EXPECT_EQ(ReadFileToString(tmp.Path("map.lcm")), map_before);
   // A map of another scene as --other: nothing comes back, and the report says why.
   r = RunCli({"audit", "--map", tmp.Path("map.lcm"), "--model", model, "--key-file", key, "--other",
@@ -946,6 +948,37 @@ TEST(Cli, SparsifiedMapsHoldTheSameLines) {
                       "--sparsify", "1"}),
               "--sparsify");
   EXPECT_FALSE(FileExists(tmp.Path("x.lcm")));
+}
+
+}  // namespace
+}  // namespace linecloud
+
+namespace linecloud {
+namespace {
+
+// [harden] 2: outputs that are devices, links or the command's own inputs.
+TEST(Cli, OutputsNeverClobberInputsOrDevices) {
+  TempDir tmp;
+  ASSERT_EQ(RunCli({"demo", "--out", tmp.Path("d"), "--points", "800", "--images", "8", "--queries",
+                    "2"}).code, 0);
+  const std::string map = tmp.Path("d/map.lcm"), query = tmp.Path("d/queries/query_000.json");
+  const std::string map_before = ReadFileToString(map);
+  const std::string points_before = ReadFileToString(tmp.Path("d/model/points3D.bin"));
+  ExpectError(RunCli({"localize", "--map", map, "--query", query, "--out", map, "--quiet"}),
+              "one of the command's inputs");
+  ExpectError(RunCli({"localize", "--map", map, "--query", query, "--ply", query, "--quiet"}),
+              "one of the command's inputs");
+  ExpectError(RunCli({"export", "--model", tmp.Path("d/model"), "--ply", tmp.Path("d/model/points3D.bin")}),
+              "one of the command's inputs");
+  EXPECT_EQ(ReadFileToString(map), map_before);
+  EXPECT_EQ(ReadFileToString(tmp.Path("d/model/points3D.bin")), points_before);
+  // A device is written through and stays a device.
+  EXPECT_EQ(RunCli({"export", "--map", map, "--ply", "/dev/null"}).code, 0);
+  EXPECT_TRUE(std::filesystem::is_character_file("/dev/null"));
+  // A FIFO as an input: refused at once instead of blocking.
+  ASSERT_EQ(::mkfifo(tmp.Path("fifo.json").c_str(), 0600), 0);
+  ExpectError(RunCli({"localize", "--map", map, "--query", tmp.Path("fifo.json"), "--quiet"}),
+              "not a regular file");
 }
 
 }  // namespace

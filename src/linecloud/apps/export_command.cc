@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/util/file.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/io/ply.h"
@@ -16,6 +17,7 @@ struct ExportArgs {
 };
 
 void RunExport(const ExportArgs& args) {
+  RefuseOutputOverInputs(args.ply, {args.map, args.model}, "--ply");
   if (!args.map.empty()) {
     const LineCloud cloud = ReadLineCloud(args.map);
     WriteLineCloudPly(cloud, args.ply, args.segment_length);

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/util/file.h"
 #include "linecloud/io/lift_model.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/localize/image_query.h"
@@ -21,6 +22,9 @@ struct LiftArgs {
 };
 
 void RunLift(LiftArgs args) {
+  RefuseOutputOverInputs(args.options.out_path,
+                         {args.options.model_dir, args.options.database, args.options.key_file},
+                         "--out");
   args.options.aggregation = DescriptorAggregationFromName(args.descriptor);
   args.options.sparsify_mode = SparsifyModeFromName(args.sparsify_mode, "--sparsify-mode");
   if (args.resist_attack >= 0) {

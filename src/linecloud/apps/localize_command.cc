@@ -60,6 +60,15 @@ void RunLocalize(LocalizeArgs args) {
   if (args.map_path.empty() == args.model_dir.empty()) {
     Fail("give exactly one of --map MAP.lcm (line cloud) or --model DIR (point model)");
   }
+  {
+    std::vector<std::string> inputs = {args.map_path, args.model_dir, args.query_path, args.database,
+                                       args.rig};
+    inputs.insert(inputs.end(), args.image_paths.begin(), args.image_paths.end());
+    for (const auto& [option, output] : {std::pair<const char*, const std::string&>{"--out", args.out},
+                                         {"--ply", args.ply}, {"--overlay", args.overlay}}) {
+      if (!output.empty()) RefuseOutputOverInputs(output, inputs, option);
+    }
+  }
   if (!args.overlay.empty() && args.image_paths.size() != 1) {
     Fail("--overlay draws on one photo: it needs exactly one --image");
   }

@@ -19,6 +19,7 @@ struct MakeQueryArgs {
 };
 
 void RunMakeQuery(const MakeQueryArgs& args) {
+  RefuseOutputOverInputs(args.out, {args.model, args.key_file}, "--out");
   const Reconstruction model = ReadColmapModel(args.model);
   std::optional<LiftingKey> key;
   if (!args.points_only) key = ModelKey(model, args.model, args.key_file, args.key_store);

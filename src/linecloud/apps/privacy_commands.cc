@@ -8,6 +8,7 @@
 #include "linecloud/io/ply.h"
 #include "linecloud/privacy/audit.h"
 #include "linecloud/util/error.h"
+#include "linecloud/util/file.h"
 
 namespace linecloud {
 namespace {
@@ -41,15 +42,8 @@ void SetProgress(DensityAttackOptions& o, bool quiet) {
   };
 }
 
-void RefuseOutputOverInput(const std::string& out, const std::string& in) {
-  std::error_code ec;
-  if (out == in || std::filesystem::equivalent(out, in, ec)) {
-    Fail("--out {} is the input map: refusing to overwrite it", out);
-  }
-}
-
 void RunAttack(AttackArgs args) {
-  RefuseOutputOverInput(args.out_path, args.map_path);
+  RefuseOutputOverInputs(args.out_path, {args.map_path}, "--out");
   SetProgress(args.attack, args.quiet);
   const LineCloud cloud = ReadLineCloud(args.map_path);
   const DensityAttackResult r = RunDensityAttack(cloud, args.attack);
@@ -66,9 +60,8 @@ void RunAttack(AttackArgs args) {
 void RunAuditCommand(AuditOptions options, bool quiet) {
   SetProgress(options.attack, quiet);
   if (!options.out_dir.empty()) {
-    for (const std::string& in : {options.map_path, options.other_map_path, options.model_dir}) {
-      if (!in.empty()) RefuseOutputOverInput(options.out_dir, in);
-    }
+    RefuseOutputOverInputs(options.out_dir, {options.map_path, options.other_map_path, options.model_dir},
+                           "--out");
   }
   const nlohmann::ordered_json report = RunAudit(options);
   std::cout << report.dump(2) << "\n";

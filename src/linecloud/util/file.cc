@@ -14,11 +14,19 @@
 
 namespace linecloud {
 
-std::string ReadFileToString(const std::string& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec)) {
-    Fail("{}: is a directory, expected a file", path);
+void CheckReadableFile(const std::string& path) {
+  struct stat st;
+  if (::stat(path.c_str(), &st) != 0) {
+    Fail("{}: cannot open for reading ({})", path, std::strerror(errno));
   }
+  if (S_ISDIR(st.st_mode)) Fail("{}: is a directory, expected a file", path);
+  // A FIFO without a writer would block forever in open(); devices and
+  // sockets are no files to parse either.
+  if (!S_ISREG(st.st_mode)) Fail("{}: is not a regular file (a device, FIFO or socket)", path);
+}
+
+std::string ReadFileToString(const std::string& path) {
+  CheckReadableFile(path);
   std::ifstream file(path, std::ios::binary);
   if (!file) {
     Fail("{}: cannot open for reading ({})", path, std::strerror(errno));
@@ -44,32 +52,93 @@ bool IsDirectory(const std::string& path) {
   return std::filesystem::is_directory(path, ec);
 }
 
+namespace {
+
+// Writes all of `data` to `fd`; false on error.
+bool WriteAll(int fd, const std::string& data) {
+  size_t done = 0;
+  while (done < data.size()) {
+    const ssize_t n = ::write(fd, data.data() + done, data.size() - done);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    done += static_cast<size_t>(n);
+  }
+  return true;
+}
+
+}  // namespace
+
 void WriteFileAtomically(const std::string& path,
                          const std::function<void(std::ostream&)>& write,
                          unsigned mode) {
-  const std::string tmp = path + ".tmp." + std::to_string(::getpid());
-  {
-    const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC, mode);
-    if (fd < 0) {
-      Fail("{}: cannot create file ({})", path, std::strerror(errno));
-    }
-    ::fchmod(fd, mode);  // umask must not widen or narrow what we asked for
+  // The content first: a failing writer touches no file at all.
+  std::ostringstream buffer(std::ios::binary);
+  write(buffer);
+  if (!buffer) Fail("{}: cannot produce the output", path);
+  const std::string data = buffer.str();
+
+  // Write through a link to the file it names (the link stays a link).
+  std::string target = path;
+  struct stat lst;
+  if (::lstat(path.c_str(), &lst) == 0 && S_ISLNK(lst.st_mode)) {
+    std::error_code ec;
+    const std::filesystem::path resolved = std::filesystem::weakly_canonical(path, ec);
+    if (ec) Fail("{}: cannot resolve the link ({})", path, ec.message());
+    target = resolved.string();
+  }
+  struct stat st;
+  if (::stat(target.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
+    if (S_ISDIR(st.st_mode)) Fail("{}: is a directory, expected a file", path);
+    // A device or FIFO (/dev/null, /dev/stdout, a pipe): written through, never replaced.
+    const int fd = ::open(target.c_str(), O_WRONLY | O_NOCTTY);
+    if (fd < 0) Fail("{}: cannot open for writing ({})", path, std::strerror(errno));
+    const bool ok = WriteAll(fd, data);
     ::close(fd);
+    if (!ok) Fail("{}: write error ({})", path, std::strerror(errno));
+    return;
   }
-  try {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) Fail("{}: cannot open for writing", path);
-    write(out);
-    out.flush();
-    if (!out) Fail("{}: write error (disk full?)", path);
-  } catch (...) {
-    std::remove(tmp.c_str());
-    throw;
+  // A regular file or none: an exclusive, unpredictable temporary file in the
+  // same directory (mkstemp: O_CREAT | O_EXCL, so a planted file or link at
+  // its name is never followed), synced, then renamed over the target.
+  const std::filesystem::path dir = std::filesystem::path(target).parent_path();
+  std::string tmp = (dir.empty() ? std::filesystem::path(".") : dir).string() + "/.linecloud-XXXXXX";
+  const int fd = ::mkstemp(tmp.data());
+  if (fd < 0) Fail("{}: cannot create a file in its folder ({})", path, std::strerror(errno));
+  bool ok = ::fchmod(fd, mode) == 0;  // the requested bits, whatever the umask
+  ok = ok && WriteAll(fd, data) && ::fsync(fd) == 0;
+  const std::string reason = std::strerror(errno);
+  ::close(fd);
+  if (!ok) {
+    ::unlink(tmp.c_str());
+    Fail("{}: write error ({})", path, reason);
   }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const std::string reason = std::strerror(errno);
-    std::remove(tmp.c_str());
-    Fail("{}: cannot move into place ({})", path, reason);
+  if (::rename(tmp.c_str(), target.c_str()) != 0) {
+    const std::string why = std::strerror(errno);
+    ::unlink(tmp.c_str());
+    Fail("{}: cannot move into place ({})", path, why);
+  }
+}
+
+void RefuseOutputOverInputs(const std::string& output, const std::vector<std::string>& inputs,
+                            const std::string& option) {
+  std::error_code ec;
+  if (!std::filesystem::exists(output, ec)) return;
+  for (const std::string& input : inputs) {
+    if (input.empty()) continue;
+    std::error_code e1;
+    if (std::filesystem::equivalent(output, input, e1)) {
+      Fail("{} {} is one of the command's inputs: refusing to overwrite it", option, output);
+    }
+    // An input folder (a COLMAP model): none of its files either.
+    if (std::filesystem::is_directory(input, e1)) {
+      for (const auto& entry : std::filesystem::directory_iterator(input, e1)) {
+        std::error_code e2;
+        if (std::filesystem::equivalent(output, entry.path(), e2)) {
+          Fail("{} {} is one of the command's inputs (in {}): refusing to overwrite it", option,
+               output, input);
+        }
+      }
+    }
   }
 }
 

@@ -11,18 +11,32 @@
 
 namespace linecloud {
 
-// Reads the whole file; throws Error naming the path if it cannot be read.
+// Throws Error naming the path unless it is a readable regular file (after
+// links): directories, devices, FIFOs (which would block) and sockets are refused.
+void CheckReadableFile(const std::string& path);
+
+// Reads the whole file (CheckReadableFile first); throws Error naming the path
+// if it cannot be read.
 std::string ReadFileToString(const std::string& path);
 
 bool FileExists(const std::string& path);
 bool IsDirectory(const std::string& path);
 
-// Calls `write` with a binary stream on a temporary file next to `path` and
-// renames it to `path` only if `write` returned without throwing and the
-// stream is good. `mode` are the permission bits of the created file.
+// Calls `write` on an in-memory stream, then, only if it returned without
+// throwing: for a regular file (or none), writes an exclusive temporary file
+// (mkstemp) in the same folder, sets `mode`, fsyncs it and renames it over the
+// target; through a symbolic link, replaces the file the link names (the link
+// stays); a device or FIFO (/dev/null, /dev/stdout) is written through, never
+// replaced. Throws Error naming the path on any failure, leaving no file.
 void WriteFileAtomically(const std::string& path,
                          const std::function<void(std::ostream&)>& write,
                          unsigned mode = 0644);
+
+// Throws Error when `output` exists and is one of `inputs` (the same file by
+// any path or link) or a file directly inside an input folder. `option` names
+// the output option in the message (e.g. "--out").
+void RefuseOutputOverInputs(const std::string& output, const std::vector<std::string>& inputs,
+                            const std::string& option);
 
 // Creates a directory and its parents; throws Error naming the path on failure.
 void CreateDirectories(const std::string& path);

@@ -1,0 +1,94 @@
+#include "linecloud/util/file.h"
+
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <filesystem>
+
+#include "linecloud/testing/test_util.h"
+#include "linecloud/util/error.h"
+
+namespace linecloud {
+namespace {
+
+using testing::TempDir;
+namespace fs = std::filesystem;
+
+void Write(const std::string& path, const std::string& text, unsigned mode = 0644) {
+  WriteFileAtomically(path, [&](std::ostream& out) { out << text; }, mode);
+}
+
+TEST(File, WritesAtomicallyWithTheRequestedMode) {
+  TempDir tmp;
+  Write(tmp.Path("a.txt"), "one", 0600);
+  EXPECT_EQ(ReadFileToString(tmp.Path("a.txt")), "one");
+  struct stat st;
+  ASSERT_EQ(::stat(tmp.Path("a.txt").c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  // A writer that fails leaves the old file and no temporary behind.
+  EXPECT_THROW(WriteFileAtomically(tmp.Path("a.txt"),
+                                   [](std::ostream& out) {
+                                     out << "partial";
+                                     throw Error("no");
+                                   }),
+               Error);
+  EXPECT_EQ(ReadFileToString(tmp.Path("a.txt")), "one");
+  EXPECT_EQ(std::distance(fs::directory_iterator(tmp.Path()), fs::directory_iterator()), 1);
+}
+
+// A device is written through, never replaced by a regular file.
+TEST(File, WritesThroughDevicesAndLinks) {
+  Write("/dev/null", "discarded");
+  struct stat st;
+  ASSERT_EQ(::stat("/dev/null", &st), 0);
+  EXPECT_TRUE(S_ISCHR(st.st_mode));
+  // Through a link: the file it names is replaced, the link stays a link.
+  TempDir tmp;
+  Write(tmp.Path("target.txt"), "old");
+  fs::create_symlink(tmp.Path("target.txt"), tmp.Path("link.txt"));
+  Write(tmp.Path("link.txt"), "new");
+  EXPECT_TRUE(fs::is_symlink(tmp.Path("link.txt")));
+  EXPECT_EQ(ReadFileToString(tmp.Path("target.txt")), "new");
+}
+
+// The old writer used OUT.tmp.<pid>: a link planted there made it overwrite
+// (and re-permission) another file. The temporary name is now unpredictable
+// and created exclusively.
+TEST(File, APlantedLinkAtTheOldTemporaryNameIsNotFollowed) {
+  TempDir tmp;
+  Write(tmp.Path("victim.txt"), "precious", 0600);
+  const std::string planted = tmp.Path("out.txt") + ".tmp." + std::to_string(::getpid());
+  fs::create_symlink(tmp.Path("victim.txt"), planted);
+  Write(tmp.Path("out.txt"), "output");
+  EXPECT_EQ(ReadFileToString(tmp.Path("victim.txt")), "precious");
+  struct stat st;
+  ASSERT_EQ(::stat(tmp.Path("victim.txt").c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  EXPECT_EQ(ReadFileToString(tmp.Path("out.txt")), "output");
+}
+
+TEST(File, RefusesNonRegularInputsAndOutputsOverInputs) {
+  TempDir tmp;
+  ASSERT_EQ(::mkfifo(tmp.Path("fifo").c_str(), 0600), 0);
+  try {
+    ReadFileToString(tmp.Path("fifo"));  // would block forever in open()
+    ADD_FAILURE() << "a FIFO was read";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(ReadFileToString(tmp.Path()), Error);       // a directory
+  EXPECT_THROW(ReadFileToString(tmp.Path("none")), Error);  // missing
+  Write(tmp.Path("in.lcm"), "map");
+  fs::create_directories(tmp.Path("model"));
+  Write(tmp.Path("model/points3D.bin"), "points");
+  fs::create_symlink(tmp.Path("in.lcm"), tmp.Path("alias.lcm"));
+  EXPECT_THROW(RefuseOutputOverInputs(tmp.Path("alias.lcm"), {tmp.Path("in.lcm")}, "--out"), Error);
+  EXPECT_THROW(RefuseOutputOverInputs(tmp.Path("model/points3D.bin"), {tmp.Path("model")}, "--ply"),
+               Error);
+  EXPECT_NO_THROW(RefuseOutputOverInputs(tmp.Path("new.ply"), {tmp.Path("model")}, "--ply"));
+  EXPECT_NO_THROW(RefuseOutputOverInputs(tmp.Path("in.lcm"), {tmp.Path("model"), ""}, "--out"));
+}
+
+}  // namespace
+}  // namespace linecloud
