@@ -110,6 +110,10 @@ std::string BuildHeader(const LineCloud& cloud, Layout* layout) {
 std::string SerializeLineCloud(const LineCloud& cloud) {
   EnsureSodiumInitialized();
   cloud.Check("line cloud to write");
+  if (cloud.descriptor_dim < 0 || cloud.descriptor_dim > kLcmMaxDescriptorDim) {
+    Fail("line cloud to write: descriptors of {} dimensions (the format holds 1 to {})",
+         cloud.descriptor_dim, kLcmMaxDescriptorDim);
+  }
   Layout layout;
   const std::string header = BuildHeader(cloud, &layout);
   std::string out(layout.checksum_offset + kChecksumBytes, '\0');
@@ -119,7 +123,8 @@ std::string SerializeLineCloud(const LineCloud& cloud) {
   std::memcpy(out.data() + 8, &version, 4);
   std::memcpy(out.data() + 12, &header_size, 4);
   std::memcpy(out.data() + 16, header.data(), header.size());
-  std::memcpy(out.data() + layout.ids.offset, cloud.ids.data(), layout.ids.bytes);
+  // memcpy from a null pointer is undefined even for 0 bytes (an empty map).
+  if (layout.ids.bytes > 0) std::memcpy(out.data() + layout.ids.offset, cloud.ids.data(), layout.ids.bytes);
   char* lines = out.data() + layout.lines.offset;
   for (size_t i = 0; i < cloud.size(); ++i) {
     if (cloud.encoding == LineEncoding::kPlucker) {
@@ -238,7 +243,7 @@ LineCloud ParseLineCloud(std::string_view data, const std::string& source) {
   if (j.contains("descriptors") && !j["descriptors"].is_null()) {
     const auto& d = j["descriptors"];
     dim = Field<size_t>(d, "dim", source);
-    if (dim == 0 || dim > 4096) Fail("{}: descriptor dim {} is invalid", source, dim);
+    if (dim == 0 || dim > kLcmMaxDescriptorDim) Fail("{}: descriptor dim {} is invalid", source, dim);
     if (Field<std::string>(d, "dtype", source) != "uint8") {
       Fail("{}: unsupported descriptor dtype", source);
     }
@@ -278,7 +283,7 @@ LineCloud ParseLineCloud(std::string_view data, const std::string& source) {
   }
 
   cloud.ids.resize(n);
-  std::memcpy(cloud.ids.data(), data.data() + layout.ids.offset, n * 8);
+  if (n > 0) std::memcpy(cloud.ids.data(), data.data() + layout.ids.offset, n * 8);
   cloud.lines.resize(n);
   const char* lines = data.data() + layout.lines.offset;
   if (cloud.encoding == LineEncoding::kPlucker) {

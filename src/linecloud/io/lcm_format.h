@@ -31,6 +31,8 @@ namespace linecloud {
 // Version 1 files (point ids as line ids) are still read.
 inline constexpr uint32_t kLcmVersion = 2;
 inline constexpr uint32_t kLcmOldestVersion = 1;
+// Format limits, shared by the writer and the reader.
+inline constexpr int kLcmMaxDescriptorDim = 4096;
 
 void WriteLineCloud(const LineCloud& cloud, const std::string& path);
 // Serialises to bytes (what WriteLineCloud writes).

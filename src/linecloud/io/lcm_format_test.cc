@@ -103,6 +103,20 @@ TEST(LcmFormat, WriterRefusesInvalidClouds) {
   testing::TempDir tmp;
   EXPECT_THROW(WriteLineCloud(cloud, tmp.Path("x.lcm")), Error);
   EXPECT_FALSE(FileExists(tmp.Path("x.lcm")));
+  // The writer holds to the reader's limits ([harden] 4).
+  cloud = MakeCloud(LineEncoding::kPlucker, false);
+  cloud.descriptor_dim = kLcmMaxDescriptorDim + 1;
+  cloud.descriptors.assign(cloud.size() * cloud.descriptor_dim, 1);
+  cloud.descriptor_type = "x";
+  EXPECT_THROW(SerializeLineCloud(cloud), Error);
+}
+
+// A map with no line is written and read back (no memcpy from a null pointer:
+// UBSan checks this in scripts/sanitize.sh).
+TEST(LcmFormat, AnEmptyMapRoundTrips) {
+  LineCloud empty;
+  const LineCloud back = ParseLineCloud(SerializeLineCloud(empty), "empty.lcm");
+  EXPECT_EQ(back.size(), 0u);
 }
 
 }  // namespace

@@ -7,6 +7,11 @@
 #include "linecloud/util/error.h"
 
 namespace linecloud {
+namespace {
+
+constexpr size_t kMaxMedoidTrack = 64;
+
+}  // namespace
 
 DescriptorAggregation DescriptorAggregationFromName(const std::string& name) {
   if (name == "medoid") return DescriptorAggregation::kMedoid;
@@ -76,6 +81,14 @@ PointDescriptors ComputePointDescriptors(const Reconstruction& rec,
         dst[c] = static_cast<uint8_t>(std::lround(sum / track.size()));
       }
       continue;
+    }
+    // Bounded work on hostile input: the medoid is quadratic in the track's
+    // length, so a long track (a 20 000-long one took 18 s) is represented by
+    // kMaxMedoidTrack of its observations, evenly spaced along it.
+    if (track.size() > kMaxMedoidTrack) {
+      std::vector<const uint8_t*> sample;
+      for (size_t m = 0; m < kMaxMedoidTrack; ++m) sample.push_back(track[m * track.size() / kMaxMedoidTrack]);
+      track.swap(sample);
     }
     sum_dist.assign(track.size(), 0.0);
     for (size_t a = 0; a < track.size(); ++a) {

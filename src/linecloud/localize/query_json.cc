@@ -1,7 +1,7 @@
 #include "linecloud/localize/query_json.h"
 
-
 #include <cmath>
+#include <limits>
 
 #include "linecloud/io/json_util.h"
 #include "linecloud/util/error.h"
@@ -68,8 +68,12 @@ Query ParseQueryJson(const nlohmann::json& j, const std::string& source) {
     }
     QueryObservation obs;
     if (o.contains("camera")) {
-      if (!o["camera"].is_number_integer()) Fail("{}.camera: expected an integer", where);
-      obs.camera = o["camera"].get<int>();
+      // Range-checked: 4294967296 must not wrap to camera 0.
+      if (!o["camera"].is_number_integer() || o["camera"].get<int64_t>() < 0 ||
+          o["camera"].get<int64_t>() > std::numeric_limits<int>::max()) {
+        Fail("{}.camera: expected a camera index (a non-negative integer)", where);
+      }
+      obs.camera = static_cast<int>(o["camera"].get<int64_t>());
     }
     if (!o["id"].is_number_unsigned()) Fail("{}.id: expected a non-negative integer", where);
     obs.id = o["id"].get<uint64_t>();

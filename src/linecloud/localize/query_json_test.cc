@@ -63,6 +63,12 @@ TEST(QueryJson, ErrorsNameTheField) {
             std::string::npos);
   EXPECT_NE(error([](auto& j) { j = nlohmann::json::array(); }).find("expected a JSON object"),
             std::string::npos);
+  // [harden] 5: 4294967296 used to wrap to camera 0.
+  EXPECT_NE(error([](auto& j) { j["observations"][0]["camera"] = 4294967296ll; })
+                .find("observations[0].camera: expected a camera index"),
+            std::string::npos);
+  EXPECT_NE(error([](auto& j) { j["observations"][0]["camera"] = -1; }).find("observations[0].camera"),
+            std::string::npos);
 }
 
 }  // namespace
