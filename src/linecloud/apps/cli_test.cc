@@ -925,6 +925,15 @@ TEST(Cli, AuditMeasuresWhatLeaksFromARealMap) {
                     "--queries", "0"}).code, 0);
   ExpectError(RunCli({"attack", "--map", tmp.Path("tiny/map.lcm"), "--out", tmp.Path("t.ply")}),
               "needs at least 10");
+  // An empty map (a demo too small to triangulate anything).
+  ASSERT_EQ(RunCli({"demo", "--out", tmp.Path("empty"), "--points", "300", "--images", "3",
+                    "--queries", "0"}).code, 0);
+  ASSERT_EQ(ReadLineCloud(tmp.Path("empty/map.lcm")).size(), 0u);
+  ExpectError(RunCli({"audit", "--map", tmp.Path("empty/map.lcm"), "--model", tmp.Path("empty/model"),
+                      "--quiet"}),
+              "the map has no lines");
+  ExpectError(RunCli({"attack", "--map", tmp.Path("empty/map.lcm"), "--out", tmp.Path("e.ply")}),
+              "needs at least 10");
 }
 
 // A sparsified map is a subset of the full map's lines (one point, one line).
