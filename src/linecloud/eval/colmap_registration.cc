@@ -161,6 +161,114 @@ std::string Markdown(const ojson& r) {
   return md + "\n";
 }
 
+// COLMAP's registration of one group's images: per image the registered
+// pose's error (null when not registered) and its share of the time.
+struct GroupRegistration {
+  std::map<std::string, double> extract_s;
+  double match_s = 0, register_s = 0;
+  Reconstruction model;  // the map with the registered images
+};
+
+GroupRegistration RegisterGroup(const std::string& work_dir, const EvalGroup& g,
+                                const std::string& images_dir, const std::string& dir,
+                                const ColmapOptions& colmap) {
+  CreateDirectories(dir);
+  std::vector<std::string> names;
+  for (const EvalImage& im : g.images) names.push_back(im.name);
+  const std::string db = JoinPaths(dir, "database.db");
+  const auto cameras = DatabaseWithout(JoinPaths(work_dir, "colmap/database.db"), db, names);
+  GroupRegistration r;
+  for (const std::string& name : names) {
+    const std::string list = JoinPaths(dir, "image_list.txt");
+    WriteFileAtomically(list, [&](std::ostream& out) { out << name << "\n"; });
+    const auto t0 = std::chrono::steady_clock::now();
+    RunColmapCommand({colmap.executable, "feature_extractor", "--database_path", db, "--image_path",
+                      images_dir, "--image_list_path", list, "--ImageReader.existing_camera_id",
+                      std::to_string(cameras.at(name)), "--SiftExtraction.use_gpu", "0",
+                      "--SiftExtraction.num_threads", "1"},
+                     JoinPaths(dir, "feature_extractor.log"), colmap);
+    r.extract_s[name] = SecondsSince(t0);
+  }
+  auto t0 = std::chrono::steady_clock::now();
+  RunColmapCommand({colmap.executable, "exhaustive_matcher", "--database_path", db,
+                    "--SiftMatching.use_gpu", "0", "--SiftMatching.num_threads", "1"},
+                   JoinPaths(dir, "exhaustive_matcher.log"), colmap);
+  r.match_s = SecondsSince(t0);
+  const std::string out_model = JoinPaths(dir, "model");
+  CreateDirectories(out_model);
+  t0 = std::chrono::steady_clock::now();
+  RunColmapCommand({colmap.executable, "image_registrator", "--database_path", db, "--input_path",
+                    JoinPaths(work_dir, g.map_dir), "--output_path", out_model,
+                    "--Mapper.num_threads", "1", "--Mapper.ba_refine_focal_length", "0",
+                    "--Mapper.ba_refine_principal_point", "0", "--Mapper.ba_refine_extra_params", "0"},
+                   JoinPaths(dir, "image_registrator.log"), colmap);
+  r.register_s = SecondsSince(t0);
+  r.model = ReadRegistered(out_model);
+  return r;
+}
+
+// One image's row: COLMAP's error and time, linecloud's beside.
+ojson ImageRow(const EvalGroup& g, const EvalImage& im, const GroupRegistration& r,
+               const nlohmann::json& ours) {
+  const double shared = (r.match_s + r.register_s) / g.images.size();
+  ojson c = {{"extract_s", r.extract_s.at(im.name)},
+             {"match_s", r.match_s / g.images.size()},
+             {"register_s", r.register_s / g.images.size()},
+             {"seconds", r.extract_s.at(im.name) + shared},
+             {"error", nullptr}};
+  for (const auto& [id, image] : r.model.images) {
+    if (image.name != im.name) continue;
+    const LocalizationError e =
+        CompareLocalization(Sim3d(1.0, image.cam_from_world.rotation, image.cam_from_world.translation),
+                            Sim3d(1.0, im.cam_from_world.rotation, im.cam_from_world.translation));
+    c["error"] = {{"rotation_deg", e.rotation_rad * kDeg}, {"translation", e.position}};
+  }
+  return {{"group", g.name}, {"image", im.name}, {"colmap", c}, {"ours", OursFor(ours, im.name)}};
+}
+
+ojson Summary(const ojson& images) {
+  std::vector<double> c_rot, c_pos, c_sec, p_rot, p_pos, p_sec;
+  int registered = 0;
+  for (const ojson& row : images) {
+    const ojson& c = row["colmap"];
+    registered += !c["error"].is_null();
+    c_rot.push_back(c["error"].is_null() ? 180 : c["error"]["rotation_deg"].get<double>());
+    c_pos.push_back(c["error"].is_null() ? 1e9 : c["error"]["translation"].get<double>());
+    c_sec.push_back(c["seconds"].get<double>());
+    if (!row["ours"].is_null() && row["ours"].contains("p6L")) {
+      p_rot.push_back(row["ours"]["p6L"]["rotation_deg"].get<double>());
+      p_pos.push_back(row["ours"]["p6L"]["translation"].get<double>());
+      p_sec.push_back(row["ours"]["p6L"]["seconds"].get<double>());
+    }
+  }
+  auto mean = [](const std::vector<double>& v) {
+    double s = 0;
+    for (const double x : v) s += x;
+    return v.empty() ? 0.0 : s / v.size();
+  };
+  ojson summary = {{"images", static_cast<int>(c_rot.size())},
+                   {"colmap_registered", registered},
+                   {"colmap_median_rotation_deg", Median(c_rot)},
+                   {"colmap_median_translation", Median(c_pos)},
+                   {"colmap_mean_seconds", mean(c_sec)}};
+  if (!p_rot.empty()) {
+    summary["p6L_median_rotation_deg"] = Median(p_rot);
+    summary["p6L_median_translation"] = Median(p_pos);
+    summary["p6L_mean_seconds"] = mean(p_sec);
+  }
+  return summary;
+}
+
+// The version line COLMAP printed when `eval prepare` ran it.
+std::string ColmapVersion(const std::string& work_dir) {
+  const std::string log = JoinPaths(work_dir, "colmap/colmap_version.log");
+  if (!FileExists(log)) return "(version unknown)";
+  const std::string text = ReadFileToString(log);
+  const size_t at = text.find("COLMAP ");
+  if (at == std::string::npos) return "(version unknown)";
+  return text.substr(at + 7, text.find_first_of(" \n", at + 7) - at - 7);
+}
+
 }  // namespace
 
 void ColmapRegistrationOptions::Check() const {
@@ -179,99 +287,17 @@ ojson RunColmapRegistration(const ColmapRegistrationOptions& o) {
   CreateDirectories(o.out_dir);
   ColmapOptions colmap = o.colmap;
   colmap.num_threads = 1;  // one core, as linecloud's figures
-  const std::string images_dir = JoinPaths(work.dataset_dir, "images");
   ojson images = ojson::array();
-  std::vector<double> c_rot, c_pos, c_sec, p_rot, p_pos, p_sec;
-  int registered = 0;
   for (const EvalGroup& g : work.groups) {
-    const std::string dir = JoinPaths(o.out_dir, g.name);
-    CreateDirectories(dir);
-    std::vector<std::string> names;
-    for (const EvalImage& im : g.images) names.push_back(im.name);
-    const std::string db = JoinPaths(dir, "database.db");
-    const auto cameras = DatabaseWithout(JoinPaths(o.work_dir, "colmap/database.db"), db, names);
-    std::map<std::string, double> extract_s;
-    for (const std::string& name : names) {
-      const std::string list = JoinPaths(dir, "image_list.txt");
-      WriteFileAtomically(list, [&](std::ostream& out) { out << name << "\n"; });
-      const auto t0 = std::chrono::steady_clock::now();
-      RunColmapCommand({colmap.executable, "feature_extractor", "--database_path", db, "--image_path",
-                        images_dir, "--image_list_path", list, "--ImageReader.existing_camera_id",
-                        std::to_string(cameras.at(name)), "--SiftExtraction.use_gpu", "0",
-                        "--SiftExtraction.num_threads", "1"},
-                       JoinPaths(dir, "feature_extractor.log"), colmap);
-      extract_s[name] = SecondsSince(t0);
-    }
-    auto t0 = std::chrono::steady_clock::now();
-    RunColmapCommand({colmap.executable, "exhaustive_matcher", "--database_path", db,
-                      "--SiftMatching.use_gpu", "0", "--SiftMatching.num_threads", "1"},
-                     JoinPaths(dir, "exhaustive_matcher.log"), colmap);
-    const double match_s = SecondsSince(t0);
-    const std::string out_model = JoinPaths(dir, "model");
-    CreateDirectories(out_model);
-    t0 = std::chrono::steady_clock::now();
-    RunColmapCommand({colmap.executable, "image_registrator", "--database_path", db, "--input_path",
-                      JoinPaths(o.work_dir, g.map_dir), "--output_path", out_model,
-                      "--Mapper.num_threads", "1", "--Mapper.ba_refine_focal_length", "0",
-                      "--Mapper.ba_refine_principal_point", "0", "--Mapper.ba_refine_extra_params", "0"},
-                     JoinPaths(dir, "image_registrator.log"), colmap);
-    const double register_s = SecondsSince(t0);
-    const Reconstruction model = ReadRegistered(out_model);
-    for (const EvalImage& im : g.images) {
-      ojson c = {{"extract_s", extract_s[im.name]},
-                 {"match_s", match_s / names.size()},
-                 {"register_s", register_s / names.size()}};
-      c["seconds"] = extract_s[im.name] + (match_s + register_s) / names.size();
-      c["error"] = nullptr;
-      for (const auto& [id, image] : model.images) {
-        if (image.name != im.name) continue;
-        const LocalizationError e =
-            CompareLocalization(Sim3d(1.0, image.cam_from_world.rotation, image.cam_from_world.translation),
-                                Sim3d(1.0, im.cam_from_world.rotation, im.cam_from_world.translation));
-        c["error"] = {{"rotation_deg", e.rotation_rad * kDeg}, {"translation", e.position}};
-        ++registered;
-      }
-      c_rot.push_back(c["error"].is_null() ? 180 : c["error"]["rotation_deg"].get<double>());
-      c_pos.push_back(c["error"].is_null() ? 1e9 : c["error"]["translation"].get<double>());
-      c_sec.push_back(c["seconds"].get<double>());
-      const ojson mine = OursFor(ours, im.name);
-      if (!mine.is_null() && mine.contains("p6L")) {
-        p_rot.push_back(mine["p6L"]["rotation_deg"].get<double>());
-        p_pos.push_back(mine["p6L"]["translation"].get<double>());
-        p_sec.push_back(mine["p6L"]["seconds"].get<double>());
-      }
-      images.push_back({{"group", g.name}, {"image", im.name}, {"colmap", c}, {"ours", mine}});
-    }
-    fmt::print("[eval colmap] group {}: {} images, extract {:.1f} s, match {:.1f} s, register {:.1f} s\n",
-               g.name, names.size(), [&] { double s = 0; for (auto& [n, t] : extract_s) s += t; return s; }(),
-               match_s, register_s);
+    const GroupRegistration r = RegisterGroup(o.work_dir, g, JoinPaths(work.dataset_dir, "images"),
+                                              JoinPaths(o.out_dir, g.name), colmap);
+    for (const EvalImage& im : g.images) images.push_back(ImageRow(g, im, r, ours));
+    fmt::print("[eval colmap] group {}: {} images, match {:.1f} s, register {:.1f} s\n", g.name,
+               g.images.size(), r.match_s, r.register_s);
     std::fflush(stdout);
   }
-  auto mean = [](const std::vector<double>& v) {
-    double s = 0;
-    for (const double x : v) s += x;
-    return v.empty() ? 0.0 : s / v.size();
-  };
-  ojson summary = {{"images", static_cast<int>(c_rot.size())},
-                   {"colmap_registered", registered},
-                   {"colmap_median_rotation_deg", Median(c_rot)},
-                   {"colmap_median_translation", Median(c_pos)},
-                   {"colmap_mean_seconds", mean(c_sec)}};
-  if (!p_rot.empty()) {
-    summary["p6L_median_rotation_deg"] = Median(p_rot);
-    summary["p6L_median_translation"] = Median(p_pos);
-    summary["p6L_mean_seconds"] = mean(p_sec);
-  }
-  // The version line COLMAP printed when `eval prepare` ran it.
-  std::string version = "(version unknown)";
-  const std::string version_log = JoinPaths(o.work_dir, "colmap/colmap_version.log");
-  if (FileExists(version_log)) {
-    const std::string text = ReadFileToString(version_log);
-    const size_t at = text.find("COLMAP ");
-    if (at != std::string::npos) version = text.substr(at + 7, text.find_first_of(" \n", at + 7) - at - 7);
-  }
-  const ojson report = {{"dataset", work.dataset}, {"colmap_version", version}, {"units", work.units},
-                        {"summary", summary}, {"images", images}};
+  const ojson report = {{"dataset", work.dataset}, {"colmap_version", ColmapVersion(o.work_dir)},
+                        {"units", work.units}, {"summary", Summary(images)}, {"images", images}};
   WriteFileAtomically(JoinPaths(o.out_dir, "colmap_registration.json"),
                       [&](std::ostream& out) { out << report.dump(2) << "\n"; });
   WriteFileAtomically(JoinPaths(o.out_dir, "colmap_registration.md"),

@@ -1,5 +1,7 @@
 #include "linecloud/solvers/m_p2l_lus.h"
 
+#include "linecloud/util/check.h"
+
 #include <array>
 
 #include "linecloud/solvers/m_p2p_u.h"
@@ -10,6 +12,7 @@ namespace linecloud {
 int m_p2l_lus(std::span<const PluckerLine> lines,
               std::span<const Eigen::Vector3d> points_local,
               std::vector<Rigid3d>* out) {
+  CheckMinimalSample("m_p2l_lus", 2, out, lines, points_local);
   const std::array<Eigen::Vector3d, 2> anchors = {lines[0].Anchor(), lines[1].Anchor()};
   const std::array<Eigen::Vector3d, 2> directions = {lines[0].v, lines[1].v};
   out->clear();

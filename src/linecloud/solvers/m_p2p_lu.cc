@@ -1,5 +1,7 @@
 #include "linecloud/solvers/m_p2p_lu.h"
 
+#include "linecloud/util/check.h"
+
 #include <cmath>
 
 #include "linecloud/solvers/m_p2p_lus.h"
@@ -8,6 +10,7 @@ namespace linecloud {
 
 int m_p2p_lu(std::span<const Eigen::Vector3d> points_local,
              std::span<const Eigen::Vector3d> points, std::vector<Sim3d>* out) {
+  CheckMinimalSample("m_p2p_lu", 2, out, points_local, points);
   out->clear();
   const double scale = std::sqrt((points_local[1] - points_local[0]).squaredNorm() /
                                  (points[1] - points[0]).squaredNorm());

@@ -1,5 +1,7 @@
 #include "linecloud/solvers/m_p2p_lus.h"
 
+#include "linecloud/util/check.h"
+
 #include <cmath>
 
 #include "linecloud/solvers/upright.h"
@@ -35,6 +37,7 @@ bool UprightTwoPointAlignment(std::span<const Eigen::Vector3d> points_local,
 
 int m_p2p_lus(std::span<const Eigen::Vector3d> points_local,
               std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out) {
+  CheckMinimalSample("m_p2p_lus", 2, out, points_local, points);
   out->clear();
   Eigen::Quaterniond rotation;
   Eigen::Vector3d translation;

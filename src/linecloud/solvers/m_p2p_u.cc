@@ -1,5 +1,7 @@
 #include "linecloud/solvers/m_p2p_u.h"
 
+#include "linecloud/util/check.h"
+
 #include "linecloud/solvers/upright.h"
 
 namespace linecloud {
@@ -7,6 +9,7 @@ namespace linecloud {
 int m_p2p_u(std::span<const Eigen::Vector3d> origins,
             std::span<const Eigen::Vector3d> directions,
             std::span<const Eigen::Vector3d> points, UprightSolution solutions[2]) {
+  CheckMinimalSample("m_p2p_u", 2, solutions, origins, directions, points);
   for (int i = 0; i < 2; ++i) {
     if (!(directions[i].squaredNorm() > 0) || !directions[i].allFinite() ||
         !points[i].allFinite() || !origins[i].allFinite()) {
@@ -58,6 +61,7 @@ int m_p2p_u(std::span<const Eigen::Vector3d> origins,
 int m_p2p_u(std::span<const Eigen::Vector3d> origins,
             std::span<const Eigen::Vector3d> directions,
             std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out) {
+  CheckMinimalSample("m_p2p_u", 2, out, origins, directions, points);
   out->clear();
   UprightSolution solutions[2];
   const int count = m_p2p_u(origins, directions, points, solutions);

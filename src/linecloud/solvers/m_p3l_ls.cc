@@ -1,5 +1,7 @@
 #include "linecloud/solvers/m_p3l_ls.h"
 
+#include "linecloud/util/check.h"
+
 #include <array>
 
 #include "linecloud/solvers/m_p3p.h"
@@ -8,6 +10,7 @@ namespace linecloud {
 
 int m_p3l_ls(std::span<const PluckerLine> lines,
              std::span<const Eigen::Vector3d> points_local, std::vector<Rigid3d>* out) {
+  CheckMinimalSample("m_p3l_ls", 3, out, lines, points_local);
   std::array<Eigen::Vector3d, 3> anchors, directions;
   for (int i = 0; i < 3; ++i) {
     anchors[i] = lines[i].Anchor();

@@ -1,5 +1,7 @@
 #include "linecloud/solvers/m_p3l_lu.h"
 
+#include "linecloud/util/check.h"
+
 #include <cmath>
 
 #include "linecloud/solvers/upright.h"
@@ -8,6 +10,7 @@ namespace linecloud {
 
 int m_p3l_lu(std::span<const PluckerLine> lines,
              std::span<const Eigen::Vector3d> points_local, std::vector<Sim3d>* out) {
+  CheckMinimalSample("m_p3l_lu", 3, out, lines, points_local);
   out->clear();
   Eigen::Vector3d anchor[3];
   for (int i = 0; i < 3; ++i) {

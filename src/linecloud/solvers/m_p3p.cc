@@ -1,5 +1,7 @@
 #include "linecloud/solvers/m_p3p.h"
 
+#include "linecloud/util/check.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -96,6 +98,7 @@ int m_p3p(std::span<const Eigen::Vector3d> origins,
           std::span<const Eigen::Vector3d> directions,
           std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out,
           bool positive_depths) {
+  CheckMinimalSample("m_p3p", 3, out, origins, directions, points);
   out->clear();
   // Normalise: centre both sides and scale by the map triangle's size.
   const Eigen::Vector3d cx = (points[0] + points[1] + points[2]) / 3.0;

@@ -1,5 +1,7 @@
 #include "linecloud/solvers/m_p3p_l.h"
 
+#include "linecloud/util/check.h"
+
 #include <cmath>
 
 #include "linecloud/solvers/triad.h"
@@ -8,6 +10,7 @@ namespace linecloud {
 
 int m_p3p_l(std::span<const Eigen::Vector3d> points_local,
             std::span<const Eigen::Vector3d> points, std::vector<Sim3d>* out) {
+  CheckMinimalSample("m_p3p_l", 3, out, points_local, points);
   out->clear();
   const Eigen::Vector3d a1 = points[1] - points[0], a2 = points[2] - points[0];
   const Eigen::Vector3d b1 = points_local[1] - points_local[0];

@@ -1,11 +1,14 @@
 #include "linecloud/solvers/m_p3p_ls.h"
 
+#include "linecloud/util/check.h"
+
 #include "linecloud/solvers/triad.h"
 
 namespace linecloud {
 
 int m_p3p_ls(std::span<const Eigen::Vector3d> points_local,
              std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out) {
+  CheckMinimalSample("m_p3p_ls", 3, out, points_local, points);
   out->clear();
   // Frames on the triangle's centroid-relative edges; the longest-edge choice
   // does not matter for exact data, the centroid keeps t well conditioned.

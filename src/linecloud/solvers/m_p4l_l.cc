@@ -1,5 +1,7 @@
 #include "linecloud/solvers/m_p4l_l.h"
 
+#include "linecloud/util/check.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -405,6 +407,7 @@ int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
 
 int m_p4l_l(std::span<const PluckerLine> lines,
             std::span<const Eigen::Vector3d> points_local, std::vector<Sim3d>* out) {
+  CheckMinimalSample("m_p4l_l", 4, out, lines, points_local);
   out->clear();
   // Normalise both sides: centroid at the origin, unit RMS radius.
   Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_world = Eigen::Vector3d::Zero();

@@ -1,5 +1,7 @@
 #include "linecloud/solvers/m_p4l_u.h"
 
+#include "linecloud/util/check.h"
+
 #include <array>
 #include <cmath>
 
@@ -50,6 +52,7 @@ std::array<double, 9> Determinant(const std::array<std::array<Quad, 4>, 4>& m) {
 int m_p4l_u(std::span<const Eigen::Vector3d> origins,
             std::span<const Eigen::Vector3d> directions,
             std::span<const PluckerLine> lines, std::vector<Rigid3d>* out) {
+  CheckMinimalSample("m_p4l_u", 4, out, origins, directions, lines);
   out->clear();
   // Per equation: coefficients of c, s, 1 for (t_x, t_y, t_z, constant).
   std::array<std::array<Eigen::Vector4d, 3>, 4> coef;
@@ -122,6 +125,7 @@ int m_p4l_u(std::span<const Eigen::Vector3d> origins,
 
 int p4l_u(std::span<const Eigen::Vector3d> bearings, std::span<const PluckerLine> lines,
           std::vector<Rigid3d>* out) {
+  CheckMinimalSample("p4l_u", 4, out, bearings, lines);
   static const std::array<Eigen::Vector3d, 4> kOrigins = {
       Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(),
       Eigen::Vector3d::Zero()};

@@ -1,5 +1,7 @@
 #include "linecloud/solvers/p3p.h"
 
+#include "linecloud/util/check.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -96,6 +98,7 @@ int CutLine(const Eigen::Vector3d& n, const Sym3& f, const Triangle& tri,
 
 int p3p(std::span<const Eigen::Vector3d> bearings,
         std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out) {
+  CheckMinimalSample("p3p", 3, out, bearings, points);
   out->clear();
   for (int i = 0; i < 3; ++i) {
     if (!bearings[i].allFinite() || !points[i].allFinite()) return 0;

@@ -1,5 +1,7 @@
 #include "linecloud/solvers/p6l.h"
 
+#include "linecloud/util/check.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -457,6 +459,7 @@ const Eigen::Matrix3d& PreRotation() {
 
 int m_p6l(std::span<const Eigen::Vector3d> origins, std::span<const Eigen::Vector3d> directions,
           std::span<const PluckerLine> lines, std::vector<Rigid3d>* out) {
+  CheckMinimalSample("m_p6l", 6, out, origins, directions, lines);
   out->clear();
   // Normalise: rig origin at the rays' centroid, world origin at the lines'
   // anchor centroid, both scaled by the spread of the anchors.
@@ -521,6 +524,7 @@ int m_p6l(std::span<const Eigen::Vector3d> origins, std::span<const Eigen::Vecto
 
 int p6l(std::span<const Eigen::Vector3d> bearings, std::span<const PluckerLine> lines,
         std::vector<Rigid3d>* out) {
+  CheckMinimalSample("p6l", 6, out, bearings, lines);
   const std::array<Eigen::Vector3d, 6> zero = {
       Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(),
       Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};

@@ -7,7 +7,11 @@
 
 #include <gtest/gtest.h>
 
+#include "linecloud/solvers/m_p4l_l.h"
+#include "linecloud/solvers/m_p4l_u.h"
 #include "linecloud/solvers/minimal_problem.h"
+#include "linecloud/solvers/p3p.h"
+#include "linecloud/solvers/p6l.h"
 #include "linecloud/synthetic/minimal_instances.h"
 #include "linecloud/testing/test_util.h"
 #include "linecloud/util/error.h"
@@ -150,6 +154,28 @@ TEST(MinimalProblem, CheckSampleNamesTheField) {
   inst.sample.points[0].x() = std::nan("");
   EXPECT_THROW(CheckSample(m, inst.sample, "problem.json"), Error);
   EXPECT_THROW(FindMethod("p5P"), Error);
+}
+
+}  // namespace
+}  // namespace linecloud
+
+namespace linecloud {
+namespace {
+
+// [harden] 7: a public solver given too short a sample (or no output) throws
+// instead of reading past its spans.
+TEST(Solvers, PreconditionsAtTheEntryPoints) {
+  const std::vector<Eigen::Vector3d> two(2, Eigen::Vector3d(0, 0, 1)), five(5, Eigen::Vector3d(0, 0, 1));
+  const std::vector<PluckerLine> lines5(5, PluckerLine(Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 0)));
+  std::vector<Rigid3d> out;
+  EXPECT_THROW(p3p(two, two, &out), Error);
+  EXPECT_THROW(p6l(five, lines5, &out), Error);
+  EXPECT_THROW(p4l_u(two, lines5, &out), Error);
+  EXPECT_THROW(p3p(std::vector<Eigen::Vector3d>(3, Eigen::Vector3d(0, 0, 1)),
+                   std::vector<Eigen::Vector3d>(3, Eigen::Vector3d(0, 0, 1)), nullptr),
+               Error);
+  std::vector<Sim3d> sims;
+  EXPECT_THROW(m_p4l_l(std::span<const PluckerLine>(lines5.data(), 3), five, &sims), Error);
 }
 
 }  // namespace
