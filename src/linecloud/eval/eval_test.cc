@@ -429,9 +429,16 @@ TEST(EvalPrivacy, FountainTradeoffMeetsTheMeasuredFigures) {
             << name << " " << protocol << " " << method;
       }
     }
-    if (name.rfind("resist", 0) == 0) {
+    if (name == "resist 0.2") {
+      // The attack run again on the kept points (the same maps, lines and
+      // attack) recovers about the share asked for: the selection's radius is
+      // 1 % of the full map's diagonal, the audit's 1 % of the kept points'
+      // own (a little larger). Measured 21.5 % against 67.6 % for the plain
+      // map (3.1x) in docs/privacy.md.
       resist_seen = true;
-      EXPECT_LE(3 * row["attack"]["within_1_percent"].get<double>(), plain) << name;
+      const double resist = row["attack"]["within_1_percent"].get<double>();
+      EXPECT_LE(resist, 0.24) << name;
+      EXPECT_LE(2.5 * resist, plain) << name;
     }
   }
   EXPECT_TRUE(resist_seen);
