@@ -13,6 +13,7 @@
 #include "linecloud/eval/statistics.h"
 #include "linecloud/io/json_util.h"
 #include "linecloud/synthetic/localization_instances.h"
+#include "linecloud/util/clock.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
@@ -22,10 +23,6 @@ namespace {
 using ojson = nlohmann::ordered_json;
 constexpr double kDeg = 180.0 / std::numbers::pi;
 constexpr int64_t kMaxNumImages = 2147483647;  // COLMAP's pair id = id1 * this + id2
-
-double SecondsSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-}
 
 void Exec(sqlite3* db, const std::string& sql, const std::string& path) {
   char* message = nullptr;

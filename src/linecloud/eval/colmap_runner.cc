@@ -13,6 +13,7 @@
 #include <sodium.h>
 
 #include "linecloud/lifting/key.h"
+#include "linecloud/util/clock.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
@@ -99,10 +100,6 @@ bool CacheValid(const std::string& stamp_path, const std::string& fingerprint) {
 
 void WriteStamp(const std::string& stamp_path, const std::string& fingerprint) {
   WriteFileAtomically(stamp_path, [&](std::ostream& out) { out << fingerprint << "\n"; });
-}
-
-double SecondsSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 }  // namespace

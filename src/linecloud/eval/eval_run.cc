@@ -27,6 +27,7 @@
 #include "linecloud/localize/localize.h"
 #include "linecloud/synthetic/localization_instances.h"
 #include "linecloud/synthetic/scene.h"
+#include "linecloud/util/clock.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
@@ -485,10 +486,6 @@ std::string ReportMarkdown(const EvalWork& work, const EvalRunOptions& options, 
           SweepTable(columns, report["noise"]["median_rotation_deg"]);
   }
   return md;
-}
-
-double SecondsSince(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 }  // namespace

@@ -9,16 +9,13 @@
 #include <fmt/format.h>
 
 #include "linecloud/features/matching.h"
+#include "linecloud/util/clock.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double SecondsSince(Clock::time_point t) {
-  return std::chrono::duration<double>(Clock::now() - t).count();
-}
 
 // RootSIFT bytes of `v` (non-negative): sqrt(v / |v|₁) · 512, rounded, clamped.
 void RootSiftBytes(const double* v, uint8_t* out) {

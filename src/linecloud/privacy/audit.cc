@@ -21,15 +21,16 @@ namespace {
 
 using ojson = nlohmann::ordered_json;
 
+// recovered.ply's colours: audit.png's (audit_figure.h), as bytes.
 std::vector<std::array<uint8_t, 3>> ErrorColours(const RecoveryScore& s) {
-  std::vector<std::array<uint8_t, 3>> c;
+  std::vector<std::array<uint8_t, 3>> colours;
   for (const double e : s.errors) {
-    const double x = s.diagonal > 0 ? std::clamp(e / (0.02 * s.diagonal), 0.0, 1.0) : 1.0;
-    // green (0) → yellow (1 % of the diagonal) → red (≥ 2 %), as in audit.png
-    c.push_back(x < 0.5 ? std::array<uint8_t, 3>{static_cast<uint8_t>(26 + 434 * x), 180, 38}
-                        : std::array<uint8_t, 3>{242, static_cast<uint8_t>(217 - 408 * (x - 0.5)), 38});
+    const std::array<double, 3> c = ErrorColour(e, s.diagonal);
+    colours.push_back({static_cast<uint8_t>(std::lround(255 * c[0])),
+                       static_cast<uint8_t>(std::lround(255 * c[1])),
+                       static_cast<uint8_t>(std::lround(255 * c[2]))});
   }
-  return c;
+  return colours;
 }
 
 ojson DensityAttackJson(const DensityAttackResult& r, const DensityAttackOptions& o,

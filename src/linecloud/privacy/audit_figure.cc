@@ -21,13 +21,6 @@ struct View {
   const char* name;
 };
 
-std::array<double, 3> ErrorColour(double error, double diagonal) {
-  const double x = diagonal > 0 ? std::clamp(error / (0.02 * diagonal), 0.0, 1.0) : 1.0;
-  // green → yellow (x = 0.5) → red
-  if (x < 0.5) return {0.10 + 1.7 * x, 0.70 + 0.3 * x, 0.15};
-  return {0.95, 0.85 - 1.6 * (x - 0.5), 0.15 - 0.2 * (x - 0.5)};
-}
-
 double Percentile(std::vector<double> v, double q) {
   const size_t k = std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1)));
   std::nth_element(v.begin(), v.begin() + k, v.end());
@@ -35,6 +28,13 @@ double Percentile(std::vector<double> v, double q) {
 }
 
 }  // namespace
+
+std::array<double, 3> ErrorColour(double error, double diagonal) {
+  const double x = diagonal > 0 ? std::clamp(error / (0.02 * diagonal), 0.0, 1.0) : 1.0;
+  // green → yellow (x = 0.5) → red
+  if (x < 0.5) return {0.10 + 1.7 * x, 0.70 + 0.3 * x, 0.15};
+  return {0.95, 0.85 - 1.6 * (x - 0.5), 0.15 - 0.2 * (x - 0.5)};
+}
 
 void WriteAuditFigure(const std::string& path, std::span<const Eigen::Vector3d> secret,
                       std::span<const Eigen::Vector3d> recovered, std::span<const double> errors,

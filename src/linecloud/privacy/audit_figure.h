@@ -3,6 +3,7 @@
 // same two viewpoints (rows), the recovered ones coloured by their error.
 #pragma once
 
+#include <array>
 #include <span>
 #include <string>
 
@@ -14,6 +15,10 @@ struct AuditFigureText {
   std::string title;     // first line of the picture
   std::string subtitle;  // e.g. the recovery figures
 };
+
+// The error colour of the figure and of recovered.ply (RGB in [0, 1]):
+// green (error 0) → yellow (1 % of `diagonal`) → red (≥ 2 %).
+std::array<double, 3> ErrorColour(double error, double diagonal);
 
 // Views: along the secret points' least-spread principal axis ("front") and
 // along the middle one ("top"), both drawn in the plane of the two others.

@@ -48,16 +48,21 @@ PointArrays MakePointArrays(std::span<const Eigen::Vector3d> centred_points) {
   return p;
 }
 
-void LineToLinesSq(const LineArrays& a, size_t i, float* __restrict d2) {
-  const float vx = a.vx[i], vy = a.vy[i], vz = a.vz[i];
-  const float wx = a.wx[i], wy = a.wy[i], wz = a.wz[i];
-  const float* __restrict VX = a.vx.data();
-  const float* __restrict VY = a.vy.data();
-  const float* __restrict VZ = a.vz.data();
-  const float* __restrict WX = a.wx.data();
-  const float* __restrict WY = a.wy.data();
-  const float* __restrict WZ = a.wz.data();
-  const size_t n = a.size();
+void LineToLinesSq(const LineArrays& a, size_t i, float* d2) {
+  LineToLinesSq(a, i, a, d2, kMinSinSq);
+}
+
+void LineToLinesSq(const LineArrays& from, size_t i, const LineArrays& to, float* __restrict d2,
+                   float min_sin_sq) {
+  const float vx = from.vx[i], vy = from.vy[i], vz = from.vz[i];
+  const float wx = from.wx[i], wy = from.wy[i], wz = from.wz[i];
+  const float* __restrict VX = to.vx.data();
+  const float* __restrict VY = to.vy.data();
+  const float* __restrict VZ = to.vz.data();
+  const float* __restrict WX = to.wx.data();
+  const float* __restrict WY = to.wy.data();
+  const float* __restrict WZ = to.wz.data();
+  const size_t n = to.size();
   for (size_t j = 0; j < n; ++j) {
     // Reciprocal product of the two Plücker lines: (q_j − q_i)·(v_i × v_j).
     const float num = vx * WX[j] + vy * WY[j] + vz * WZ[j] + VX[j] * wx + VY[j] * wy + VZ[j] * wz;
@@ -65,7 +70,7 @@ void LineToLinesSq(const LineArrays& a, size_t i, float* __restrict d2) {
     const float s2 = 1.f - c * c;
     // Near-parallel pairs divide by zero: +∞ (or NaN for 0/0), which no
     // selection keeps. Branch-free, so that the loop vectorises.
-    d2[j] = num * num / (s2 > kMinSinSq ? s2 : 0.f);
+    d2[j] = num * num / (s2 > min_sin_sq ? s2 : 0.f);
   }
 }
 

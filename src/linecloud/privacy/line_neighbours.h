@@ -41,6 +41,10 @@ PointArrays MakePointArrays(std::span<const Eigen::Vector3d> centred_points);
 // Squared distances from row i to every element of the other set, written to
 // d2 (size of the other set).
 void LineToLinesSq(const LineArrays& lines, size_t i, float* d2);
+// Line i of `from` to every line of `to` (both relative to the same centre);
+// pairs with 1 − cos² ≤ min_sin_sq get ∞.
+void LineToLinesSq(const LineArrays& from, size_t i, const LineArrays& to, float* d2,
+                   float min_sin_sq);
 void LineToPointsSq(const LineArrays& lines, size_t i, const PointArrays& points, float* d2);
 void PointToLinesSq(const PointArrays& points, size_t i, const LineArrays& lines, float* d2);
 

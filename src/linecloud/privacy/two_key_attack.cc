@@ -81,23 +81,13 @@ TwoLiftingsAttack IntersectCrossingLines(const LineCloud& a, const LineCloud& b,
   std::vector<int64_t> partner(a.size(), -1);
   ParallelFor(a.size(), workers, [&](size_t i, int w) {
     Scratch& s = scratch[w];
-    // Distances of line i of `a` to all of `b`: the same kernel on a joint set
-    // would mix the clouds, so evaluate it directly here.
-    const Eigen::Vector3d& vi = la.v[i];
-    const Eigen::Vector3d wi = la.q[i].cross(vi);
-    for (size_t j = 0; j < b.size(); ++j) {
-      const float num = static_cast<float>(vi.x()) * lb.wx[j] + static_cast<float>(vi.y()) * lb.wy[j] +
-                        static_cast<float>(vi.z()) * lb.wz[j] + lb.vx[j] * static_cast<float>(wi.x()) +
-                        lb.vy[j] * static_cast<float>(wi.y()) + lb.vz[j] * static_cast<float>(wi.z());
-      const float c = static_cast<float>(vi.x()) * lb.vx[j] + static_cast<float>(vi.y()) * lb.vy[j] +
-                      static_cast<float>(vi.z()) * lb.vz[j];
-      const float s2 = std::max(1.f - c * c, 1e-12f);
-      s.d2[j] = num * num / s2;
-    }
+    // Only exactly parallel pairs are excluded: lines of one point may be
+    // nearly parallel and still cross.
+    LineToLinesSq(la, i, lb, s.d2.data(), 1e-12f);
     SmallestK(s.d2, kCandidates, &s.select, &s.nearest);
     double best = std::numeric_limits<double>::infinity();
     for (const uint32_t j : s.nearest) {
-      const double d = LineDistanceSq(vi, la.q[i], lb.v[j], lb.q[j]);
+      const double d = LineDistanceSq(la.v[i], la.q[i], lb.v[j], lb.q[j]);
       if (d < best) best = d, partner[i] = j;
     }
     if (!(best <= max_sq)) partner[i] = -1;
