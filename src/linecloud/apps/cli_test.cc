@@ -953,8 +953,19 @@ TEST(Cli, SparsifiedMapsHoldTheSameLines) {
     EXPECT_EQ(attack.shared_ids, sparse.size()) << mode;
     EXPECT_EQ(attack.points.size(), 0u) << mode;
   }
-  ExpectError(RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out", tmp.Path("x.lcm"), "--key-file", key,
-                      "--sparsify", "1"}),
+  // Attack-aware sparsification too: a subset of the same lines.
+  const CliResult r = RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out",
+                              tmp.Path("resist.lcm"), "--key-file", key, "--resist-attack", "0.2",
+                              "--quiet"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const LineCloud full = ReadLineCloud(tmp.Path("full.lcm"));
+  const LineCloud resist = ReadLineCloud(tmp.Path("resist.lcm"));
+  EXPECT_LT(resist.size(), full.size());
+  const TwoLiftingsAttack attack = IntersectLinesOfEqualId(full, resist);
+  EXPECT_EQ(attack.shared_ids, resist.size());
+  EXPECT_EQ(attack.points.size(), 0u);
+  ExpectError(RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out",
+                      tmp.Path("x.lcm"), "--key-file", key, "--sparsify", "1"}),
               "--sparsify");
   EXPECT_FALSE(FileExists(tmp.Path("x.lcm")));
 }
