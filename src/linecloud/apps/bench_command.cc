@@ -92,23 +92,36 @@ void RunBenchLocalize(const LocalizeBenchArgs& args) {
                    {"refine_ms", r.refine_ms},
                    {"refine_iterations", r.refine_iterations},
                    {"total_ms", r.total_ms},
+                   {"median_total_ms", r.median_total_ms},
+                   {"time_ms", {{"solver", r.solver_ms}, {"scoring", r.scoring_ms},
+                                {"local_optimization", r.lo_ms}, {"refinement", r.refine_ms}}},
                    {"counterpart", r.counterpart},
                    {"rotation_bound_deg", r.rotation_bound_deg},
                    {"counterpart_rotation_bound_deg", r.counterpart_rotation_bound_deg}});
     }
-    std::cout << nlohmann::json{{"seed", o.seed}, {"rows", j}}.dump(2) << "\n";
+    std::cout << nlohmann::json{{"seed", o.seed},
+                                {"inlier_ratio", o.instance.inlier_ratio},
+                                {"match_scores", o.instance.match_scores},
+                                {"progressive_sampling", o.localize.ransac.progressive_sampling},
+                                {"rows", j}}
+                     .dump(2)
+              << "\n";
     return;
   }
   std::cout << fmt::format(
       "seed {}, {} queries per method, {} correspondences, {:.0f} % inliers, {:.1f} px noise, "
-      "threshold {:.1f} px, one thread; localized = refined within {:.1f} deg and {:.1f} % of "
-      "the scene size\n",
+      "threshold {:.1f} px, {}, one thread; localized = refined within {:.1f} deg and {:.1f} % "
+      "of the scene size\n",
       o.seed, o.queries, o.instance.num_correspondences, 100 * o.instance.inlier_ratio,
-      o.instance.noise_px, o.localize.ransac.max_error, o.max_rotation_deg,
-      100 * o.max_position_rel);
+      o.instance.noise_px, o.localize.ransac.max_error,
+      !o.instance.match_scores ? "no match scores (uniform samples)"
+      : o.localize.ransac.progressive_sampling
+          ? "match ratios as on real photos, PROSAC samples"
+          : "match ratios as on real photos, uniform samples",
+      o.max_rotation_deg, 100 * o.max_position_rel);
   std::cout << "| method | localized | rot. deg init / ref | rot. bound deg | pos. % init / ref | "
-               "iters | inliers | sols | solver us | RANSAC ms | refine ms (iters) | total ms | "
-               "ref. rot. / counterpart (bound) |\n"
+               "iters | inliers | sols | solver us | RANSAC ms (solver / scoring / LO) | refine ms (iters) | "
+               "total ms mean / median | ref. rot. / counterpart (bound) |\n"
                "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const LocalizationBenchRow& r : rows) {
     std::string ratio;
@@ -124,11 +137,12 @@ void RunBenchLocalize(const LocalizeBenchArgs& args) {
     }
     std::cout << fmt::format(
         "| {} | {:.1f} % | {:.4f} / {:.4f} | {:.4f} | {:.3f} / {:.3f} | {:.0f} | {:.0f} % | {:.2f} | "
-        "{:.2f} | {:.3f} | {:.3f} ({:.1f}) | {:.3f} | {} |\n",
+        "{:.2f} | {:.3f} ({:.1f} / {:.1f} / {:.1f}) | {:.3f} ({:.1f}) | {:.3f} / {:.3f} | {} |\n",
         r.method, 100.0 * r.localized / r.queries, r.median_rotation_deg[0],
         r.median_rotation_deg[1], r.rotation_bound_deg, 100 * r.median_position[0],
         100 * r.median_position[1], r.iterations, 100 * r.inlier_ratio, r.solutions,
-        r.solver_us, r.ransac_ms, r.refine_ms, r.refine_iterations, r.total_ms, ratio);
+        r.solver_us, r.ransac_ms, r.solver_ms, r.scoring_ms, r.lo_ms, r.refine_ms,
+        r.refine_iterations, r.total_ms, r.median_total_ms, ratio);
   }
   std::cout << "rot. bound: Cramer-Rao bound of the refined rotation (RMS over noise "
                "realisations, at the true pose on the true inliers; median over queries); "
@@ -181,6 +195,11 @@ void RegisterBenchCommand(CLI::App& app) {
                        "RANSAC threshold (px)")
       ->capture_default_str();
   localize->add_option("--methods", loc->options.methods, "Only these methods")->delimiter(',');
+  localize->add_flag("--scores", loc->options.instance.match_scores,
+                     "Give each match a Lowe ratio drawn from those measured on real photos "
+                     "(inliers and outliers apart), so RANSAC can sample the best first (PROSAC)");
+  localize->add_flag("!--uniform", loc->options.localize.ransac.progressive_sampling,
+                     "Uniform samples even when matches have scores (the reference for PROSAC)");
   localize->callback([loc] { RunBenchLocalize(*loc); });
 
   auto match = std::make_shared<MatchBenchOptions>();

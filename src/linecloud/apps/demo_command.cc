@@ -42,7 +42,7 @@ nlohmann::json QueryJson(const SyntheticQuery& q, const Eigen::Vector3d& gravity
   Query query;
   query.cameras = {q.camera};
   for (const SyntheticObservation& o : q.observations) {
-    query.observations.push_back({0, o.xy, o.point3D_id, std::nullopt});
+    query.observations.push_back({0, o.xy, o.point3D_id, std::nullopt, std::nullopt});
   }
   AddLineIds(key, &query);
   query.gravity_query = q.gravity_in_cam;

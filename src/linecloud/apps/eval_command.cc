@@ -4,6 +4,7 @@
 #include "linecloud/eval/eval_prepare.h"
 #include "linecloud/eval/colmap_registration.h"
 #include "linecloud/eval/eval_run.h"
+#include "linecloud/eval/match_scores.h"
 #include "linecloud/eval/privacy_tradeoff.h"
 #include "linecloud/util/file.h"
 
@@ -90,6 +91,21 @@ void RegisterEvalCommand(CLI::App& app) {
   colmap->callback([registration] {
     RunColmapRegistration(*registration);
     std::cout << ReadFileToString(JoinPaths(registration->out_dir, "colmap_registration.md"));
+  });
+
+  auto scores = std::make_shared<MatchScoreOptions>();
+  CLI::App* scores_cmd = eval->add_subcommand(
+      "scores", "match scores on real photos: Lowe-ratio histograms of true inliers and outliers "
+                "(ground-truth reprojection), inlier share of the best-ranked matches (JSON)");
+  scores_cmd->add_option("--work", scores->work_dirs, "work directories of `eval prepare` (repeat)")
+      ->required();
+  scores_cmd->add_option("--out", scores->out, "JSON file")->required();
+  scores_cmd->add_option("--inlier-px", scores->inlier_px, "ground-truth inlier threshold (px)")
+      ->capture_default_str();
+  scores_cmd->add_option("--bins", scores->bins, "histogram bins")->capture_default_str();
+  scores_cmd->callback([scores] {
+    const auto report = RunMatchScores(*scores);
+    std::cout << report["histogram"].dump() << "\n" << report["top_share"].dump() << "\n";
   });
 
   auto run_options = std::make_shared<EvalRunOptions>();

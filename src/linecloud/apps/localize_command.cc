@@ -235,6 +235,9 @@ void RegisterLocalizeCommand(CLI::App& app) {
   cmd->add_option("--max-seconds", args->options.ransac.max_seconds,
                   "RANSAC time budget in seconds (0: none)")
       ->capture_default_str();
+  cmd->add_flag("!--uniform-sampling", args->options.ransac.progressive_sampling,
+                "Uniform RANSAC samples even when matches have Lowe ratios (--image, or \"ratio\" "
+                "in QUERY.json); by default the best-ranked matches are tried first (PROSAC)");
   cmd->add_option("--min-inliers", args->min_inliers,
                   "Inliers a pose needs (default: 30 on a point model, 60 on a line cloud)");
   cmd->add_option("--min-inlier-ratio", args->options.success.min_inlier_ratio,

@@ -30,6 +30,9 @@ struct PoseData {
   std::vector<Eigen::Vector3d> points_local;  // +l: X̃ in the rig frame
   std::vector<Eigen::Vector3d> points;      // point map (empty for a line map)
   std::vector<PluckerLine> lines;           // line map (empty for a point map)
+  // Correspondence indices by match quality, best first (PROSAC); empty when
+  // the matches have no scores.
+  std::vector<int> ranking;
 
   size_t size() const { return camera.size(); }
   bool has_lines() const { return !lines.empty(); }

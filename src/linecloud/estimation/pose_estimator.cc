@@ -103,6 +103,17 @@ void PoseEstimator::refine_model(Sim3d* model, double threshold) {
   inliers(*model, threshold, &mask);
   InlierIndices(mask, &inlier_indices_);
   if (inlier_indices_.size() < static_cast<size_t>(method_.sample_size)) return;
+  // A few LM steps on thousands of inliers cost more than the minimal solver;
+  // an evenly spaced subset moves the model as far (the final refinement
+  // uses every inlier). Lebeda, Matas, Chum, "Fixing the locally optimized
+  // RANSAC", BMVC 2012, bound the inner least squares the same way.
+  const size_t count = inlier_indices_.size();
+  if (count > kMaxLocalOptimizationData) {
+    for (size_t j = 0; j < kMaxLocalOptimizationData; ++j) {
+      inlier_indices_[j] = inlier_indices_[j * count / kMaxLocalOptimizationData];
+    }
+    inlier_indices_.resize(kMaxLocalOptimizationData);
+  }
   RefinePose(data_, inlier_indices_, local_refinement_, model);
 }
 

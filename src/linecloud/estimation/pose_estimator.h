@@ -19,6 +19,9 @@ namespace linecloud {
 
 class PoseEstimator {
  public:
+  // Local optimisation fits at most this many inliers (evenly spaced).
+  static constexpr size_t kMaxLocalOptimizationData = 400;
+
   using Model = Sim3d;  // query_from_world
 
   // `data` must outlive the estimator.

@@ -16,6 +16,9 @@
 //   // Marks the inliers of `m`.
 //   void inliers(const Model& m, double threshold, std::vector<char>* mask) const;
 //
+// Samples are uniform, or progressive (PROSAC, sampler.h) when the caller
+// ranks the data by match quality.
+//
 // The structure follows PoseLib's ransac.h and COLMAP's loransac.h (Chum,
 // Matas, Kittler, "Locally optimized RANSAC", DAGM 2003; Torr, Zisserman,
 // "MLESAC", CVIU 2000).
@@ -27,10 +30,11 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
-#include <random>
+#include <optional>
 #include <span>
 #include <vector>
 
+#include "linecloud/estimation/sampler.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
@@ -38,11 +42,14 @@ namespace linecloud {
 struct RansacOptions {
   double max_error = 4.0;        // inlier threshold, in the estimator's units (px)
   double confidence = 0.9999;    // probability of drawing one all-inlier sample
-  int min_iterations = 10;
+  int min_iterations = 10;       // uniform sampling only (see `enough` in Ransac)
   int max_iterations = 10000;
   bool local_optimization = true;
   uint64_t seed = 0;
   double max_seconds = 0;        // wall-clock budget; 0: none
+  // With a ranking of the data (best first): PROSAC sampling and stopping
+  // (sampler.h). Without one, or when false: uniform samples.
+  bool progressive_sampling = true;
   // Called about every `progress_interval_s` seconds while the run lasts
   // (never for runs shorter than that): iterations so far, iterations the
   // current best model needs, its inliers, seconds elapsed.
@@ -73,6 +80,10 @@ struct RansacStats {
   double mean_solutions = 0;     // models per minimal sample
   double solver_us = 0;          // mean time of one generate_models call
   double ransac_ms = 0;          // whole run, local optimisation included
+  double solver_ms = 0;          // of which minimal solvers,
+  double scoring_ms = 0;         // scoring hypotheses,
+  double lo_ms = 0;              // local optimisation (refine and re-score)
+  bool progressive = false;      // PROSAC samples (a ranking was given)
   int local_optimizations = 0;
   // Why the run stopped: "confidence" (enough iterations for an all-inlier
   // sample), "max_iterations" or "max_seconds".
@@ -95,46 +106,57 @@ inline void InlierIndices(const std::vector<char>& mask, std::vector<int>* indic
   }
 }
 
-// Iterations needed to draw an all-inlier sample with `confidence`.
-inline int RequiredIterations(double inlier_ratio, int sample_size, double confidence,
-                              int max_iterations) {
-  if (inlier_ratio <= 0) return max_iterations;
-  const double all_inliers = std::pow(inlier_ratio, sample_size);
-  if (all_inliers >= 1) return 0;
-  const double n = std::log(1 - confidence) / std::log1p(-all_inliers);
-  return n >= max_iterations ? max_iterations : static_cast<int>(std::ceil(n));
-}
-
+// `ranking`: optional, the data indices best first (a permutation of
+// [0, num_data)), e.g. by Lowe's ratio; used with options.progressive_sampling.
 template <typename Estimator>
-RansacResult<typename Estimator::Model> Ransac(Estimator& estimator,
-                                               const RansacOptions& options) {
+RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const RansacOptions& options,
+                                               std::span<const int> ranking = {}) {
   using Model = typename Estimator::Model;
   using Clock = std::chrono::steady_clock;
+  const auto seconds_since = [](Clock::time_point t) {
+    return std::chrono::duration<double>(Clock::now() - t).count();
+  };
   options.Check();
   const auto start = Clock::now();
   RansacResult<Model> result;
   const int n = estimator.num_data();
   const int k = estimator.sample_size();
+  if (!ranking.empty() && ranking.size() != static_cast<size_t>(n)) {
+    Fail("RANSAC: a ranking of {} entries for {} data", ranking.size(), n);
+  }
   if (n < k) return result;
 
-  std::mt19937_64 rng(options.seed);
+  const bool progressive = options.progressive_sampling && !ranking.empty();
+  UniformSampler uniform(n, k, options.seed);
+  std::optional<ProgressiveSampler> prosac;
+  if (progressive) {
+    prosac.emplace(ranking, k, options.seed, options.max_iterations);
+  }
+  ProgressiveStopping stopping(n, k, options.confidence);
   std::vector<int> sample(k);
+  std::vector<char> mask;
   std::vector<Model> models;
   double best_score = std::numeric_limits<double>::infinity();
   int best_inliers = 0;
   long total_models = 0;
-  double solver_seconds = 0;
+  double solver_seconds = 0, scoring_seconds = 0, lo_seconds = 0;
   int needed = options.max_iterations;
   int iteration = 0;
   double next_progress = options.progress_interval_s;
   const char* stop_reason = "max_iterations";
+  // min_iterations is a floor of uniform sampling; the progressive rule needs
+  // a support that chance cannot explain before it counts any sample.
+  const auto enough = [&] {
+    if (progressive) return stopping.Done();
+    return iteration >= options.min_iterations && iteration >= needed;
+  };
   for (; iteration < options.max_iterations; ++iteration) {
-    if (iteration >= options.min_iterations && iteration >= needed) {
+    if (enough()) {
       stop_reason = "confidence";
       break;
     }
     if (options.max_seconds > 0 || options.progress) {
-      const double elapsed = std::chrono::duration<double>(Clock::now() - start).count();
+      const double elapsed = seconds_since(start);
       if (options.max_seconds > 0 && elapsed >= options.max_seconds) {
         stop_reason = "max_seconds";
         break;
@@ -144,24 +166,24 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator,
         next_progress = elapsed + options.progress_interval_s;
       }
     }
-    // k distinct indices (k is tiny: rejection is cheaper than shuffling).
-    for (int i = 0; i < k; ++i) {
-      int candidate;
-      do {
-        candidate = static_cast<int>(rng() % static_cast<uint64_t>(n));
-      } while (std::find(sample.begin(), sample.begin() + i, candidate) !=
-               sample.begin() + i);
-      sample[i] = candidate;
+    if (progressive) {
+      prosac->Sample(&sample);
+      stopping.Record(prosac->subset_size(), prosac->last_with_newest());
+    } else {
+      uniform.Sample(&sample);
     }
     const auto solve_start = Clock::now();
     estimator.generate_models(sample, &models);
-    solver_seconds += std::chrono::duration<double>(Clock::now() - solve_start).count();
+    solver_seconds += seconds_since(solve_start);
     total_models += static_cast<long>(models.size());
     for (Model& model : models) {
       int inliers = 0;
+      const auto score_start = Clock::now();
       double score = estimator.score_model(model, options.max_error, best_score, &inliers);
+      scoring_seconds += seconds_since(score_start);
       if (score >= best_score) continue;
       if (options.local_optimization && inliers > k) {
+        const auto lo_start = Clock::now();
         Model refined = model;
         estimator.refine_model(&refined, options.max_error);
         int refined_inliers = 0;
@@ -173,18 +195,28 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator,
           score = refined_score;
           inliers = refined_inliers;
         }
+        lo_seconds += seconds_since(lo_start);
       }
       best_score = score;
       best_inliers = inliers;
       result.model = model;
       result.success = true;
-      needed = RequiredIterations(static_cast<double>(inliers) / n, k, options.confidence,
-                                  options.max_iterations);
+      if (progressive) {
+        estimator.inliers(model, options.max_error, &mask);
+        stopping.Update(mask, ranking);
+        prosac->LimitGrowth(stopping.best_prefix());
+        needed = iteration + 1 +
+                 stopping.Remaining(prosac->subset_size(), options.max_iterations);
+      } else {
+        needed = RequiredIterations(static_cast<double>(inliers) / n, k, options.confidence,
+                                    options.max_iterations);
+      }
     }
   }
   result.stats.iterations = iteration;
-  if (iteration >= needed && iteration >= options.min_iterations) stop_reason = "confidence";
+  if (enough()) stop_reason = "confidence";
   result.stats.stop_reason = stop_reason;
+  result.stats.progressive = progressive;
   if (result.success) {
     estimator.inliers(result.model, options.max_error, &result.inlier_mask);
     result.stats.num_inliers = best_inliers;
@@ -194,8 +226,10 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator,
     result.stats.mean_solutions = static_cast<double>(total_models) / iteration;
     result.stats.solver_us = 1e6 * solver_seconds / iteration;
   }
-  result.stats.ransac_ms =
-      1e3 * std::chrono::duration<double>(Clock::now() - start).count();
+  result.stats.solver_ms = 1e3 * solver_seconds;
+  result.stats.scoring_ms = 1e3 * scoring_seconds;
+  result.stats.lo_ms = 1e3 * lo_seconds;
+  result.stats.ransac_ms = 1e3 * seconds_since(start);
   return result;
 }
 

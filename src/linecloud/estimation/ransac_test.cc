@@ -1,5 +1,6 @@
 #include "linecloud/estimation/ransac.h"
 
+#include <algorithm>
 #include <random>
 
 #include <Eigen/Dense>
@@ -123,6 +124,113 @@ TEST(Ransac, RequiredIterationsMatchesTheFormula) {
   EXPECT_EQ(RequiredIterations(1.0, 3, 0.99, 10000), 0);
   EXPECT_EQ(RequiredIterations(0.0, 3, 0.99, 500), 500);
   EXPECT_EQ(RequiredIterations(0.1, 6, 0.9999, 10000), 10000);
+}
+
+// Ranks of NoisyLine's points (inliers are its first points): `inliers_first`
+// puts every inlier before every outlier, otherwise every outlier first.
+std::vector<int> Ranking(int n, double inlier_ratio, bool inliers_first) {
+  std::vector<int> ranking(n);
+  for (int i = 0; i < n; ++i) ranking[i] = i;
+  if (!inliers_first) {
+    const int inliers = static_cast<int>(inlier_ratio * n);
+    std::rotate(ranking.begin(), ranking.begin() + inliers, ranking.end());
+  }
+  return ranking;
+}
+
+TEST(ProgressiveSampler, DrawsTheBestFirstAndGrowsToAllTheData) {
+  const int n = 200, k = 3, growth = 2000;
+  std::vector<int> ranking(n);
+  for (int i = 0; i < n; ++i) ranking[i] = n - 1 - i;  // datum n-1 is the best
+  ProgressiveSampler sampler(ranking, k, 7, growth);
+  std::vector<int> sample;
+  sampler.Sample(&sample);
+  std::vector<int> sorted = sample;
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_EQ(sorted, (std::vector<int>{n - 3, n - 2, n - 1}));  // the top 3
+  int last_subset = sampler.subset_size();
+  for (int t = 2; t <= growth + n; ++t) {
+    sampler.Sample(&sample);
+    ASSERT_GE(sampler.subset_size(), last_subset);
+    last_subset = sampler.subset_size();
+    std::sort(sample.begin(), sample.end());
+    ASSERT_EQ(std::adjacent_find(sample.begin(), sample.end()), sample.end()) << "repeated index";
+    for (int s : sample) ASSERT_LT(n - 1 - s, sampler.subset_size());  // inside U_n
+    if (sampler.last_with_newest()) {  // u_n is in the sample
+      ASSERT_EQ(sample.front(), n - sampler.subset_size());
+    }
+  }
+  // T'_N <= T_N + N: by then PROSAC samples all the data (plain RANSAC).
+  EXPECT_EQ(sampler.subset_size(), n);
+}
+
+TEST(ProgressiveStopping, ChanceSupportAndOwnSamplesNeverStopARun) {
+  const int n = 500, k = 6;
+  ProgressiveStopping stopping(n, k, 0.9999);
+  // A model explains its own sample: the top k alone are never significant;
+  // two more agreeing data of two are (0.05² < 5 %), one of one is not.
+  EXPECT_EQ(stopping.MinInliers(k), k + 1);
+  EXPECT_EQ(stopping.MinInliers(k + 1), k + 2);
+  EXPECT_EQ(stopping.MinInliers(k + 2), k + 2);
+  std::vector<int> ranking(n);
+  for (int i = 0; i < n; ++i) ranking[i] = i;
+  // The model of the first sample (the top 6) with chance support elsewhere.
+  std::vector<char> mask(n, 0);
+  std::fill(mask.begin(), mask.begin() + k, 1);
+  for (int i = 20; i < n; i += 25) mask[i] = 1;
+  stopping.Record(k, true);
+  stopping.Update(mask, ranking);
+  for (int t = 0; t < 1000; ++t) stopping.Record(std::min(n, k + t), false);
+  EXPECT_FALSE(stopping.Done());
+  // 60 inliers at the top: one sample of U_60 is surely all-inlier.
+  std::fill(mask.begin(), mask.end(), 0);
+  std::fill(mask.begin(), mask.begin() + 60, 1);
+  ProgressiveStopping fresh(n, k, 0.9999);
+  fresh.Record(k, true);
+  fresh.Update(mask, ranking);
+  EXPECT_FALSE(fresh.Done());  // the top 6 alone prove nothing
+  fresh.Record(60, false);
+  EXPECT_TRUE(fresh.Done());
+}
+
+TEST(Ransac, ProgressiveSamplingFindsTheSameLineInFewerSamples) {
+  const int n = 400;
+  const double ratio = 0.3;
+  RansacOptions options;
+  options.max_error = 0.05;
+  options.seed = 11;
+  options.min_iterations = 0;
+  LineEstimator uniform_e = NoisyLine(n, ratio, 4);
+  const auto uniform = Ransac(uniform_e, options);
+  LineEstimator good_e = NoisyLine(n, ratio, 4);
+  const std::vector<int> good_ranking = Ranking(n, ratio, true);
+  const auto good = Ransac(good_e, options, good_ranking);
+  ASSERT_TRUE(uniform.success && good.success);
+  EXPECT_FALSE(uniform.stats.progressive);
+  EXPECT_TRUE(good.stats.progressive);
+  EXPECT_EQ(good.stats.num_inliers, uniform.stats.num_inliers);
+  EXPECT_NEAR(good.model[0], 0.5, 1e-3);
+  EXPECT_NEAR(good.model[1], -2.0, 1e-2);
+  // 30 % inliers, pairs: uniform needs log(1e-4) / log(0.91) = 98 samples; the
+  // top of a perfect ranking is all inliers.
+  EXPECT_GE(uniform.stats.iterations, 90);
+  EXPECT_LE(good.stats.iterations, 5);
+  // The worst ranking (every outlier first) costs samples, never the line.
+  LineEstimator bad_e = NoisyLine(n, ratio, 4);
+  const auto bad = Ransac(bad_e, options, Ranking(n, ratio, false));
+  ASSERT_TRUE(bad.success);
+  EXPECT_EQ(bad.stats.num_inliers, uniform.stats.num_inliers);
+  EXPECT_GT(bad.stats.iterations, uniform.stats.iterations);
+  EXPECT_STREQ(bad.stats.stop_reason, "confidence");
+  // Switched off: the ranking is ignored (uniform samples, the same run).
+  options.progressive_sampling = false;
+  LineEstimator off_e = NoisyLine(n, ratio, 4);
+  const auto off = Ransac(off_e, options, good_ranking);
+  EXPECT_EQ(off.stats.iterations, uniform.stats.iterations);
+  EXPECT_EQ(off.model, uniform.model);
+  // A ranking of the wrong size is an error.
+  options.progressive_sampling = true;
+  EXPECT_THROW(Ransac(off_e, options, std::vector<int>(n - 1, 0)), Error);
 }
 
 }  // namespace

@@ -77,6 +77,7 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
     std::vector<double> rotation, translation;
     int localized = 0;
     double extract_ms = 0, match_ms = 0, ransac_ms = 0, refine_ms = 0;
+    double solver_ms = 0, scoring_ms = 0, lo_ms = 0, iterations = 0;
   };
   std::map<std::string, Tally> tallies;
   json per_query = json::array();
@@ -103,6 +104,12 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
               method.lines ? LocalizationMap(map.lines) : LocalizationMap(map.points);
           const LocalizeResult r = Localize(method, q.query, lm, lo, im.name);
           t.ransac_ms += r.stats.ransac_ms;
+          t.solver_ms += r.stats.solver_ms;
+          t.scoring_ms += r.stats.scoring_ms;
+          t.lo_ms += r.stats.lo_ms;
+          t.iterations += r.stats.iterations;
+          row[name]["ransac_ms"] = r.stats.ransac_ms;
+          row[name]["iterations"] = r.stats.iterations;
           t.refine_ms += r.refine_ms;
           failure = r.failure;
           if (r.success) {
@@ -120,7 +127,8 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
         t.rotation.push_back(rot);
         t.translation.push_back(trans);
         t.localized += rot <= options.max_rotation_deg && trans <= options.max_translation;
-        row[name] = {{"rotation_deg", rot}, {"translation", trans}};
+        row[name]["rotation_deg"] = rot;
+        row[name]["translation"] = trans;
         if (!failure.empty()) row[name]["failure"] = failure;
       }
       per_query.push_back(row);
@@ -137,7 +145,10 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
                      {"median_rotation_deg", Median(t.rotation)},
                      {"median_translation", Median(t.translation)},
                      {"mean_ms", {{"extract", t.extract_ms / n}, {"match", t.match_ms / n},
-                                  {"ransac", t.ransac_ms / n}, {"refine", t.refine_ms / n}}}};
+                                  {"ransac", t.ransac_ms / n}, {"refine", t.refine_ms / n}}},
+                     {"mean_ransac_ms", {{"solver", t.solver_ms / n}, {"scoring", t.scoring_ms / n},
+                                         {"local_optimization", t.lo_ms / n}}},
+                     {"mean_iterations", t.iterations / n}};
   }
   return {{"thresholds", {{"rotation_deg", options.max_rotation_deg},
                           {"translation", options.max_translation}}},

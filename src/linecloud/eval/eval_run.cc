@@ -114,7 +114,7 @@ std::vector<EvalQuery> QueriesForMethod(const EvalWork& work, const MethodInfo& 
         EvalQuery q{g.name, im.name, {}, ToSim3(im.cam_from_world)};
         q.query.cameras = {work.cameras.at(im.camera_id)};
         for (const EvalCorrespondence& c : im.correspondences) {
-          if (ids.count(c.point_id)) q.query.observations.push_back({0, c.xy, c.point_id, std::nullopt});
+          if (ids.count(c.point_id)) q.query.observations.push_back({0, c.xy, c.point_id, std::nullopt, std::nullopt});
         }
         if (method.gravity) {
           q.query.gravity_query = im.gravity;
@@ -141,7 +141,7 @@ std::vector<EvalQuery> QueriesForMethod(const EvalWork& work, const MethodInfo& 
           if (!corr.point_local) continue;
           q.query.points_local.push_back(scale * *corr.point_local);
         }
-        q.query.observations.push_back({static_cast<int>(c), corr.xy, corr.point_id, std::nullopt});
+        q.query.observations.push_back({static_cast<int>(c), corr.xy, corr.point_id, std::nullopt, std::nullopt});
       }
     }
     q.name = name;

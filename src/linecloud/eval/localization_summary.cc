@@ -22,6 +22,10 @@ void LocalizationTally::Add(const LocalizeResult& r, const Sim3d& truth, double 
   s.solutions += r.stats.mean_solutions;
   s.solver_us += r.stats.solver_us;
   s.ransac_ms += r.stats.ransac_ms;
+  s.solver_ms += r.stats.solver_ms;
+  s.scoring_ms += r.stats.scoring_ms;
+  s.lo_ms += r.stats.lo_ms;
+  total_ms_.push_back(r.stats.ransac_ms + r.refine_ms);
   s.refine_ms += r.refine_ms;
   s.refine_iterations += r.refine_iterations;
   s.reprojection_px[0] += r.reprojection_initial_px;
@@ -44,11 +48,12 @@ LocalizationSummary LocalizationTally::Summary() const {
   LocalizationSummary s = sums_;
   const double n = std::max(1, s.queries);
   for (double* v : {&s.iterations, &s.inlier_ratio, &s.solutions, &s.solver_us, &s.ransac_ms,
-                    &s.refine_ms, &s.refine_iterations, &s.reprojection_px[0],
+                    &s.solver_ms, &s.scoring_ms, &s.lo_ms, &s.refine_ms, &s.refine_iterations, &s.reprojection_px[0],
                     &s.reprojection_px[1]}) {
     *v /= n;
   }
   s.total_ms = s.ransac_ms + s.refine_ms;
+  s.median_total_ms = Median(total_ms_);
   for (int k = 0; k < 2; ++k) {
     s.median_rotation_deg[k] = Median(rotation_[k]);
     s.median_position[k] = Median(position_[k]);

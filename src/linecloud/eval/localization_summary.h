@@ -24,6 +24,10 @@ struct LocalizationSummary {
   double refine_ms = 0;
   double refine_iterations = 0;
   double total_ms = 0;                      // RANSAC + refinement
+  double median_total_ms = 0;               // median over the queries
+  // Where RANSAC's time goes (means): minimal solvers, scoring, local
+  // optimisation; the rest of ransac_ms is sampling and bookkeeping.
+  double solver_ms = 0, scoring_ms = 0, lo_ms = 0;
   double reprojection_px[2] = {0, 0};       // initial, refined
   std::vector<std::string> failures;        // "name: reason" of each query without a pose
 };
@@ -46,6 +50,7 @@ class LocalizationTally {
   double max_rotation_deg_, max_position_;
   LocalizationSummary sums_;
   std::vector<double> rotation_[2], position_[2];
+  std::vector<double> total_ms_;
 };
 
 }  // namespace linecloud

@@ -133,7 +133,7 @@ ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
   for (const DescriptorMatch& m : out.matches) {
     const SiftKeypoint& k = out.features.keypoints[m.query];
     out.query.observations.push_back(
-        {0, Eigen::Vector2d(k.x, k.y), map.ids[m.map], std::nullopt});
+        {0, Eigen::Vector2d(k.x, k.y), map.ids[m.map], std::nullopt, m.ratio});
   }
   return out;
 }

@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <numeric>
 
 #include <Eigen/Geometry>
 
@@ -57,6 +58,10 @@ void CheckQuery(const MethodInfo& method, const Query& q, std::string_view sourc
            q.cameras.size());
     }
     if (!o.xy.allFinite()) Fail("{}: observations[{}].xy is not finite", source, i);
+    if (o.match_ratio && !(std::isfinite(*o.match_ratio) && *o.match_ratio >= 0)) {
+      Fail("{}: observations[{}].ratio = {} is not a match ratio (finite, >= 0)", source, i,
+           *o.match_ratio);
+    }
   }
   if (method.local_points) {
     if (q.points_local.size() != q.observations.size()) {
@@ -150,6 +155,20 @@ Eigen::Matrix3d GravityAlignment(const Eigen::Vector3d& gravity) {
       .toRotationMatrix();
 }
 
+std::vector<int> MatchRanking(const std::vector<QueryObservation>& observations) {
+  std::vector<int> ranking;
+  for (const QueryObservation& o : observations) {
+    if (!o.match_ratio) return {};
+  }
+  ranking.resize(observations.size());
+  std::iota(ranking.begin(), ranking.end(), 0);
+  std::stable_sort(ranking.begin(), ranking.end(), [&](int a, int b) {
+    return *observations[static_cast<size_t>(a)].match_ratio <
+           *observations[static_cast<size_t>(b)].match_ratio;
+  });
+  return ranking;
+}
+
 PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query,
                            const LocalizationMap& map, std::string_view source) {
   if (!method.implemented) Fail("method {} has no minimal solver in this build yet", method.name);
@@ -210,7 +229,7 @@ PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query,
       data.points.push_back(align_map * it->second);
     }
   }
-
+  data.ranking = MatchRanking(query.observations);
   return prepared;
 }
 
@@ -324,7 +343,7 @@ LocalizeResult Localize(const MethodInfo& method, const Query& query,
   LocalizeResult result;
   result.num_correspondences = static_cast<int>(query.observations.size());
   PoseEstimator estimator(method, prepared.data, options.local_refinement);
-  const RansacResult<Sim3d> ransac = Ransac(estimator, options.ransac);
+  const RansacResult<Sim3d> ransac = Ransac(estimator, options.ransac, prepared.data.ranking);
   result.stats = ransac.stats;
   if (!ransac.success) {
     result.failure = fmt::format("RANSAC found no pose in {} iterations (stopped by {})",

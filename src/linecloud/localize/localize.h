@@ -36,6 +36,10 @@ struct QueryObservation {
   // The line id when `id` is a point id (the map owner's query files, e.g.
   // the demo's): used with a line cloud instead of `id`.
   std::optional<uint64_t> line_id;
+  // Lowe's ratio of the descriptor match behind this correspondence (best /
+  // second-best distance; lower is more distinctive). When every observation
+  // has one, RANSAC tries the best-ranked first (PROSAC, estimation/sampler.h).
+  std::optional<double> match_ratio;
 };
 
 struct Query {
@@ -142,6 +146,10 @@ struct PreparedQuery {
   // query_from_world = query_from_aligned ∘ pose ∘ aligned_from_map.
   Sim3d ToQueryFromWorld(const Sim3d& aligned_pose) const;
 };
+
+// Observation indices by match ratio, best first (stable); empty unless every
+// observation has a match_ratio.
+std::vector<int> MatchRanking(const std::vector<QueryObservation>& observations);
 
 // Throws Error like Localize.
 PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query,

@@ -57,6 +57,47 @@ TEST_P(LocalizeTest, LocalizesNoisyQueriesWithHalfOutliers) {
   EXPECT_LE(refined_px, initial_px * 1.001) << method.name;
 }
 
+// [fast-p6L]: with match ratios distributed as on real photos, RANSAC samples
+// the best-ranked matches first (PROSAC) and stops when the samples it drew
+// make missing the best pose unlikely: far fewer iterations at 30 % inliers,
+// the same pose. Ratios that rank every outlier first cost iterations, never
+// the pose.
+TEST(Localize, MatchRatiosCutTheIterationsNotThePose) {
+  const MethodInfo& method = FindMethod("p3P");
+  LocalizationInstanceOptions instance_options;
+  instance_options.inlier_ratio = 0.3;
+  instance_options.match_scores = true;
+  LocalizeOptions options;
+  options.ransac.seed = 3;
+  for (int k = 0; k < testing::InstanceCount(5); ++k) {
+    std::mt19937_64 rng(77 + k);
+    const LocalizationInstance inst = RandomLocalizationInstance(method, instance_options, rng);
+    const LocalizationMap map(inst.point_map);
+    const LocalizeResult ranked = Localize(method, inst.query, map, options);
+    Query unscored = inst.query, adversarial = inst.query;
+    for (size_t i = 0; i < unscored.observations.size(); ++i) {
+      ASSERT_TRUE(inst.query.observations[i].match_ratio.has_value());
+      unscored.observations[i].match_ratio.reset();
+      adversarial.observations[i].match_ratio = inst.is_inlier[i] ? 0.7 : 0.1;
+    }
+    const LocalizeResult uniform = Localize(method, unscored, map, options);
+    const LocalizeResult worst = Localize(method, adversarial, map, options);
+    for (const LocalizeResult* r : {&ranked, &uniform, &worst}) {
+      ASSERT_TRUE(r->success) << r->failure;
+      const LocalizationError e = CompareLocalization(r->query_from_world, inst.truth);
+      EXPECT_LT(e.rotation_rad, 0.1 * kDeg);
+      EXPECT_LT(e.position, 0.002 * inst.scene_size);
+      EXPECT_NEAR(static_cast<double>(r->inliers.size()), 150, 15);
+    }
+    EXPECT_TRUE(ranked.stats.progressive);
+    EXPECT_FALSE(uniform.stats.progressive);
+    // 30 % inliers, triplets: uniform RANSAC needs log(1e-4) / log(1 - 0.3³) ≈ 337.
+    EXPECT_GT(uniform.stats.iterations, 300);
+    EXPECT_LT(ranked.stats.iterations, uniform.stats.iterations / 5);
+    EXPECT_GT(worst.stats.iterations, ranked.stats.iterations);
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(Methods, LocalizeTest,
                          ::testing::ValuesIn(testing::ImplementedMethodNames()),
                          testing::MethodTestName);
@@ -80,7 +121,7 @@ TEST(Localize, RealImageAgainstItsModelAndLineCloud) {
   Query query;
   query.cameras.push_back(model.cameras.at(image->camera_id));
   for (const Point2D& p : image->points2D) {
-    if (p.point3D_id != kInvalidPoint3DId) query.observations.push_back({0, p.xy, p.point3D_id, std::nullopt});
+    if (p.point3D_id != kInvalidPoint3DId) query.observations.push_back({0, p.xy, p.point3D_id, std::nullopt, std::nullopt});
   }
   ASSERT_GT(query.observations.size(), 500u);
   std::vector<uint64_t> ids = model.SortedPoint3DIds();

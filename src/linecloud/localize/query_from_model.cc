@@ -17,7 +17,7 @@ ModelQuery QueryFromModelImage(const Reconstruction& model, const std::string& m
   out.query.cameras.push_back(model.cameras.at(image->camera_id));
   for (const Point2D& p : image->points2D) {
     if (p.point3D_id == kInvalidPoint3DId) continue;
-    out.query.observations.push_back({0, p.xy, p.point3D_id, std::nullopt});
+    out.query.observations.push_back({0, p.xy, p.point3D_id, std::nullopt, std::nullopt});
   }
   if (key) {
     std::vector<uint64_t> point_ids;

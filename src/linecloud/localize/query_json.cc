@@ -83,6 +83,13 @@ Query ParseQueryJson(const nlohmann::json& j, const std::string& source) {
       }
       obs.line_id = o["line_id"].get<uint64_t>();
     }
+    if (o.contains("ratio")) {
+      if (!o["ratio"].is_number() || !std::isfinite(o["ratio"].get<double>()) ||
+          o["ratio"].get<double>() < 0) {
+        Fail("{}.ratio: expected a match's Lowe ratio (a finite number >= 0)", where);
+      }
+      obs.match_ratio = o["ratio"].get<double>();
+    }
     const nlohmann::json& xy = o["xy"];
     if (!xy.is_array() || xy.size() != 2 || !xy[0].is_number() || !xy[1].is_number()) {
       Fail("{}.xy: expected [u, v]", where);
@@ -138,6 +145,7 @@ nlohmann::json QueryToJson(const Query& q) {
   for (const QueryObservation& o : q.observations) {
     j["observations"].push_back({{"camera", o.camera}, {"xy", {o.xy.x(), o.xy.y()}}, {"id", o.id}});
     if (o.line_id) j["observations"].back()["line_id"] = *o.line_id;
+    if (o.match_ratio) j["observations"].back()["ratio"] = *o.match_ratio;
   }
   if (!q.points_local.empty()) {
     j["points_local"] = nlohmann::json::array();
@@ -183,10 +191,14 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
   }
   j["stats"] = {{"iterations", r.stats.iterations},
                 {"stop_reason", r.stats.stop_reason},
+                {"sampling", r.stats.progressive ? "progressive" : "uniform"},
                 {"inlier_ratio", r.stats.inlier_ratio},
                 {"mean_solutions", r.stats.mean_solutions},
                 {"solver_us", r.stats.solver_us},
                 {"ransac_ms", r.stats.ransac_ms},
+                {"ransac_time_ms", {{"solver", r.stats.solver_ms},
+                                    {"scoring", r.stats.scoring_ms},
+                                    {"local_optimization", r.stats.lo_ms}}},
                 {"refine_ms", r.refine_ms},
                 {"refine_iterations", r.refine_iterations},
                 {"reprojection_px",

@@ -12,7 +12,8 @@ nlohmann::json ValidQuery() {
     "cameras": [{"model": "PINHOLE", "width": 640, "height": 480, "params": [500, 500, 320, 240]},
                 {"model": "SIMPLE_RADIAL", "width": 640, "height": 480, "params": [500, 320, 240, 0.01]}],
     "cam_from_rig": [{"q": [1, 0, 0, 0], "t": [0, 0, 0]}, {"q": [0, 0, 1, 0], "t": [0.1, 0, 0]}],
-    "observations": [{"camera": 0, "xy": [10.5, 20.5], "id": 7}, {"camera": 1, "xy": [1, 2], "id": 8}],
+    "observations": [{"camera": 0, "xy": [10.5, 20.5], "id": 7, "ratio": 0.25},
+                     {"camera": 1, "xy": [1, 2], "id": 8, "ratio": 0.75}],
     "points_local": [[1, 2, 3], [4, 5, 6]],
     "gravity_query": [0, 1, 0], "gravity_map": [0, -1, 0], "ground_truth": {}})");
 }
@@ -27,6 +28,7 @@ TEST(QueryJson, RoundTripsEveryField) {
   EXPECT_EQ(q.observations[1].camera, 1);
   EXPECT_EQ(q.observations[0].id, 7u);
   EXPECT_EQ(q.observations[0].xy, Eigen::Vector2d(10.5, 20.5));
+  EXPECT_EQ(q.observations[1].match_ratio, 0.75);
   EXPECT_EQ(q.points_local[1], Eigen::Vector3d(4, 5, 6));
   EXPECT_EQ(*q.gravity_map, Eigen::Vector3d(0, -1, 0));
   const Query again = ParseQueryJson(QueryToJson(q), "again");
@@ -68,6 +70,11 @@ TEST(QueryJson, ErrorsNameTheField) {
                 .find("observations[0].camera: expected a camera index"),
             std::string::npos);
   EXPECT_NE(error([](auto& j) { j["observations"][0]["camera"] = -1; }).find("observations[0].camera"),
+            std::string::npos);
+  EXPECT_NE(error([](auto& j) { j["observations"][1]["ratio"] = -0.5; })
+                .find("observations[1].ratio: expected a match's Lowe ratio"),
+            std::string::npos);
+  EXPECT_NE(error([](auto& j) { j["observations"][1]["ratio"] = "good"; }).find("observations[1].ratio"),
             std::string::npos);
 }
 

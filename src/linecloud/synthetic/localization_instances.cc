@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numbers>
 
+#include "linecloud/synthetic/match_scores.h"
 #include "linecloud/synthetic/random.h"
 #include "linecloud/util/error.h"
 
@@ -119,6 +120,11 @@ LocalizationInstance RandomLocalizationInstance(const MethodInfo& method,
   }
   inst.query = std::move(shuffled);
   inst.is_inlier = std::move(inlier_flags);
+  if (options.match_scores) {
+    for (int i = 0; i < n; ++i) {
+      inst.query.observations[i].match_ratio = DrawMatchRatio(inst.is_inlier[i] != 0, rng);
+    }
+  }
   inst.scene_size = options.scene_depth;
   return inst;
 }

@@ -18,6 +18,9 @@ struct LocalizationInstanceOptions {
   double local_noise = 0.005;       // std. dev. of +l points, relative to depth
   int num_rig_cameras = 3;          // for m- methods
   double scene_depth = 10.0;        // points at depths in [0.2, 1] × scene_depth
+  // Each observation gets a match ratio drawn from the histograms measured on
+  // real photos (match_scores.h), for progressive sampling.
+  bool match_scores = false;
 
   void Check() const;
 };
