@@ -9,8 +9,8 @@ CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWit
   -DLINECLOUD_FUZZ=ON -DLINECLOUD_BUILD_TESTS=OFF -DLINECLOUD_BUILD_BENCH=OFF >/dev/null
 cmake --build build-fuzz -j2
 corpus=build-fuzz/corpus
-rm -rf "$corpus" && mkdir -p "$corpus"/{lcm,bin,txt}
-./build-fuzz/linecloud demo --out "$corpus/demo" --points 300 --images 4 --queries 0 >/dev/null
+rm -rf "$corpus" && mkdir -p "$corpus"/{lcm,bin,txt,json,db}
+./build-fuzz/linecloud demo --out "$corpus/demo" --points 300 --images 4 --queries 1 >/dev/null
 cp "$corpus/demo/map.lcm" "$corpus/lcm/full.lcm"
 cp "$corpus/demo/map_compact.lcm" "$corpus/lcm/compact.lcm"
 i=0
@@ -39,7 +39,21 @@ run() {
     exit 1
   fi
 }
+# JSON inputs: the demo's query (reader 0), a solve problem (1), and a
+# prepared.json when a CI evaluation left one (2).
+{ printf '\x00'; cat "$corpus/demo/queries/query_000.json" 2>/dev/null || echo '{}'; } > "$corpus/json/query"
+{ printf '\x01'; echo '{"method": "p3P", "bearings": [[0,0,1],[0.1,0,1],[0,0.1,1]], "points": [[0,0,5],[0.5,0,5],[0,0.5,5]]}'; } > "$corpus/json/problem"
+for prepared in build/eval/*/prepared.json; do
+  [ -f "$prepared" ] && { printf '\x02'; head -c 60000 "$prepared"; } > "$corpus/json/prepared" && break
+done
+# A COLMAP database: an empty one as COLMAP creates it (its schema), when
+# COLMAP's CLI is installed.
+if command -v colmap >/dev/null; then
+  colmap database_creator --database_path "$corpus/db/empty.db" >/dev/null 2>&1 || true
+fi
 run lcm_fuzzer "$corpus/lcm"
 run colmap_binary_fuzzer "$corpus/bin"
 run colmap_text_fuzzer "$corpus/txt"
+run json_fuzzer "$corpus/json"
+run colmap_database_fuzzer "$corpus/db"
 echo "fuzzing finished: no crashes"

@@ -94,6 +94,53 @@ void Camera::Check(std::string_view source) const {
     Fail("{}: camera {}: width and height must be positive", source,
          camera_id);
   }
+  CheckDistortion(source);
+}
+
+// Walks from the principal point to the image's corners and edge midpoints:
+// undistortion must converge (the pixel comes back within 0.01 px), the
+// undistorted radius must grow along each walk (no fold: two pixels never see
+// one ray), and, except for the fisheye model (whose undistorted radius tan θ
+// grows without bound), the border must keep its radius within a factor 5 —
+// SIMPLE_RADIAL k = 1e12 shrinks a 60° field of view to 0.01°.
+void Camera::CheckDistortion(std::string_view source) const {
+  if (model_id == CameraModelId::kSimplePinhole || model_id == CameraModelId::kPinhole) return;
+  constexpr int kSteps = 24;
+  constexpr double kMaxRadiusFactor = 5;
+  const Eigen::Vector2d c = PrincipalPoint();
+  const double w = static_cast<double>(width), h = static_cast<double>(height);
+  const Eigen::Vector2d ends[] = {{0, 0}, {w, 0}, {0, h}, {w, h},
+                                  {w / 2, 0}, {w / 2, h}, {0, h / 2}, {w, h / 2}};
+  const Eigen::Vector2d f(FocalLengthX(), FocalLengthY());
+  for (const Eigen::Vector2d& end : ends) {
+    double last_radius = 0;
+    for (int s = 1; s <= kSteps; ++s) {
+      const Eigen::Vector2d xy = c + (end - c) * (static_cast<double>(s) / kSteps);
+      const Eigen::Vector2d distorted = (xy - c).cwiseQuotient(f);
+      const Eigen::Vector2d undistorted = UndistortNormalized(model_id, params, distorted);
+      const Eigen::Vector2d back =
+          DistortNormalized(model_id, params, undistorted).cwiseProduct(f) + c;
+      if (!undistorted.allFinite() || !((back - xy).norm() < 0.01)) {
+        Fail("{}: camera {}: the {} distortion cannot be undone at pixel ({:.1f}, {:.1f}) "
+             "(parameters implausible for a {}x{} image)",
+             source, camera_id, CameraModelName(model_id), xy.x(), xy.y(), width, height);
+      }
+      const double radius = undistorted.norm();
+      if (!(radius > last_radius)) {
+        Fail("{}: camera {}: the {} distortion folds the image over itself near pixel "
+             "({:.1f}, {:.1f}) (two pixels would see one ray)",
+             source, camera_id, CameraModelName(model_id), xy.x(), xy.y());
+      }
+      last_radius = radius;
+      const double factor = radius / distorted.norm();
+      if (s == kSteps && model_id != CameraModelId::kOpenCVFisheye &&
+          !(factor < kMaxRadiusFactor && factor > 1 / kMaxRadiusFactor)) {
+        Fail("{}: camera {}: the {} distortion scales the image border's radius by {:.3g} "
+             "(physically implausible; at most {} either way)",
+             source, camera_id, CameraModelName(model_id), factor, kMaxRadiusFactor);
+      }
+    }
+  }
 }
 
 double Camera::FocalLengthX() const { return params.at(0); }

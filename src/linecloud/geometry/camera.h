@@ -51,7 +51,10 @@ struct Camera {
   // Throws Error naming `source` and the camera when the model is unknown, the
   // number of parameters is wrong, a parameter is not finite, or a focal
   // length is not positive.
+  // Also throws when the distortion is physically implausible over the image
+  // (CheckDistortion).
   void Check(std::string_view source) const;
+  void CheckDistortion(std::string_view source) const;
 
   double FocalLengthX() const;
   double FocalLengthY() const;

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "linecloud/testing/test_util.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
@@ -103,6 +104,22 @@ TEST(Camera, CheckRejectsBadCameras) {
   EXPECT_THROW(c.Check("x"), Error);
   c.model_id = CameraModelId::kInvalid;
   EXPECT_THROW(c.Check("x"), Error);
+}
+
+// [harden] 5: SIMPLE_RADIAL k = 1e12 used to be undistorted into a 0.01°
+// field of view and localized with "success": true.
+TEST(Camera, CheckRejectsImplausibleDistortion) {
+  for (const Camera& c : RealisticCameras()) EXPECT_NO_THROW(c.Check("cams.txt")) << CameraModelName(c.model_id);
+  Camera c = RealisticCameras()[2];  // SIMPLE_RADIAL
+  c.params[3] = 1e12;
+  EXPECT_NE(testing::ErrorOf([&] { c.Check("cams.txt"); }).find("physically implausible"),
+            std::string::npos);
+  // Strong barrel distortion folds the border back (r (1 + k r²) peaks inside).
+  c.params[3] = -1.5;
+  EXPECT_NE(testing::ErrorOf([&] { c.Check("cams.txt"); }).find("camera 3"), std::string::npos);
+  c = RealisticCameras()[4];  // OPENCV
+  c.params[4] = -3;
+  EXPECT_THROW(c.Check("cams.txt"), Error);
 }
 
 }  // namespace

@@ -386,9 +386,19 @@ LocalizeResult Localize(const MethodInfo& method, const Query& query,
                                          &result.refine_ms, nullptr);
   result.reprojection_refined_px = MeanReprojectionError(prepared.data, pose, ransac_inliers);
   std::vector<char> mask;
-  PoseEstimator(method, prepared.data, options.local_refinement)
-      .inliers(pose, options.ransac.max_error, &mask);
+  const PoseEstimator final_inliers(method, prepared.data, options.local_refinement);
+  final_inliers.inliers(pose, options.ransac.max_error, &mask);
   InlierIndices(mask, &result.inliers);
+  // Refined again on the refined pose's inliers until they stop changing (at
+  // most two more rounds): the pose then does not depend on how rough
+  // RANSAC's model was — a progressive run may stop after three samples.
+  for (int round = 0; round < 2 && options.refine && result.inliers != ransac_inliers; ++round) {
+    ransac_inliers = result.inliers;
+    result.refine_iterations += RefineStage(method, prepared.data, ransac_inliers, options, &pose,
+                                            &result.refine_ms, nullptr);
+    final_inliers.inliers(pose, options.ransac.max_error, &mask);
+    InlierIndices(mask, &result.inliers);
+  }
   result.query_from_world = prepared.ToQueryFromWorld(pose);
   result.initial = prepared.ToQueryFromWorld(ransac.model);
   result.has_pose = true;
