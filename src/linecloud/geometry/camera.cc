@@ -113,6 +113,7 @@ void Camera::CheckDistortion(std::string_view source) const {
                                   {w / 2, 0}, {w / 2, h}, {0, h / 2}, {w, h / 2}};
   const Eigen::Vector2d f(FocalLengthX(), FocalLengthY());
   for (const Eigen::Vector2d& end : ends) {
+    if ((end - c).norm() < 1) continue;  // the principal point on the border
     double last_radius = 0;
     for (int s = 1; s <= kSteps; ++s) {
       const Eigen::Vector2d xy = c + (end - c) * (static_cast<double>(s) / kSteps);
