@@ -1,11 +1,44 @@
 #include "linecloud/estimation/pose_data.h"
 
+#include "linecloud/util/error.h"
+
 #include <cmath>
 #include <limits>
 
 #include <Eigen/Geometry>
 
 namespace linecloud {
+
+void PoseData::Check(const char* where) const {
+  const size_t n = camera.size();
+  const auto same = [&](size_t size, const char* name) {
+    if (size != n) Fail("{}: pose data has {} cameras but {} {}", where, n, size, name);
+  };
+  same(normalized.size(), "normalized points");
+  same(focal.size(), "focal lengths");
+  same(bearings.size(), "bearings");
+  if (!points_local.empty()) same(points_local.size(), "local points");
+  if (!points.empty() && !lines.empty()) Fail("{}: pose data has both points and lines", where);
+  same(lines.empty() ? points.size() : lines.size(), lines.empty() ? "points" : "lines");
+  if (!ranking.empty()) same(ranking.size(), "ranked entries");
+  for (size_t i = 0; i < n; ++i) {
+    if (camera[i] < 0 || static_cast<size_t>(camera[i]) >= cam_from_rig.size()) {
+      Fail("{}: correspondence {} has camera {} but there are {} cameras", where, i, camera[i],
+           cam_from_rig.size());
+    }
+  }
+  for (const int r : ranking) {
+    if (r < 0 || static_cast<size_t>(r) >= n) Fail("{}: ranking entry {} out of range", where, r);
+  }
+}
+
+void CheckIndices(const PoseData& data, std::span<const int> indices, const char* where) {
+  for (const int i : indices) {
+    if (i < 0 || static_cast<size_t>(i) >= data.size()) {
+      Fail("{}: correspondence index {} out of range [0, {})", where, i, data.size());
+    }
+  }
+}
 namespace {
 
 Eigen::Matrix3d Hat(const Eigen::Vector3d& v) {

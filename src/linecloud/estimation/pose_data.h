@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstddef>
 #include <limits>
+#include <span>
 #include <vector>
 
 #include <Eigen/Core>
@@ -36,7 +37,17 @@ struct PoseData {
 
   size_t size() const { return camera.size(); }
   bool has_lines() const { return !lines.empty(); }
+
+  // Precondition of the public entry points that take PoseData (PoseEstimator,
+  // RefinePose, the uncertainty): one entry per correspondence in every
+  // per-correspondence array, points or lines (not both), camera indices
+  // within cam_from_rig, a ranking of every correspondence or none. Throws
+  // Error naming `where`.
+  void Check(const char* where) const;
 };
+
+// Every index in [0, data.size()); throws Error naming `where`.
+void CheckIndices(const PoseData& data, std::span<const int> indices, const char* where);
 
 // Per-camera cam_from_world (Sim3: scale of query_from_world) for one pose.
 struct CameraPoses {

@@ -9,6 +9,14 @@ namespace linecloud {
 PoseEstimator::PoseEstimator(const MethodInfo& method, const PoseData& data,
                              const RefineOptions& local_refinement)
     : method_(method), data_(data), local_refinement_(local_refinement) {
+  data.Check("PoseEstimator");
+  if (method.lines != data.has_lines() && data.size() > 0) {
+    Fail("PoseEstimator: method {} needs {}, the pose data has {}", method.name,
+         method.lines ? "lines" : "points", data.has_lines() ? "lines" : "points");
+  }
+  if (method.local_points && data.points_local.size() != data.size()) {
+    Fail("PoseEstimator: method {} needs a local point per correspondence", method.name);
+  }
   local_refinement_.similarity = method.similarity();
   if (method.multi && !method.local_points) sample_.cam_from_rig = data.cam_from_rig;
   if (!method.multi && !data.cam_from_rig.empty()) {

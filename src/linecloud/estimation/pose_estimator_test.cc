@@ -11,6 +11,37 @@
 namespace linecloud {
 namespace {
 
+// [harden] 7: the public entry points that take PoseData check it instead
+// of indexing past the end of a shorter array.
+TEST(PoseEstimator, PreconditionsAtTheEntryPoints) {
+  const MethodInfo& p6l = FindMethod("p6L");
+  std::mt19937_64 rng(8);
+  LocalizationInstanceOptions options;
+  options.num_correspondences = 40;
+  const LocalizationInstance inst = RandomLocalizationInstance(p6l, options, rng);
+  const PreparedQuery prepared = PrepareQuery(p6l, inst.query, LocalizationMap(inst.line_map));
+  PoseData short_focal = prepared.data;
+  short_focal.focal.pop_back();
+  EXPECT_NE(testing::ErrorOf([&] { PoseEstimator(p6l, short_focal, RefineOptions{}); })
+                .find("PoseEstimator: pose data has 40 cameras but 39 focal lengths"),
+            std::string::npos);
+  PoseData bad_camera = prepared.data;
+  bad_camera.camera[3] = 2;
+  EXPECT_NE(testing::ErrorOf([&] { PoseEstimator(p6l, bad_camera, RefineOptions{}); })
+                .find("correspondence 3 has camera 2"),
+            std::string::npos);
+  EXPECT_NE(testing::ErrorOf([&] { PoseEstimator(FindMethod("p3P"), prepared.data, {}); })
+                .find("method p3P needs points"),
+            std::string::npos);
+  Sim3d pose = inst.truth;
+  const std::vector<int> out_of_range = {0, 1, 40};
+  EXPECT_NE(testing::ErrorOf([&] { RefinePose(prepared.data, out_of_range, {}, &pose); })
+                .find("RefinePose: correspondence index 40 out of range"),
+            std::string::npos);
+  EXPECT_THROW(RefinePose(prepared.data, std::vector<int>{0}, {}, nullptr), Error);
+  EXPECT_THROW(EstimatePoseUncertainty(prepared.data, out_of_range, pose, false), Error);
+}
+
 class PoseEstimatorTest : public ::testing::TestWithParam<std::string_view> {};
 
 // Scoring: the true pose counts the true inliers; with the best score as a

@@ -79,6 +79,9 @@ Sim3d PerturbPose(const Sim3d& pose, const Eigen::Matrix<double, 7, 1>& delta) {
 RefineSummary RefinePose(const PoseData& data, std::span<const int> indices,
                          const RefineOptions& options, Sim3d* pose) {
   options.Check();
+  if (pose == nullptr) Fail("RefinePose: no pose given (null pointer)");
+  data.Check("RefinePose");
+  CheckIndices(data, indices, "RefinePose");
   const double c2 = options.loss_scale * options.loss_scale;
   const int dim = options.similarity ? 7 : 6;
   RefineSummary summary;
@@ -168,6 +171,8 @@ PoseInformation InformationAt(const PoseData& data, std::span<const int> indices
 
 PoseUncertainty EstimatePoseUncertainty(const PoseData& data, std::span<const int> indices,
                                         const Sim3d& query_from_world, bool similarity) {
+  data.Check("EstimatePoseUncertainty");
+  CheckIndices(data, indices, "EstimatePoseUncertainty");
   const int dim = similarity ? 7 : 6;
   const PoseInformation info = InformationAt(data, indices, query_from_world, dim);
   PoseUncertainty u;
@@ -196,6 +201,8 @@ PoseUncertainty EstimatePoseUncertainty(const PoseData& data, std::span<const in
 
 double RotationErrorBound(const PoseData& data, std::span<const int> indices,
                           const Sim3d& query_from_world, double sigma_px, bool similarity) {
+  data.Check("RotationErrorBound");
+  CheckIndices(data, indices, "RotationErrorBound");
   const PoseInformation info = InformationAt(data, indices, query_from_world, similarity ? 7 : 6);
   if (info.inverse.size() == 0) return std::numeric_limits<double>::infinity();
   return sigma_px * std::sqrt(info.inverse.topLeftCorner<3, 3>().trace());
