@@ -331,10 +331,53 @@ double RefineFocalFactor(const MethodInfo& method, const Query& query, const Loc
 
 }  // namespace
 
-LocalizeResult Localize(const MethodInfo& method, const Query& query,
-                        const LocalizationMap& map, const LocalizeOptions& options,
-                        std::string_view source) {
-  options.Check();
+namespace {
+
+// Whether undistortion gives the pixel back from a ray the lens can see: far
+// outside the image a distortion polynomial folds back (r (1 + k r²) with
+// k < 0 peaks and falls), and Newton's method then finds no answer or one
+// beyond the fold — on the opposite side of the image centre, or where the
+// distortion's Jacobian reverses orientation.
+bool Undistortable(const Camera& camera, const Eigen::Vector2d& xy) {
+  const Eigen::Vector3d ray = camera.CamFromImg(xy);
+  if (!ray.allFinite() || !(ray.z() > 0)) return false;
+  if (!((camera.ImgFromCam(ray) - xy).norm() < 0.01)) return false;
+  const Eigen::Vector2d undistorted = ray.head<2>() / ray.z();
+  const Eigen::Vector2d distorted =
+      DistortNormalized(camera.model_id, camera.params, undistorted);
+  if (distorted.dot(undistorted) < 0) return false;
+  const double h = 1e-6 * std::max(1.0, undistorted.norm());
+  Eigen::Matrix2d jacobian;
+  for (int d = 0; d < 2; ++d) {
+    Eigen::Vector2d dx = Eigen::Vector2d::Zero();
+    dx[d] = h;
+    jacobian.col(d) = (DistortNormalized(camera.model_id, camera.params, undistorted + dx) -
+                       DistortNormalized(camera.model_id, camera.params, undistorted - dx)) /
+                      (2 * h);
+  }
+  return jacobian.determinant() > 0 && jacobian.trace() > 0;
+}
+
+// The query without the observations that cannot be undistorted; kept[i] is
+// the original index of observation i.
+Query UsableObservations(const Query& query, std::vector<int>* kept) {
+  Query usable = query;
+  usable.observations.clear();
+  usable.points_local.clear();
+  kept->clear();
+  for (size_t i = 0; i < query.observations.size(); ++i) {
+    const QueryObservation& o = query.observations[i];
+    if (!Undistortable(query.cameras[static_cast<size_t>(o.camera)], o.xy)) continue;
+    kept->push_back(static_cast<int>(i));
+    usable.observations.push_back(o);
+    if (!query.points_local.empty()) usable.points_local.push_back(query.points_local[i]);
+  }
+  return usable;
+}
+
+LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
+                              const LocalizationMap& map, const LocalizeOptions& options,
+                              std::string_view source) {
   if (options.refine_focal && query.cameras.size() != 1) {
     Fail("{}: refining the focal length needs a query with one camera, got {}", source,
          query.cameras.size());
@@ -404,8 +447,28 @@ LocalizeResult Localize(const MethodInfo& method, const Query& query,
   result.has_pose = true;
   result.uncertainty =
       EstimatePoseUncertainty(prepared.data, result.inliers, pose, method.similarity());
-  result.failure = SupportFailure(method, result, options.success);
-  result.success = result.failure.empty();
+  return result;
+}
+
+}  // namespace
+
+LocalizeResult Localize(const MethodInfo& method, const Query& query,
+                        const LocalizationMap& map, const LocalizeOptions& options,
+                        std::string_view source) {
+  options.Check();
+  CheckQuery(method, query, source);
+  std::vector<int> kept;
+  const Query usable = UsableObservations(query, &kept);
+  LocalizeResult result = LocalizeUsable(method, usable, map, options, source);
+  // Indices and counts refer to the query as given; rejected observations
+  // count against the inlier ratio.
+  result.num_correspondences = static_cast<int>(query.observations.size());
+  result.rejected_observations = static_cast<int>(query.observations.size() - kept.size());
+  for (int& i : result.inliers) i = kept[static_cast<size_t>(i)];
+  if (result.has_pose) {
+    result.failure = SupportFailure(method, result, options.success);
+    result.success = result.failure.empty();
+  }
   return result;
 }
 

@@ -120,6 +120,9 @@ struct LocalizeResult {
   std::string failure;
   bool has_pose = false;
   int num_correspondences = 0;
+  // Observations whose pixel the camera cannot undistort (undistortion does
+  // not give it back, e.g. far outside the image): left out, counted as outliers.
+  int rejected_observations = 0;
   PoseUncertainty uncertainty;
   std::optional<double> refined_focal;  // with LocalizeOptions::refine_focal
   // The focal length the inliers fit best, from the calibration check.
@@ -157,7 +160,9 @@ PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query,
 
 // Throws Error (naming `source`) for input the method cannot use: wrong map
 // kind, too few observations, unknown ids, bad camera indices, non-finite
-// values, missing local points or gravity.
+// values, missing local points or gravity. Observations whose pixel the camera
+// cannot undistort are left out and counted (rejected_observations); result
+// indices refer to the query as given.
 LocalizeResult Localize(const MethodInfo& method, const Query& query,
                         const LocalizationMap& map, const LocalizeOptions& options,
                         std::string_view source = "query");

@@ -98,6 +98,39 @@ TEST(Localize, MatchRatiosCutTheIterationsNotThePose) {
   }
 }
 
+// [harden] 5: a pixel the camera's distortion cannot undo (far outside the
+// image, where r (1 + k r²) has no inverse) is left out and counted, not
+// undistorted to a wrong ray nor fatal to the whole query; indices in the
+// result still refer to the query as given.
+TEST(Localize, ObservationsThatCannotBeUndistortedAreRejectedAndCounted) {
+  const MethodInfo& method = FindMethod("p3P");
+  std::mt19937_64 rng(12);
+  LocalizationInstanceOptions instance_options;
+  instance_options.num_correspondences = 200;
+  LocalizationInstance inst = RandomLocalizationInstance(method, instance_options, rng);
+  ASSERT_EQ(inst.query.cameras[0].model_id, CameraModelId::kSimpleRadial);
+  ASSERT_LT(inst.query.cameras[0].params[3], 0);
+  std::vector<int> far;
+  for (int i = 0; i < 200 && far.size() < 5; ++i) {
+    if (inst.is_inlier[i]) continue;
+    inst.query.observations[i].xy = Eigen::Vector2d(1e5 + i, -2e5);
+    far.push_back(i);
+  }
+  LocalizeOptions options;
+  options.ransac.seed = 2;
+  const LocalizeResult r = Localize(method, inst.query, LocalizationMap(inst.point_map), options);
+  ASSERT_TRUE(r.success) << r.failure;
+  EXPECT_EQ(r.rejected_observations, 5);
+  EXPECT_EQ(r.num_correspondences, 200);
+  for (const int i : r.inliers) {
+    EXPECT_TRUE(inst.is_inlier[i]) << i;
+    EXPECT_EQ(std::count(far.begin(), far.end(), i), 0);
+  }
+  EXPECT_GE(r.inliers.size(), 130u);
+  const LocalizationError e = CompareLocalization(r.query_from_world, inst.truth);
+  EXPECT_LT(e.rotation_rad, 0.1 * kDeg);
+}
+
 INSTANTIATE_TEST_SUITE_P(Methods, LocalizeTest,
                          ::testing::ValuesIn(testing::ImplementedMethodNames()),
                          testing::MethodTestName);

@@ -180,6 +180,7 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
     j[prefix + "center"] = {c.x(), c.y(), c.z()};
   }
   j["num_correspondences"] = r.num_correspondences;
+  if (r.rejected_observations > 0) j["rejected_observations"] = r.rejected_observations;
   j["num_inliers"] = r.inliers.size();
   j["inlier_ratio"] = r.num_correspondences > 0
                           ? static_cast<double>(r.inliers.size()) / r.num_correspondences
