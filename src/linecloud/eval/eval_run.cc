@@ -15,6 +15,7 @@
 #include "linecloud/eval/direct_matching.h"
 #include "linecloud/estimation/refine_pose.h"
 #include "linecloud/eval/localization_bench.h"
+#include "linecloud/eval/paper_table2.h"
 #include "linecloud/eval/plot.h"
 #include "linecloud/eval/scene_localization.h"
 #include "linecloud/eval/statistics.h"
@@ -36,32 +37,6 @@ namespace {
 
 using nlohmann::json;
 constexpr double kDeg = 180.0 / std::numbers::pi;
-
-// The paper's Table 2 on its real data (Speciale et al., CVPR 2019): mean
-// RANSAC iterations, inlier ratio %, mean solutions; and its mean
-// reprojection errors initial / refined where it reports them (px;
-// point-to-line, point-to-point against the secret points in brackets).
-struct PaperRow {
-  const char* method;
-  double iterations, inlier_percent, solutions;
-  double reprojection_initial, reprojection_refined;  // 0: not reported
-};
-constexpr PaperRow kPaper[] = {
-    {"p3P", 31, 64, 2.05, 1.84, 1.42},        {"p2P+u", 15, 64, 2, 1.88, 1.43},
-    {"m-p3P", 38, 64, 1.7, 0, 0},             {"m-p2P+u", 11, 65, 2, 0, 0},
-    {"m-P3P+l", 23, 62, 1, 0, 0},             {"m-P2P+l+u", 12, 62, 1, 0, 0},
-    {"m-P3P+l+s", 24, 62, 1, 0, 0},           {"m-P2P+l+u+s", 12, 62, 1, 0, 0},
-    {"p6L", 158, 69, 64, 1.55, 1.10},         {"p4L+u", 40, 70, 4, 1.45, 1.08},
-    {"m-p6L", 64, 72, 64, 0, 0},              {"m-p4L+u", 23, 72, 4, 0, 0},
-    {"m-P4L+l", 27, 68, 1.5, 0, 0},           {"m-P3L+l+u", 24, 68, 1, 0, 0},
-    {"m-P3L+l+s", 18, 68, 2.1, 0, 0},         {"m-P2L+l+u+s", 9, 68, 2, 0, 0}};
-
-const PaperRow* PaperFor(std::string_view method) {
-  for (const PaperRow& r : kPaper) {
-    if (method == r.method) return &r;
-  }
-  return nullptr;
-}
 
 // Recall thresholds (rotation °, translation in the work's units).
 constexpr std::pair<double, double> kRecall[] = {{0.25, 0.025}, {0.5, 0.05}, {1, 0.1}, {2, 0.25}, {5, 1}};
@@ -519,183 +494,218 @@ LiftingKey EvalLiftingKey(const std::string& work_dir) {
   return ReadKeyFile(key_path);
 }
 
-json RunEvaluation(const EvalRunOptions& options) {
-  options.Check();
-  EvalWork work = ReadPreparedWork(options.work_dir);
+namespace {
+
+// The evaluation's inputs: the prepared work (with --noise added to the query
+// pixels), its key and the methods to run.
+struct EvalInputs {
+  EvalWork work;
+  LiftingKey key;
+  std::vector<const MethodInfo*> methods;
+};
+
+EvalInputs LoadInputs(const EvalRunOptions& options) {
+  EvalInputs in{ReadPreparedWork(options.work_dir), EvalLiftingKey(options.work_dir), {}};
   if (options.noise_px > 0) {
     std::mt19937_64 rng(options.seed);
     std::normal_distribution<double> noise(0.0, options.noise_px);
-    for (EvalGroup& g : work.groups) {
+    for (EvalGroup& g : in.work.groups) {
       for (EvalImage& im : g.images) {
         for (EvalCorrespondence& c : im.correspondences) c.xy += Eigen::Vector2d(noise(rng), noise(rng));
       }
     }
   }
-  const LiftingKey key = EvalLiftingKey(options.work_dir);
-
-  std::vector<const MethodInfo*> methods;
   if (options.methods.empty()) {
-    for (const MethodInfo& m : AllMethods()) methods.push_back(&m);
+    for (const MethodInfo& m : AllMethods()) in.methods.push_back(&m);
   } else {
-    for (const std::string& n : options.methods) methods.push_back(&FindMethod(n));
+    for (const std::string& n : options.methods) in.methods.push_back(&FindMethod(n));
   }
-  CreateDirectories(options.out_dir);
+  return in;
+}
 
-  json report = {{"dataset", work.dataset}, {"units", work.units},
-                 {"threshold_px", options.threshold_px}, {"sparsify", options.lifting.sparsify},
-                 {"lifting", options.lifting.Name()},
-                 {"noise_px", options.noise_px}, {"seed", options.seed},
-                 {"gravity_source", work.gravity_source}, {"reconstruction", work.reconstruction}};
-  report["methods"] = json::object();
-  std::map<std::string, std::vector<QueryRecord>> all_records;
-  {
-    const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, options.lifting);
-    for (const MethodInfo* m : methods) {
-      const auto t0 = std::chrono::steady_clock::now();
-      std::vector<QueryRecord> records = RunMethod(work, *m, maps, options);
-      json mr = MethodReport(records);
-      fmt::print("[eval] {:<12} {:>3} queries, {:>3} localized, median {:.3f}° / {:.4f}, {:>6.1f} iterations, "
-                 "inliers {:.0f} %, reprojection {:.2f} px ({:.1f} s)\n",
-                 m->name, mr["queries"].get<int>(), mr["localized"].get<int>(),
-                 mr["median_rotation_deg"].get<double>(), mr["median_translation"].get<double>(),
-                 mr["mean_iterations"].get<double>(), 100 * mr["inlier_ratio"].get<double>(),
-                 mr["reprojection_px"]["refined"].get<double>(), SecondsSince(t0));
-      std::fflush(stdout);
-      report["methods"][std::string(m->name)] = mr;
-      all_records[std::string(m->name)] = std::move(records);
-    }
+using RecordsByMethod = std::map<std::string, std::vector<QueryRecord>>;
+
+// The paper's protocol: every method on the prepared correspondences.
+RecordsByMethod RunPaperProtocol(const EvalInputs& in, const EvalRunOptions& options,
+                                 json* report) {
+  RecordsByMethod all_records;
+  const std::vector<GroupMaps> maps = LoadMaps(in.work, options.work_dir, in.key, options.lifting);
+  for (const MethodInfo* m : in.methods) {
+    const auto t0 = std::chrono::steady_clock::now();
+    std::vector<QueryRecord> records = RunMethod(in.work, *m, maps, options);
+    json mr = MethodReport(records);
+    fmt::print("[eval] {:<12} {:>3} queries, {:>3} localized, median {:.3f}° / {:.4f}, {:>6.1f} iterations, "
+               "inliers {:.0f} %, reprojection {:.2f} px ({:.1f} s)\n",
+               m->name, mr["queries"].get<int>(), mr["localized"].get<int>(),
+               mr["median_rotation_deg"].get<double>(), mr["median_translation"].get<double>(),
+               mr["mean_iterations"].get<double>(), 100 * mr["inlier_ratio"].get<double>(),
+               mr["reprojection_px"]["refined"].get<double>(), SecondsSince(t0));
+    std::fflush(stdout);
+    (*report)["methods"][std::string(m->name)] = mr;
+    all_records[std::string(m->name)] = std::move(records);
   }
+  return all_records;
+}
 
-  // Direct matching needs the images and COLMAP's database (eval prepare).
-  if (options.direct_matching &&
-      !FileExists(JoinPaths(options.work_dir, "colmap/database.db"))) {
+// The deployable protocol (needs the images and COLMAP's database).
+void RunDirectMatchingStage(const EvalInputs& in, const EvalRunOptions& options, json* report) {
+  if (!options.direct_matching) return;
+  if (!FileExists(JoinPaths(options.work_dir, "colmap/database.db"))) {
     fmt::print("[eval] direct matching skipped: {} has no COLMAP database\n", options.work_dir);
-  } else if (options.direct_matching) {
-    DirectMatchingOptions dm;
-    dm.threshold_px = options.threshold_px;
-    dm.seed = options.seed;
-    dm.lifting = options.lifting;
-    report["direct_matching"] = RunDirectMatching(work, options.work_dir, key, dm);
+    return;
   }
+  DirectMatchingOptions dm;
+  dm.threshold_px = options.threshold_px;
+  dm.seed = options.seed;
+  dm.lifting = options.lifting;
+  (*report)["direct_matching"] = RunDirectMatching(in.work, options.work_dir, in.key, dm);
+}
 
-  // Fig. 5: cumulative error curves.
-  {
-    std::vector<double> xr, xt;
-    // Log-spaced: 1e-3° .. 10°, 1e-4 .. 10 units.
-    for (int i = 0; i <= 200; ++i) xr.push_back(std::pow(10.0, -3 + 4.0 * i / 200));
-    for (int i = 0; i <= 250; ++i) xt.push_back(std::pow(10.0, -4 + 5.0 * i / 250));
-    std::vector<PlotSeries> rs, ts;
-    for (const MethodInfo* m : methods) {
+// Fig. 5: cumulative error curves.
+void WriteCumulativeFigures(const EvalInputs& in, const EvalRunOptions& options,
+                            RecordsByMethod& all_records) {
+  std::vector<double> xr, xt;
+  // Log-spaced: 1e-3° .. 10°, 1e-4 .. 10 units.
+  for (int i = 0; i <= 200; ++i) xr.push_back(std::pow(10.0, -3 + 4.0 * i / 200));
+  for (int i = 0; i <= 250; ++i) xt.push_back(std::pow(10.0, -4 + 5.0 * i / 250));
+  std::vector<PlotSeries> rs, ts;
+  for (const MethodInfo* m : in.methods) {
+    std::vector<double> r, t;
+    for (const QueryRecord& q : all_records[std::string(m->name)]) {
+      r.push_back(q.rotation_deg[1]);
+      t.push_back(q.position[1]);
+    }
+    rs.push_back({std::string(m->name), xr, CumulativeAt(r, xr), PairColor(*m), m->lines, false, {}});
+    ts.push_back({std::string(m->name), xt, CumulativeAt(t, xt), PairColor(*m), m->lines, false, {}});
+  }
+  WriteLinePlot(JoinPaths(options.out_dir, "cumulative_rotation.png"),
+                {.title = in.work.dataset + ": cumulative rotation error (refined)", .x_label = "rotation error (deg)",
+                 .y_label = "queries (%)", .log_x = true, .y_min = 0, .y_max = 100},
+                rs);
+  WriteLinePlot(JoinPaths(options.out_dir, "cumulative_translation.png"),
+                {.title = in.work.dataset + ": cumulative translation error (refined)",
+                 .x_label = "translation error (" + in.work.units + ")", .y_label = "queries (%)", .log_x = true, .y_min = 0, .y_max = 100},
+                ts);
+}
+
+// Fig. 7: error vs. map density.
+void RunDensitySweep(const EvalInputs& in, const EvalRunOptions& options,
+                     RecordsByMethod& all_records, json* report) {
+  if (options.density_sweep.empty()) return;
+  json d = {{"dropped", options.density_sweep}, {"median_rotation_deg", json::object()},
+            {"median_translation", json::object()}};
+  std::map<std::string, std::vector<double>> rot, pos;
+  for (double drop : options.density_sweep) {
+    const auto t0 = std::chrono::steady_clock::now();
+    MapLifting at_drop = options.lifting;
+    at_drop.sparsify = drop;
+    const std::vector<GroupMaps> maps = LoadMaps(in.work, options.work_dir, in.key, at_drop);
+    for (const MethodInfo* m : in.methods) {
+      std::vector<QueryRecord> records = drop == options.lifting.sparsify ? all_records[std::string(m->name)]
+                                                                  : RunMethod(in.work, *m, maps, options);
       std::vector<double> r, t;
-      for (const QueryRecord& q : all_records[std::string(m->name)]) {
+      for (const QueryRecord& q : records) {
         r.push_back(q.rotation_deg[1]);
         t.push_back(q.position[1]);
       }
-      rs.push_back({std::string(m->name), xr, CumulativeAt(r, xr), PairColor(*m), m->lines, false, {}});
-      ts.push_back({std::string(m->name), xt, CumulativeAt(t, xt), PairColor(*m), m->lines, false, {}});
+      rot[std::string(m->name)].push_back(Median(r));
+      pos[std::string(m->name)].push_back(Median(t));
     }
-    WriteLinePlot(JoinPaths(options.out_dir, "cumulative_rotation.png"),
-                  {.title = work.dataset + ": cumulative rotation error (refined)", .x_label = "rotation error (deg)",
-                   .y_label = "queries (%)", .log_x = true, .y_min = 0, .y_max = 100},
-                  rs);
-    WriteLinePlot(JoinPaths(options.out_dir, "cumulative_translation.png"),
-                  {.title = work.dataset + ": cumulative translation error (refined)",
-                   .x_label = "translation error (" + work.units + ")", .y_label = "queries (%)", .log_x = true, .y_min = 0, .y_max = 100},
-                  ts);
+    fmt::print("[eval] map density: {:.0f} % of the points dropped ({:.1f} s)\n", 100 * drop, SecondsSince(t0));
+    std::fflush(stdout);
   }
-
-  // Fig. 7: error vs. map density.
-  if (!options.density_sweep.empty()) {
-    json d = {{"dropped", options.density_sweep}, {"median_rotation_deg", json::object()},
-              {"median_translation", json::object()}};
-    std::map<std::string, std::vector<double>> rot, pos;
-    for (double drop : options.density_sweep) {
-      const auto t0 = std::chrono::steady_clock::now();
-      MapLifting at_drop = options.lifting;
-      at_drop.sparsify = drop;
-      const std::vector<GroupMaps> maps = LoadMaps(work, options.work_dir, key, at_drop);
-      for (const MethodInfo* m : methods) {
-        std::vector<QueryRecord> records = drop == options.lifting.sparsify ? all_records[std::string(m->name)]
-                                                                    : RunMethod(work, *m, maps, options);
-        std::vector<double> r, t;
-        for (const QueryRecord& q : records) {
-          r.push_back(q.rotation_deg[1]);
-          t.push_back(q.position[1]);
-        }
-        rot[std::string(m->name)].push_back(Median(r));
-        pos[std::string(m->name)].push_back(Median(t));
-      }
-      fmt::print("[eval] map density: {:.0f} % of the points dropped ({:.1f} s)\n", 100 * drop, SecondsSince(t0));
-      std::fflush(stdout);
-    }
-    std::vector<PlotSeries> series;
-    for (const MethodInfo* m : methods) {
-      const std::string n(m->name);
-      d["median_rotation_deg"][n] = rot[n];
-      d["median_translation"][n] = pos[n];
-      std::vector<double> x;
-      for (double f : options.density_sweep) x.push_back(100 * f);
-      series.push_back({n, x, rot[n], PairColor(*m), m->lines, false, {}});
-    }
-    report["density"] = d;
-    WriteLinePlot(JoinPaths(options.out_dir, "error_vs_density.png"),
-                  {.title = work.dataset + ": median rotation error vs. map density",
-                   .x_label = "points / lines dropped (%)", .y_label = "median rotation error (deg)", .log_y = true},
-                  series);
+  std::vector<PlotSeries> series;
+  for (const MethodInfo* m : in.methods) {
+    const std::string n(m->name);
+    d["median_rotation_deg"][n] = rot[n];
+    d["median_translation"][n] = pos[n];
+    std::vector<double> x;
+    for (double f : options.density_sweep) x.push_back(100 * f);
+    series.push_back({n, x, rot[n], PairColor(*m), m->lines, false, {}});
   }
+  (*report)["density"] = d;
+  WriteLinePlot(JoinPaths(options.out_dir, "error_vs_density.png"),
+                {.title = in.work.dataset + ": median rotation error vs. map density",
+                 .x_label = "points / lines dropped (%)", .y_label = "median rotation error (deg)", .log_y = true},
+                series);
+}
 
-  // Fig. 8: error vs. pixel noise on the synthetic scene.
-  if (!options.noise_sweep.empty()) {
-    json d = {{"noise_px", options.noise_sweep}, {"queries_per_level", options.noise_sweep_queries},
-              {"median_rotation_deg", json::object()}, {"median_translation_relative", json::object()}};
-    std::map<std::string, std::vector<double>> rot, pos;
-    for (double noise : options.noise_sweep) {
-      const auto t0 = std::chrono::steady_clock::now();
-      SyntheticSceneOptions so;
-      so.noise_px = noise;
-      so.num_queries = options.noise_sweep_queries;
-      so.seed = options.seed;
-      const SyntheticScene scene = GenerateSyntheticScene(so);
-      const std::vector<uint64_t> ids = scene.model.SortedPoint3DIds();
-      std::vector<Eigen::Vector3d> xyz;
-      for (uint64_t id : ids) xyz.push_back(scene.model.points3D.at(id).xyz);
-      const PointMap point_map = PointMapFromModel(scene.model);
-      const LineMap line_map = LineMapByPointId(LiftPoints(ids, xyz, key, {LineEncoding::kPlucker}), key);
-      SceneQueryOptions qo;
-      qo.seed = options.seed;
-      LocalizeOptions lo;
-      lo.success = SuccessCriteria::None();
-      lo.ransac.max_error = std::max(options.threshold_px, 3 * noise);
-      lo.ransac.seed = options.seed;
-      for (const MethodInfo* m : methods) {
-        const auto queries = SceneQueriesForMethod(scene, *m, qo);
-        const MethodSummary s = EvaluateMethod(*m, queries, m->lines ? LocalizationMap(line_map) : LocalizationMap(point_map),
-                                               lo, 1.0, 0.01 * scene.extent);
-        rot[std::string(m->name)].push_back(s.median_rotation_deg[1]);
-        pos[std::string(m->name)].push_back(s.median_position[1] / scene.extent);
-      }
-      fmt::print("[eval] synthetic noise {} px ({:.1f} s)\n", noise, SecondsSince(t0));
-      std::fflush(stdout);
+// Fig. 8: error vs. pixel noise on the synthetic scene.
+void RunNoiseSweep(const EvalInputs& in, const EvalRunOptions& options, json* report) {
+  if (options.noise_sweep.empty()) return;
+  json d = {{"noise_px", options.noise_sweep}, {"queries_per_level", options.noise_sweep_queries},
+            {"median_rotation_deg", json::object()}, {"median_translation_relative", json::object()}};
+  std::map<std::string, std::vector<double>> rot, pos;
+  for (double noise : options.noise_sweep) {
+    const auto t0 = std::chrono::steady_clock::now();
+    SyntheticSceneOptions so;
+    so.noise_px = noise;
+    so.num_queries = options.noise_sweep_queries;
+    so.seed = options.seed;
+    const SyntheticScene scene = GenerateSyntheticScene(so);
+    const std::vector<uint64_t> ids = scene.model.SortedPoint3DIds();
+    std::vector<Eigen::Vector3d> xyz;
+    for (uint64_t id : ids) xyz.push_back(scene.model.points3D.at(id).xyz);
+    const PointMap point_map = PointMapFromModel(scene.model);
+    const LineMap line_map = LineMapByPointId(LiftPoints(ids, xyz, in.key, {LineEncoding::kPlucker}), in.key);
+    SceneQueryOptions qo;
+    qo.seed = options.seed;
+    LocalizeOptions lo;
+    lo.success = SuccessCriteria::None();
+    lo.ransac.max_error = std::max(options.threshold_px, 3 * noise);
+    lo.ransac.seed = options.seed;
+    for (const MethodInfo* m : in.methods) {
+      const auto queries = SceneQueriesForMethod(scene, *m, qo);
+      const MethodSummary s = EvaluateMethod(*m, queries, m->lines ? LocalizationMap(line_map) : LocalizationMap(point_map),
+                                             lo, 1.0, 0.01 * scene.extent);
+      rot[std::string(m->name)].push_back(s.median_rotation_deg[1]);
+      pos[std::string(m->name)].push_back(s.median_position[1] / scene.extent);
     }
-    std::vector<PlotSeries> series;
-    for (const MethodInfo* m : methods) {
-      const std::string n(m->name);
-      d["median_rotation_deg"][n] = rot[n];
-      d["median_translation_relative"][n] = pos[n];
-      series.push_back({n, options.noise_sweep, rot[n], PairColor(*m), m->lines, false, {}});
-    }
-    report["noise"] = d;
-    WriteLinePlot(JoinPaths(options.out_dir, "error_vs_noise.png"),
-                  {.title = "synthetic scene: median rotation error vs. pixel noise", .x_label = "pixel noise σ (px)",
-                   .y_label = "median rotation error (deg)", .log_y = true},
-                  series);
+    fmt::print("[eval] synthetic noise {} px ({:.1f} s)\n", noise, SecondsSince(t0));
+    std::fflush(stdout);
   }
+  std::vector<PlotSeries> series;
+  for (const MethodInfo* m : in.methods) {
+    const std::string n(m->name);
+    d["median_rotation_deg"][n] = rot[n];
+    d["median_translation_relative"][n] = pos[n];
+    series.push_back({n, options.noise_sweep, rot[n], PairColor(*m), m->lines, false, {}});
+  }
+  (*report)["noise"] = d;
+  WriteLinePlot(JoinPaths(options.out_dir, "error_vs_noise.png"),
+                {.title = "synthetic scene: median rotation error vs. pixel noise", .x_label = "pixel noise σ (px)",
+                 .y_label = "median rotation error (deg)", .log_y = true},
+                series);
+}
 
+void WriteReports(const EvalWork& work, const EvalRunOptions& options, const json& report) {
   WriteFileAtomically(JoinPaths(options.out_dir, "report.json"),
                       [&](std::ostream& o) { o << report.dump(1) << "\n"; });
   const std::string md = ReportMarkdown(work, options, report);
   WriteFileAtomically(JoinPaths(options.out_dir, "report.md"), [&](std::ostream& o) { o << md; });
   fmt::print("[eval] wrote {}/report.json, report.md and PNG plots\n", options.out_dir);
+}
+
+}  // namespace
+
+// One stage per function: inputs, the paper's protocol, direct matching,
+// Fig. 5, Fig. 7, Fig. 8, the reports.
+json RunEvaluation(const EvalRunOptions& options) {
+  options.Check();
+  const EvalInputs in = LoadInputs(options);
+  CreateDirectories(options.out_dir);
+  json report = {{"dataset", in.work.dataset}, {"units", in.work.units},
+                 {"threshold_px", options.threshold_px}, {"sparsify", options.lifting.sparsify},
+                 {"lifting", options.lifting.Name()},
+                 {"noise_px", options.noise_px}, {"seed", options.seed},
+                 {"gravity_source", in.work.gravity_source}, {"reconstruction", in.work.reconstruction}};
+  report["methods"] = json::object();
+  RecordsByMethod all_records = RunPaperProtocol(in, options, &report);
+  RunDirectMatchingStage(in, options, &report);
+  WriteCumulativeFigures(in, options, all_records);
+  RunDensitySweep(in, options, all_records, &report);
+  RunNoiseSweep(in, options, &report);
+  WriteReports(in.work, options, report);
   return report;
 }
 
