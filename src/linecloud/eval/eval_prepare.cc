@@ -250,6 +250,198 @@ Reconstruction MapWithoutImages(const Reconstruction& full, const std::vector<st
   return map;
 }
 
+namespace {
+
+// Units: the ground truth's metres, the rig's calibrated baseline, or none
+// (the full reconstruction is transformed into them).
+void SetUnits(const EvalDataset& dataset, Reconstruction* full_ptr, EvalWork* work_ptr) {
+  Reconstruction& full = *full_ptr;
+  EvalWork& work = *work_ptr;
+  if (!dataset.ground_truth.empty()) {
+    std::vector<std::string> align = dataset.MapOnlyImages();
+    int usable = 0;
+    for (const auto& n : align) usable += FindImage(full, n) && dataset.ground_truth.count(n);
+    if (usable < 3) {
+      align = dataset.images;  // too few map-only cameras: align on all
+      work.reconstruction["alignment_note"] = "every image is a query of some group: aligned on all cameras";
+    }
+    const Sim3d gt_from_rec = AlignToGroundTruth(full, dataset.ground_truth, align, &work.reconstruction);
+    TransformReconstruction(gt_from_rec, &full);
+    work.units = "metres";
+    const auto& g = work.reconstruction["ground_truth"];
+    fmt::print("[eval] reconstruction vs ground truth (similarity on {} map cameras): max {:.3f}° / {:.4f} m\n",
+               g["aligned_on"].get<int>(), g["max_rotation_deg"].get<double>(), g["max_position_m"].get<double>());
+  } else if (dataset.sensors && dataset.sensors->body_from_cam.size() >= 2) {
+    int pairs = 0;
+    const double s = ScaleFromRig(dataset, full, &pairs);
+    TransformReconstruction(Sim3d(s, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero()), &full);
+    work.units = "metres";
+    work.reconstruction["metric_scale"] = {{"source", "calibrated stereo baseline"}, {"pairs", pairs}, {"scale", s}};
+    fmt::print("[eval] metric scale from the calibrated stereo baseline ({} pairs): {:.5f}\n", pairs, s);
+  } else {
+    work.units = "reconstruction units";
+  }
+
+}
+
+// Gravity per image (camera frame) and in the world: the real IMU where there
+// is one, else the scene's vertical tilted by the requested noise.
+std::map<std::string, Eigen::Vector3d> GravityPerImage(const EvalDataset& dataset,
+                                                       const Reconstruction& full,
+                                                       const EvalPrepareOptions& options,
+                                                       EvalWork* work_ptr) {
+  EvalWork& work = *work_ptr;
+  std::mt19937_64 rng(options.seed);
+  std::map<std::string, Eigen::Vector3d> gravity_cam;
+  if (dataset.sensors) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const auto& [id, im] : full.images) {
+      const auto t = EurocTimestampNs(im.name);
+      const uint32_t cam = dataset.image_camera.at(im.name);
+      if (!t || !dataset.sensors->body_from_cam.count(cam)) Fail("{}: no timestamp or sensor for image {}", dataset.dir, im.name);
+      const Eigen::Vector3d g_body = GravityInBody(*dataset.sensors, *t);
+      const Eigen::Vector3d g = dataset.sensors->body_from_cam.at(cam).rotation.inverse() * g_body;
+      gravity_cam[im.name] = g;
+      if (!dataset.IsQueryImage(im.name)) sum += im.cam_from_world.rotation.inverse() * g;
+    }
+    work.gravity_world = sum.normalized();
+    work.gravity_source = "IMU accelerometer (mean within ±25 ms of each image); map: mean over map images";
+    work.gravity_noise_deg = 0;
+  } else {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const auto& [id, im] : full.images) sum += im.cam_from_world.rotation.inverse() * Eigen::Vector3d::UnitY();
+    work.gravity_world = sum.normalized();
+    for (const auto& [id, im] : full.images) {
+      gravity_cam[im.name] = RandomlyTilted(im.cam_from_world.rotation * work.gravity_world, options.gravity_noise_deg, rng);
+    }
+    work.gravity_source = fmt::format(
+        "ground truth: the mean image-down direction of all cameras, per image tilted by |N(0, {}°)|",
+        options.gravity_noise_deg);
+  }
+
+  return gravity_cam;
+}
+
+// Indirect matching: a query keypoint matched to a map image's keypoint that
+// observes a map point votes for that point; the most voted wins. `kps`: the
+// query keypoint of each correspondence.
+EvalImage IndirectCorrespondences(const std::string& name, const EvalDataset& dataset,
+                                  const Reconstruction& full, const ColmapDatabase& database,
+                                  const std::map<std::string, uint32_t>& db_id,
+                                  const std::map<std::string, const Image*>& map_by_name,
+                                  const std::map<std::string, Eigen::Vector3d>& gravity_cam,
+                                  const std::string& colmap_dir, std::vector<uint32_t>* kps_out) {
+  EvalImage image;
+  image.name = name;
+  image.camera_id = dataset.image_camera.at(name);
+  image.cam_from_world = FindImage(full, name)->cam_from_world;
+  image.gravity = gravity_cam.at(name);
+  if (!db_id.count(name)) Fail("{}: image {} is not in COLMAP's database", colmap_dir, name);
+  const uint32_t q = db_id.at(name);
+  const FeatureKeypoints keypoints = database.ReadKeypoints(q);
+  std::unordered_map<uint32_t, std::map<uint64_t, int>> votes;
+  for (const auto& [map_name, map_image] : map_by_name) {
+    if (!db_id.count(map_name)) continue;
+    const FeatureMatches matches = database.ReadMatches(q, db_id.at(map_name));
+    for (Eigen::Index r = 0; r < matches.rows(); ++r) {
+      const uint32_t kq = matches(r, 0), km = matches(r, 1);
+      if (km >= map_image->points2D.size() || kq >= keypoints.rows()) continue;
+      const uint64_t pid = map_image->points2D[km].point3D_id;
+      if (pid != kInvalidPoint3DId) ++votes[kq][pid];
+    }
+  }
+  std::vector<uint32_t> kps;
+  for (const auto& [kq, v] : votes) kps.push_back(kq);
+  std::sort(kps.begin(), kps.end());
+  for (uint32_t kq : kps) {
+    const auto& v = votes.at(kq);
+    const auto best = std::max_element(v.begin(), v.end(), [](const auto& a, const auto& b) {
+      return a.second < b.second;
+    });
+    EvalCorrespondence c;
+    c.xy = {keypoints(kq, 0), keypoints(kq, 1)};
+    c.point_id = best->first;
+    c.votes = best->second;
+    image.correspondences.push_back(c);
+  }
+  *kps_out = std::move(kps);
+  return image;
+}
+
+// The rig and the +l structure from the group's own reconstruction (COLMAP on
+// the group's images alone); leaves has_rig false when that fails.
+void AttachLocalStructure(const EvalDataset& dataset, const EvalPrepareOptions& options,
+                          const std::string& colmap_dir, const std::string& group_dir,
+                          const std::vector<std::string>& registered,
+                          const std::map<std::string, std::vector<uint32_t>>& keypoint_of,
+                          EvalGroup* group_ptr) {
+  EvalGroup& group = *group_ptr;
+  const std::string images_dir = JoinPaths(dataset.dir, "images");
+    const EvalImage& first = group.images.front();
+  const Rigid3d& cam0_from_world = first.cam_from_world;
+  Rigid3d rig_from_cam0;  // identity: the rig frame is the first camera's
+  const uint32_t cam0 = first.camera_id;
+  const bool calibrated_rig = dataset.sensors && dataset.sensors->body_from_cam.count(cam0);
+  if (calibrated_rig) rig_from_cam0 = dataset.sensors->body_from_cam.at(cam0);
+  group.rig_from_world = rig_from_cam0 * cam0_from_world;
+  group.gravity_rig = rig_from_cam0.rotation * first.gravity;
+  if (registered.size() >= 2) {
+    const Reconstruction local = ReconstructImageSubset(
+        JoinPaths(colmap_dir, "database.db"), images_dir, registered, JoinPaths(group_dir, "local"), options.colmap);
+    const Image* l0 = FindImage(local, first.name);
+    bool all = l0 != nullptr;
+    for (const EvalImage& im : group.images) all = all && FindImage(local, im.name);
+    if (all) {
+      // metric = local units × m: from the ground truth (the aligned full
+      // reconstruction) or from the rig's calibrated baselines.
+      double local_baseline = 0, metric_baseline = 0;
+      for (const EvalImage& im : group.images) {
+        const Image* li = FindImage(local, im.name);
+        local_baseline += (li->cam_from_world.Center() - l0->cam_from_world.Center()).norm();
+        if (calibrated_rig && dataset.sensors->body_from_cam.count(im.camera_id) &&
+            EurocTimestampNs(im.name) == EurocTimestampNs(first.name)) {
+          metric_baseline += (dataset.sensors->body_from_cam.at(im.camera_id).translation -
+                              rig_from_cam0.translation).norm();
+        } else {
+          metric_baseline += (im.cam_from_world.Center() - cam0_from_world.Center()).norm();
+        }
+      }
+      if (local_baseline > 0 && metric_baseline > 0) {
+        const double m = metric_baseline / local_baseline;
+        group.has_rig = true;
+        group.local_scale = 1.0 / m;
+        group.rig_source = calibrated_rig ? "calibration" : "local reconstruction (metric scale from ground truth)";
+        // rig_from_local: X_rig = rig_from_cam0 (m (R0 X + t0)).
+        auto rig_from_local = [&](const Eigen::Vector3d& X) {
+          return rig_from_cam0 * (m * (l0->cam_from_world * X));
+        };
+        for (EvalImage& im : group.images) {
+          const Image* li = FindImage(local, im.name);
+          if (calibrated_rig && dataset.sensors->body_from_cam.count(im.camera_id)) {
+            im.cam_from_rig = dataset.sensors->body_from_cam.at(im.camera_id).Inverse();
+          } else {
+            // cam_from_rig = cam_from_local ∘ local_from_cam0 ∘ cam0_from_rig, metric.
+            Rigid3d cam_from_cam0 = li->cam_from_world * l0->cam_from_world.Inverse();
+            cam_from_cam0.translation *= m;
+            im.cam_from_rig = cam_from_cam0 * rig_from_cam0.Inverse();
+          }
+          const std::vector<uint32_t>& kps = keypoint_of.at(im.name);
+          for (size_t k = 0; k < im.correspondences.size(); ++k) {
+            if (kps[k] >= li->points2D.size()) continue;
+            const uint64_t pid = li->points2D[kps[k]].point3D_id;
+            if (pid != kInvalidPoint3DId) im.correspondences[k].point_local = rig_from_local(local.points3D.at(pid).xyz);
+          }
+        }
+      }
+    }
+    if (!group.has_rig) {
+      fmt::print("[eval] group {}: COLMAP could not reconstruct the group on its own; m- methods skip it\n", group.name);
+    }
+  }
+}
+
+}  // namespace
+
 EvalWork PrepareEvaluation(const EvalPrepareOptions& options) {
   options.Check();
   const EvalDataset dataset = ReadEvalDataset(options.dataset_dir);
@@ -279,65 +471,14 @@ EvalWork PrepareEvaluation(const EvalPrepareOptions& options) {
                fmt::format("{}", fmt::join(unregistered, " ")));
   }
 
-  // Units: the ground truth's metres, the rig's calibrated baseline, or none.
-  if (!dataset.ground_truth.empty()) {
-    std::vector<std::string> align = dataset.MapOnlyImages();
-    int usable = 0;
-    for (const auto& n : align) usable += FindImage(full, n) && dataset.ground_truth.count(n);
-    if (usable < 3) {
-      align = dataset.images;  // too few map-only cameras: align on all
-      work.reconstruction["alignment_note"] = "every image is a query of some group: aligned on all cameras";
-    }
-    const Sim3d gt_from_rec = AlignToGroundTruth(full, dataset.ground_truth, align, &work.reconstruction);
-    TransformReconstruction(gt_from_rec, &full);
-    work.units = "metres";
-    const auto& g = work.reconstruction["ground_truth"];
-    fmt::print("[eval] reconstruction vs ground truth (similarity on {} map cameras): max {:.3f}° / {:.4f} m\n",
-               g["aligned_on"].get<int>(), g["max_rotation_deg"].get<double>(), g["max_position_m"].get<double>());
-  } else if (dataset.sensors && dataset.sensors->body_from_cam.size() >= 2) {
-    int pairs = 0;
-    const double s = ScaleFromRig(dataset, full, &pairs);
-    TransformReconstruction(Sim3d(s, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero()), &full);
-    work.units = "metres";
-    work.reconstruction["metric_scale"] = {{"source", "calibrated stereo baseline"}, {"pairs", pairs}, {"scale", s}};
-    fmt::print("[eval] metric scale from the calibrated stereo baseline ({} pairs): {:.5f}\n", pairs, s);
-  } else {
-    work.units = "reconstruction units";
-  }
+  SetUnits(dataset, &full, &work);
 
-  // Gravity: the real IMU where there is one, else the scene's vertical.
-  std::mt19937_64 rng(options.seed);
-  std::map<std::string, Eigen::Vector3d> gravity_cam;
-  if (dataset.sensors) {
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (const auto& [id, im] : full.images) {
-      const auto t = EurocTimestampNs(im.name);
-      const uint32_t cam = dataset.image_camera.at(im.name);
-      if (!t || !dataset.sensors->body_from_cam.count(cam)) Fail("{}: no timestamp or sensor for image {}", dataset.dir, im.name);
-      const Eigen::Vector3d g_body = GravityInBody(*dataset.sensors, *t);
-      const Eigen::Vector3d g = dataset.sensors->body_from_cam.at(cam).rotation.inverse() * g_body;
-      gravity_cam[im.name] = g;
-      if (!dataset.IsQueryImage(im.name)) sum += im.cam_from_world.rotation.inverse() * g;
-    }
-    work.gravity_world = sum.normalized();
-    work.gravity_source = "IMU accelerometer (mean within ±25 ms of each image); map: mean over map images";
-    work.gravity_noise_deg = 0;
-  } else {
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (const auto& [id, im] : full.images) sum += im.cam_from_world.rotation.inverse() * Eigen::Vector3d::UnitY();
-    work.gravity_world = sum.normalized();
-    for (const auto& [id, im] : full.images) {
-      gravity_cam[im.name] = RandomlyTilted(im.cam_from_world.rotation * work.gravity_world, options.gravity_noise_deg, rng);
-    }
-    work.gravity_source = fmt::format(
-        "ground truth: the mean image-down direction of all cameras, per image tilted by |N(0, {}°)|",
-        options.gravity_noise_deg);
-  }
+  const std::map<std::string, Eigen::Vector3d> gravity_cam =
+      GravityPerImage(dataset, full, options, &work);
 
   const ColmapDatabase database(JoinPaths(colmap_dir, "database.db"));
   std::map<std::string, uint32_t> db_id;
   for (const DatabaseImage& im : database.ReadImages()) db_id[im.name] = im.image_id;
-  const std::string images_dir = JoinPaths(dataset.dir, "images");
 
   for (size_t gi = 0; gi < dataset.query_groups.size(); ++gi) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -361,109 +502,13 @@ EvalWork PrepareEvaluation(const EvalPrepareOptions& options) {
     std::map<std::string, const Image*> map_by_name;
     for (const auto& [id, im] : map.images) map_by_name[im.name] = &im;
 
-    // Indirect matching: a query keypoint matched to a map image's keypoint
-    // that observes a map point votes for that point; the most voted wins.
     std::map<std::string, std::vector<uint32_t>> keypoint_of;  // per correspondence
     for (const std::string& name : registered) {
-      EvalImage image;
-      image.name = name;
-      image.camera_id = dataset.image_camera.at(name);
-      image.cam_from_world = FindImage(full, name)->cam_from_world;
-      image.gravity = gravity_cam.at(name);
-      if (!db_id.count(name)) Fail("{}: image {} is not in COLMAP's database", colmap_dir, name);
-      const uint32_t q = db_id.at(name);
-      const FeatureKeypoints keypoints = database.ReadKeypoints(q);
-      std::unordered_map<uint32_t, std::map<uint64_t, int>> votes;
-      for (const auto& [map_name, map_image] : map_by_name) {
-        if (!db_id.count(map_name)) continue;
-        const FeatureMatches matches = database.ReadMatches(q, db_id.at(map_name));
-        for (Eigen::Index r = 0; r < matches.rows(); ++r) {
-          const uint32_t kq = matches(r, 0), km = matches(r, 1);
-          if (km >= map_image->points2D.size() || kq >= keypoints.rows()) continue;
-          const uint64_t pid = map_image->points2D[km].point3D_id;
-          if (pid != kInvalidPoint3DId) ++votes[kq][pid];
-        }
-      }
-      std::vector<uint32_t> kps;
-      for (const auto& [kq, v] : votes) kps.push_back(kq);
-      std::sort(kps.begin(), kps.end());
-      for (uint32_t kq : kps) {
-        const auto& v = votes.at(kq);
-        const auto best = std::max_element(v.begin(), v.end(), [](const auto& a, const auto& b) {
-          return a.second < b.second;
-        });
-        EvalCorrespondence c;
-        c.xy = {keypoints(kq, 0), keypoints(kq, 1)};
-        c.point_id = best->first;
-        c.votes = best->second;
-        image.correspondences.push_back(c);
-      }
-      keypoint_of[name] = std::move(kps);
-      group.images.push_back(std::move(image));
+      group.images.push_back(IndirectCorrespondences(name, dataset, full, database, db_id, map_by_name,
+                                                     gravity_cam, colmap_dir, &keypoint_of[name]));
     }
 
-    // The rig and +l structure from the group's own reconstruction.
-    const EvalImage& first = group.images.front();
-    const Rigid3d& cam0_from_world = first.cam_from_world;
-    Rigid3d rig_from_cam0;  // identity: the rig frame is the first camera's
-    const uint32_t cam0 = first.camera_id;
-    const bool calibrated_rig = dataset.sensors && dataset.sensors->body_from_cam.count(cam0);
-    if (calibrated_rig) rig_from_cam0 = dataset.sensors->body_from_cam.at(cam0);
-    group.rig_from_world = rig_from_cam0 * cam0_from_world;
-    group.gravity_rig = rig_from_cam0.rotation * first.gravity;
-    if (registered.size() >= 2) {
-      const Reconstruction local = ReconstructImageSubset(
-          JoinPaths(colmap_dir, "database.db"), images_dir, registered, JoinPaths(group_dir, "local"), options.colmap);
-      const Image* l0 = FindImage(local, first.name);
-      bool all = l0 != nullptr;
-      for (const EvalImage& im : group.images) all = all && FindImage(local, im.name);
-      if (all) {
-        // metric = local units × m: from the ground truth (the aligned full
-        // reconstruction) or from the rig's calibrated baselines.
-        double local_baseline = 0, metric_baseline = 0;
-        for (const EvalImage& im : group.images) {
-          const Image* li = FindImage(local, im.name);
-          local_baseline += (li->cam_from_world.Center() - l0->cam_from_world.Center()).norm();
-          if (calibrated_rig && dataset.sensors->body_from_cam.count(im.camera_id) &&
-              EurocTimestampNs(im.name) == EurocTimestampNs(first.name)) {
-            metric_baseline += (dataset.sensors->body_from_cam.at(im.camera_id).translation -
-                                rig_from_cam0.translation).norm();
-          } else {
-            metric_baseline += (im.cam_from_world.Center() - cam0_from_world.Center()).norm();
-          }
-        }
-        if (local_baseline > 0 && metric_baseline > 0) {
-          const double m = metric_baseline / local_baseline;
-          group.has_rig = true;
-          group.local_scale = 1.0 / m;
-          group.rig_source = calibrated_rig ? "calibration" : "local reconstruction (metric scale from ground truth)";
-          // rig_from_local: X_rig = rig_from_cam0 (m (R0 X + t0)).
-          auto rig_from_local = [&](const Eigen::Vector3d& X) {
-            return rig_from_cam0 * (m * (l0->cam_from_world * X));
-          };
-          for (EvalImage& im : group.images) {
-            const Image* li = FindImage(local, im.name);
-            if (calibrated_rig && dataset.sensors->body_from_cam.count(im.camera_id)) {
-              im.cam_from_rig = dataset.sensors->body_from_cam.at(im.camera_id).Inverse();
-            } else {
-              // cam_from_rig = cam_from_local ∘ local_from_cam0 ∘ cam0_from_rig, metric.
-              Rigid3d cam_from_cam0 = li->cam_from_world * l0->cam_from_world.Inverse();
-              cam_from_cam0.translation *= m;
-              im.cam_from_rig = cam_from_cam0 * rig_from_cam0.Inverse();
-            }
-            const std::vector<uint32_t>& kps = keypoint_of.at(im.name);
-            for (size_t k = 0; k < im.correspondences.size(); ++k) {
-              if (kps[k] >= li->points2D.size()) continue;
-              const uint64_t pid = li->points2D[kps[k]].point3D_id;
-              if (pid != kInvalidPoint3DId) im.correspondences[k].point_local = rig_from_local(local.points3D.at(pid).xyz);
-            }
-          }
-        }
-      }
-      if (!group.has_rig) {
-        fmt::print("[eval] group {}: COLMAP could not reconstruct the group on its own; m- methods skip it\n", group.name);
-      }
-    }
+    AttachLocalStructure(dataset, options, colmap_dir, group_dir, registered, keypoint_of, &group);
     int corr = 0, local_pts = 0;
     for (const EvalImage& im : group.images) {
       corr += static_cast<int>(im.correspondences.size());
