@@ -50,8 +50,8 @@ void BM_Degree8Sturm(benchmark::State& state) {
 BENCHMARK(BM_Degree8Sturm);
 
 // The vector-based finders, one polynomial per iteration.
-void RunVectorFinder(benchmark::State& state, void (*finder)(const poly::Poly&,
-                                                              std::vector<double>*)) {
+void RunVectorFinder(benchmark::State& state,
+                     void (*finder)(const poly::Poly&, std::vector<double>*)) {
   const auto& polynomials = Degree8Polynomials();
   std::vector<double> roots;
   roots.reserve(8);
@@ -70,9 +70,8 @@ void BM_Degree8Monotone(benchmark::State& state) {
 BENCHMARK(BM_Degree8Monotone);
 
 void BM_PeerDegree8Companion(benchmark::State& state) {
-  RunVectorFinder(state, [](const poly::Poly& p, std::vector<double>* roots) {
-    poly::RealRoots(p, roots);
-  });
+  RunVectorFinder(
+      state, [](const poly::Poly& p, std::vector<double>* roots) { poly::RealRoots(p, roots); });
 }
 BENCHMARK(BM_PeerDegree8Companion);
 

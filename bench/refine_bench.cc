@@ -35,7 +35,8 @@ RefineProblem MakeProblem(bool lines) {
   constexpr double kFocal = 600;
   p.data.cam_from_rig.push_back(Rigid3d());
   for (int i = 0; i < 350; ++i) {
-    const Eigen::Vector3d x_cam = Eigen::Vector3d(u(rng), 0.75 * u(rng), 1.0) * (2.0 + 8.0 * (0.5 + 0.5 * u(rng)));
+    const Eigen::Vector3d x_cam =
+        Eigen::Vector3d(u(rng), 0.75 * u(rng), 1.0) * (2.0 + 8.0 * (0.5 + 0.5 * u(rng)));
     const Eigen::Vector3d x = world_from_cam * x_cam;
     const Eigen::Vector2d observed =
         x_cam.head<2>() / x_cam.z() + Eigen::Vector2d(noise(rng), noise(rng)) / kFocal;
@@ -80,7 +81,8 @@ struct PointResidual {
   template <typename T>
   bool operator()(const T* q, const T* t, T* r) const {
     const Eigen::Map<const Eigen::Quaternion<T>> rotation(q);
-    const Eigen::Matrix<T, 3, 1> p = rotation * point.cast<T>() + Eigen::Map<const Eigen::Matrix<T, 3, 1>>(t);
+    const Eigen::Matrix<T, 3, 1> p =
+        rotation * point.cast<T>() + Eigen::Map<const Eigen::Matrix<T, 3, 1>>(t);
     r[0] = f * (p.x() / p.z() - x.x());
     r[1] = f * (p.y() / p.z() - x.y());
     return true;

@@ -13,11 +13,21 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   linecloud::Reconstruction rec;
   try {
     switch (data[0] % 5) {
-      case 0: linecloud::ParseCamerasBinary(bytes, "cameras.bin", &rec); break;
-      case 1: linecloud::ParseImagesBinary(bytes, "images.bin", &rec); break;
-      case 2: linecloud::ParsePoints3DBinary(bytes, "points3D.bin", &rec); break;
-      case 3: linecloud::ParseRigsBinary(bytes, "rigs.bin", &rec); break;
-      case 4: linecloud::ParseFramesBinary(bytes, "frames.bin", &rec); break;
+      case 0:
+        linecloud::ParseCamerasBinary(bytes, "cameras.bin", &rec);
+        break;
+      case 1:
+        linecloud::ParseImagesBinary(bytes, "images.bin", &rec);
+        break;
+      case 2:
+        linecloud::ParsePoints3DBinary(bytes, "points3D.bin", &rec);
+        break;
+      case 3:
+        linecloud::ParseRigsBinary(bytes, "rigs.bin", &rec);
+        break;
+      case 4:
+        linecloud::ParseFramesBinary(bytes, "frames.bin", &rec);
+        break;
     }
     rec.Check("fuzz");
   } catch (const linecloud::Error&) {

@@ -12,9 +12,15 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   linecloud::Reconstruction rec;
   try {
     switch (data[0] % 3) {
-      case 0: linecloud::ParseCamerasText(text, "cameras.txt", &rec); break;
-      case 1: linecloud::ParseImagesText(text, "images.txt", &rec); break;
-      case 2: linecloud::ParsePoints3DText(text, "points3D.txt", &rec); break;
+      case 0:
+        linecloud::ParseCamerasText(text, "cameras.txt", &rec);
+        break;
+      case 1:
+        linecloud::ParseImagesText(text, "images.txt", &rec);
+        break;
+      case 2:
+        linecloud::ParsePoints3DText(text, "points3D.txt", &rec);
+        break;
     }
     rec.Check("fuzz");
   } catch (const linecloud::Error&) {

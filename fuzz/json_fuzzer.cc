@@ -19,9 +19,15 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   if (j.is_discarded()) return 0;  // not JSON: ReadJsonFile reports it
   try {
     switch (data[0] % 3) {
-      case 0: linecloud::ParseQueryJson(j, "query.json"); break;
-      case 1: linecloud::ParseProblemJson(j, "problem.json"); break;
-      case 2: linecloud::EvalWorkFromJson(j, "prepared.json"); break;
+      case 0:
+        linecloud::ParseQueryJson(j, "query.json");
+        break;
+      case 1:
+        linecloud::ParseProblemJson(j, "problem.json");
+        break;
+      case 2:
+        linecloud::EvalWorkFromJson(j, "prepared.json");
+        break;
     }
   } catch (const linecloud::Error&) {
   }

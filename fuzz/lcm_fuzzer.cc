@@ -15,11 +15,11 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     // header's formatting may differ from the input's: compare meaning).
     const linecloud::LineCloud back =
         linecloud::ParseLineCloud(linecloud::SerializeLineCloud(cloud), "round-trip.lcm");
-    bool same = back.ids == cloud.ids && back.encoding == cloud.encoding &&
-                back.keyed_line_ids == cloud.keyed_line_ids &&
-                back.key_fingerprint == cloud.key_fingerprint &&
-                back.descriptors == cloud.descriptors &&
-                back.descriptor_dim == cloud.descriptor_dim && back.lines.size() == cloud.lines.size();
+    bool same =
+        back.ids == cloud.ids && back.encoding == cloud.encoding &&
+        back.keyed_line_ids == cloud.keyed_line_ids &&
+        back.key_fingerprint == cloud.key_fingerprint && back.descriptors == cloud.descriptors &&
+        back.descriptor_dim == cloud.descriptor_dim && back.lines.size() == cloud.lines.size();
     for (size_t i = 0; same && i < cloud.lines.size(); ++i) {
       same = back.lines[i].v == cloud.lines[i].v && back.lines[i].w == cloud.lines[i].w;
     }

@@ -21,9 +21,8 @@ struct BenchArgs {
 };
 
 void RunBenchSolvers(const BenchArgs& args) {
-  const auto rows = RunSolverBench(args.options, [&](const std::string& what) {
-    std::cerr << "bench: " << what << "\n";
-  });
+  const auto rows = RunSolverBench(
+      args.options, [&](const std::string& what) { std::cerr << "bench: " << what << "\n"; });
   if (args.json) {
     nlohmann::json j = nlohmann::json::array();
     for (const SolverBenchRow& r : rows) {
@@ -47,8 +46,8 @@ void RunBenchSolvers(const BenchArgs& args) {
   std::cout << "µs/call: the solver on prepared inputs; API µs: the same call through\n"
                "SolveMinimal (sample conversion, output copy), as RANSAC makes it\n";
   std::cout << fmt::format(
-      "| {:<29} | {:<29} | {:>9} | {:>8} | {:>9} | {:>8} | {:>10} | {:>14} |\n", "method",
-      "solver", "µs/call", "API µs", "solutions", "% true", "med log10", "ours / peer");
+      "| {:<29} | {:<29} | {:>9} | {:>8} | {:>9} | {:>8} | {:>10} | {:>14} |\n", "method", "solver",
+      "µs/call", "API µs", "solutions", "% true", "med log10", "ours / peer");
   std::cout << "|-------------------------------|-------------------------------|-----------|"
                "----------|-----------|----------|------------|----------------|\n";
   double ours = 0;
@@ -71,19 +70,18 @@ struct LocalizeBenchArgs {
 
 void RunBenchLocalize(const LocalizeBenchArgs& args) {
   const LocalizationBenchOptions& o = args.options;
-  const auto rows = RunLocalizationBench(o, [&](const std::string& what) {
-    std::cerr << "bench localize: " << what << "\n";
-  });
+  const auto rows = RunLocalizationBench(
+      o, [&](const std::string& what) { std::cerr << "bench localize: " << what << "\n"; });
   if (args.json) {
     nlohmann::json j = nlohmann::json::array();
     for (const LocalizationBenchRow& r : rows) {
       j.push_back({{"method", r.method},
                    {"queries", r.queries},
                    {"localized", r.localized},
-                   {"median_rotation_deg", {{"initial", r.median_rotation_deg[0]},
-                                            {"refined", r.median_rotation_deg[1]}}},
-                   {"median_position_rel", {{"initial", r.median_position[0]},
-                                            {"refined", r.median_position[1]}}},
+                   {"median_rotation_deg",
+                    {{"initial", r.median_rotation_deg[0]}, {"refined", r.median_rotation_deg[1]}}},
+                   {"median_position_rel",
+                    {{"initial", r.median_position[0]}, {"refined", r.median_position[1]}}},
                    {"iterations", r.iterations},
                    {"inlier_ratio", r.inlier_ratio},
                    {"mean_solutions", r.solutions},
@@ -93,8 +91,11 @@ void RunBenchLocalize(const LocalizeBenchArgs& args) {
                    {"refine_iterations", r.refine_iterations},
                    {"total_ms", r.total_ms},
                    {"median_total_ms", r.median_total_ms},
-                   {"time_ms", {{"solver", r.solver_ms}, {"scoring", r.scoring_ms},
-                                {"local_optimization", r.lo_ms}, {"refinement", r.refine_ms}}},
+                   {"time_ms",
+                    {{"solver", r.solver_ms},
+                     {"scoring", r.scoring_ms},
+                     {"local_optimization", r.lo_ms},
+                     {"refinement", r.refine_ms}}},
                    {"counterpart", r.counterpart},
                    {"rotation_bound_deg", r.rotation_bound_deg},
                    {"counterpart_rotation_bound_deg", r.counterpart_rotation_bound_deg}});
@@ -114,13 +115,13 @@ void RunBenchLocalize(const LocalizeBenchArgs& args) {
       "of the scene size\n",
       o.seed, o.queries, o.instance.num_correspondences, 100 * o.instance.inlier_ratio,
       o.instance.noise_px, o.localize.ransac.max_error,
-      !o.instance.match_scores ? "no match scores (uniform samples)"
-      : o.localize.ransac.progressive_sampling
-          ? "match ratios as on real photos, PROSAC samples"
-          : "match ratios as on real photos, uniform samples",
+      !o.instance.match_scores                 ? "no match scores (uniform samples)"
+      : o.localize.ransac.progressive_sampling ? "match ratios as on real photos, PROSAC samples"
+                                               : "match ratios as on real photos, uniform samples",
       o.max_rotation_deg, 100 * o.max_position_rel);
   std::cout << "| method | localized | rot. deg init / ref | rot. bound deg | pos. % init / ref | "
-               "iters | inliers | sols | solver us | RANSAC ms (solver / scoring / LO) | refine ms (iters) | "
+               "iters | inliers | sols | solver us | RANSAC ms (solver / scoring / LO) | refine ms "
+               "(iters) | "
                "total ms mean / median | ref. rot. / counterpart (bound) |\n"
                "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const LocalizationBenchRow& r : rows) {
@@ -136,13 +137,14 @@ void RunBenchLocalize(const LocalizeBenchArgs& args) {
                            r.rotation_bound_deg / r.counterpart_rotation_bound_deg);
     }
     std::cout << fmt::format(
-        "| {} | {:.1f} % | {:.4f} / {:.4f} | {:.4f} | {:.3f} / {:.3f} | {:.0f} | {:.0f} % | {:.2f} | "
+        "| {} | {:.1f} % | {:.4f} / {:.4f} | {:.4f} | {:.3f} / {:.3f} | {:.0f} | {:.0f} % | {:.2f} "
+        "| "
         "{:.2f} | {:.3f} ({:.1f} / {:.1f} / {:.1f}) | {:.3f} ({:.1f}) | {:.3f} / {:.3f} | {} |\n",
         r.method, 100.0 * r.localized / r.queries, r.median_rotation_deg[0],
         r.median_rotation_deg[1], r.rotation_bound_deg, 100 * r.median_position[0],
-        100 * r.median_position[1], r.iterations, 100 * r.inlier_ratio, r.solutions,
-        r.solver_us, r.ransac_ms, r.solver_ms, r.scoring_ms, r.lo_ms, r.refine_ms,
-        r.refine_iterations, r.total_ms, r.median_total_ms, ratio);
+        100 * r.median_position[1], r.iterations, 100 * r.inlier_ratio, r.solutions, r.solver_us,
+        r.ransac_ms, r.solver_ms, r.scoring_ms, r.lo_ms, r.refine_ms, r.refine_iterations,
+        r.total_ms, r.median_total_ms, ratio);
   }
   std::cout << "rot. bound: Cramer-Rao bound of the refined rotation (RMS over noise "
                "realisations, at the true pose on the true inliers; median over queries); "
@@ -164,11 +166,9 @@ void RegisterBenchCommand(CLI::App& app) {
   solvers->add_option("--seed", args->options.seed, "Random seed")->capture_default_str();
   solvers->add_option("--instances", args->options.instances, "Instances per method")
       ->capture_default_str();
-  solvers->add_option("--min-time", args->options.min_seconds,
-                      "Seconds of timing per solver")
+  solvers->add_option("--min-time", args->options.min_seconds, "Seconds of timing per solver")
       ->capture_default_str();
-  solvers->add_option("--methods", args->options.methods, "Only these methods")
-      ->delimiter(',');
+  solvers->add_option("--methods", args->options.methods, "Only these methods")->delimiter(',');
   solvers->callback([args] { RunBenchSolvers(*args); });
 
   auto loc = std::make_shared<LocalizeBenchArgs>();
@@ -180,19 +180,21 @@ void RegisterBenchCommand(CLI::App& app) {
   localize->add_option("--seed", loc->options.seed, "Random seed")->capture_default_str();
   localize->add_option("--queries", loc->options.queries, "Queries per method")
       ->capture_default_str();
-  localize->add_option("--correspondences", loc->options.instance.num_correspondences,
-                       "Correspondences per query")
+  localize
+      ->add_option("--correspondences", loc->options.instance.num_correspondences,
+                   "Correspondences per query")
       ->capture_default_str();
-  localize->add_option("--inlier-ratio", loc->options.instance.inlier_ratio,
-                       "Share of correct matches")
+  localize
+      ->add_option("--inlier-ratio", loc->options.instance.inlier_ratio, "Share of correct matches")
       ->capture_default_str();
   localize->add_option("--noise", loc->options.instance.noise_px, "Pixel noise (std. dev.)")
       ->capture_default_str();
-  localize->add_option("--local-noise", loc->options.instance.local_noise,
-                       "+l point noise relative to depth")
+  localize
+      ->add_option("--local-noise", loc->options.instance.local_noise,
+                   "+l point noise relative to depth")
       ->capture_default_str();
-  localize->add_option("--threshold", loc->options.localize.ransac.max_error,
-                       "RANSAC threshold (px)")
+  localize
+      ->add_option("--threshold", loc->options.localize.ransac.max_error, "RANSAC threshold (px)")
       ->capture_default_str();
   localize->add_option("--methods", loc->options.methods, "Only these methods")->delimiter(',');
   localize->add_flag("--scores", loc->options.instance.match_scores,
@@ -205,12 +207,13 @@ void RegisterBenchCommand(CLI::App& app) {
   auto match = std::make_shared<MatchBenchOptions>();
   auto match_json = std::make_shared<bool>(false);
   CLI::App* m = bench->add_subcommand(
-      "match", "Descriptor matching on seeded SIFT-like bytes: the approximate index (FLANN kd-trees) "
-               "against exact matching, time and recall of the exact ratio-test matches");
+      "match",
+      "Descriptor matching on seeded SIFT-like bytes: the approximate index (FLANN kd-trees) "
+      "against exact matching, time and recall of the exact ratio-test matches");
   m->add_option("--map-sizes", match->map_sizes, "Map descriptor counts")->capture_default_str();
   m->add_option("--queries", match->queries, "Query descriptors")->capture_default_str();
-  m->add_option("--recall-queries", match->recall_queries,
-                "Queries also matched exactly (recall)")->capture_default_str();
+  m->add_option("--recall-queries", match->recall_queries, "Queries also matched exactly (recall)")
+      ->capture_default_str();
   m->add_option("--checks", match->index.checks, "kd-tree leaves visited per query")
       ->capture_default_str();
   m->add_option("--trees", match->index.trees, "Randomised kd-trees")->capture_default_str();
@@ -239,8 +242,9 @@ void RegisterBenchCommand(CLI::App& app) {
 
   auto attack = std::make_shared<AttackBenchOptions>();
   CLI::App* a = bench->add_subcommand(
-      "attack", "The density attack (Chelani et al., CVPR 2021) on seeded dense façades: time "
-                "and recovery per size");
+      "attack",
+      "The density attack (Chelani et al., CVPR 2021) on seeded dense façades: time "
+      "and recovery per size");
   a->add_option("--sizes", attack->sizes, "Points (lines) per façade")->capture_default_str();
   a->add_option("--texture", attack->texture_share, "Share of points in texture spots")
       ->capture_default_str();
@@ -252,37 +256,37 @@ void RegisterBenchCommand(CLI::App& app) {
     std::cout << "| lines | threads | seconds | µs per line | within 0.5 % / 1 % / 2 % of the "
                  "diagonal |\n|---|---|---|---|---|\n";
     for (const auto& r : RunAttackBench(o)) {
-      std::cout << fmt::format("| {} | {} | {:.1f} | {:.0f} | {:.1f} % / {:.1f} % / {:.1f} % |\n",
-                               r["lines"].get<size_t>(), r["threads"].get<int>(),
-                               r["seconds"].get<double>(), r["us_per_line"].get<double>(),
-                               100 * r["within_0.5_percent"].get<double>(),
-                               100 * r["within_1_percent"].get<double>(),
-                               100 * r["within_2_percent"].get<double>());
+      std::cout << fmt::format(
+          "| {} | {} | {:.1f} | {:.0f} | {:.1f} % / {:.1f} % / {:.1f} % |\n",
+          r["lines"].get<size_t>(), r["threads"].get<int>(), r["seconds"].get<double>(),
+          r["us_per_line"].get<double>(), 100 * r["within_0.5_percent"].get<double>(),
+          100 * r["within_1_percent"].get<double>(), 100 * r["within_2_percent"].get<double>());
     }
   });
 
   auto images = std::make_shared<std::vector<std::string>>();
   auto colmap = std::make_shared<std::string>("colmap");
   CLI::App* f = bench->add_subcommand(
-      "features", "Our SIFT against COLMAP's CPU extractor on the same images: keypoints and "
-                  "descriptors that agree, ms per megapixel of each (one thread)");
+      "features",
+      "Our SIFT against COLMAP's CPU extractor on the same images: keypoints and "
+      "descriptors that agree, ms per megapixel of each (one thread)");
   f->add_option("--image", *images, "Images (repeat)")->required();
   f->add_option("--colmap", *colmap, "COLMAP's command")->capture_default_str();
   f->callback([images, colmap] {
     std::cout << "| image | size | COLMAP keypoints | ours | same place and orientation | "
                  "descriptors identical / within ±1 | ours ms/MP | COLMAP CLI ms/MP | ratio |\n"
                  "|---|---|---|---|---|---|---|---|---|\n";
-    const std::string scratch = JoinPaths(std::filesystem::temp_directory_path().string(),
-                                          "linecloud-bench-features");
+    const std::string scratch =
+        JoinPaths(std::filesystem::temp_directory_path().string(), "linecloud-bench-features");
     for (const std::string& path : *images) {
       const std::filesystem::path p(path);
-      const SiftAgreement a = CompareSiftWithColmap(p.parent_path().string(),
-                                                    p.filename().string(), scratch, *colmap);
+      const SiftAgreement a =
+          CompareSiftWithColmap(p.parent_path().string(), p.filename().string(), scratch, *colmap);
       const double mp = a.width * a.height / 1e6;
-      std::cout << fmt::format("| {} | {}x{} | {} | {} | {} | {} / {} | {:.0f} | {:.0f} | {:.2f} |\n",
-                               path, a.width, a.height, a.colmap, a.ours, a.located, a.identical,
-                               a.within_one, a.ours_ms / mp, a.colmap_ms / mp,
-                               a.ours_ms / a.colmap_ms);
+      std::cout << fmt::format(
+          "| {} | {}x{} | {} | {} | {} | {} / {} | {:.0f} | {:.0f} | {:.2f} |\n", path, a.width,
+          a.height, a.colmap, a.ours, a.located, a.identical, a.within_one, a.ours_ms / mp,
+          a.colmap_ms / mp, a.ours_ms / a.colmap_ms);
     }
   });
 }

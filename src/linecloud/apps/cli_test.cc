@@ -81,7 +81,8 @@ std::string FixedKeyFile(const TempDir& tmp, const std::string& name, uint8_t se
 std::vector<Eigen::Vector3d> SecretPointsInFileOrder(const LineCloud& cloud, const LiftingKey& key,
                                                      const Reconstruction& rec) {
   std::vector<Eigen::Vector3d> out;
-  for (const uint64_t line_id : cloud.ids) out.push_back(rec.points3D.at(PointIdOfLine(key, line_id)).xyz);
+  for (const uint64_t line_id : cloud.ids)
+    out.push_back(rec.points3D.at(PointIdOfLine(key, line_id)).xyz);
   return out;
 }
 
@@ -133,16 +134,16 @@ TEST(Cli, EveryFileLiftedFromOneModelGivesOneLinePerPoint) {
     }
   }
   WriteColmapModel(subset, tmp.Path("subset"), ModelFormat::kBinary);
-  r = RunCli({"lift", "--model", tmp.Path("subset"), "--key-store", store, "--out",
-              tmp.Path("s.lcm")});
+  r = RunCli(
+      {"lift", "--model", tmp.Path("subset"), "--key-store", store, "--out", tmp.Path("s.lcm")});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("(key store)"), std::string::npos) << r.out;
 
   const std::vector<std::string> files = {"a.lcm", "b.lcm", "d.lcm", "s.lcm"};
   for (size_t i = 0; i < files.size(); ++i) {
     for (size_t j = i + 1; j < files.size(); ++j) {
-      const TwoLiftingsAttack attack = IntersectLinesOfEqualId(
-          ReadLineCloud(tmp.Path(files[i])), ReadLineCloud(tmp.Path(files[j])));
+      const TwoLiftingsAttack attack = IntersectLinesOfEqualId(ReadLineCloud(tmp.Path(files[i])),
+                                                               ReadLineCloud(tmp.Path(files[j])));
       EXPECT_GT(attack.shared_ids, 700u) << files[i] << " x " << files[j];
       EXPECT_EQ(attack.points.size(), 0u) << files[i] << " x " << files[j];
     }
@@ -187,9 +188,9 @@ TEST(Cli, ACompactKeyGivesTheSameLinesInBothEncodings) {
                         tmp.Path("created.key"), "--out", tmp.Path("c0.lcm"), "--compact"});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("(new key file)"), std::string::npos) << r.out;
-  EXPECT_EQ(std::filesystem::status(tmp.Path("created.key")).permissions() &
-                std::filesystem::perms::all,
-            std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
+  EXPECT_EQ(
+      std::filesystem::status(tmp.Path("created.key")).permissions() & std::filesystem::perms::all,
+      std::filesystem::perms::owner_read | std::filesystem::perms::owner_write);
   EXPECT_EQ(ReadKeyFile(tmp.Path("created.key")).directions(), DirectionSet::kCompact256);
 
   const std::string key_file = FixedKeyFile(tmp, "model.key", 3, DirectionSet::kCompact256);
@@ -197,8 +198,8 @@ TEST(Cli, ACompactKeyGivesTheSameLinesInBothEncodings) {
               "--out", tmp.Path("c.lcm"), "--compact"});
   ASSERT_EQ(r.code, 0) << r.err;
   // Without --key-file, the store knows the model's key file.
-  r = RunCli({"lift", "--model", model, "--key-store", tmp.Path("keys"), "--out",
-              tmp.Path("f.lcm")});
+  r = RunCli(
+      {"lift", "--model", model, "--key-store", tmp.Path("keys"), "--out", tmp.Path("f.lcm")});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find(key_file), std::string::npos) << r.out;
   const LineCloud c = ReadLineCloud(tmp.Path("c.lcm"));
@@ -249,8 +250,8 @@ TEST(Cli, LineOrderCarriesNoNeighbourhoodSignal) {
       successor_rate(SecretPointsInFileOrder(cloud, ReadKeyFile(tmp.Path("k.key")), rec));
   std::cout << "[ neighbour successors ] point-id order " << point_order << ", line order "
             << line_order << ", chance " << chance << "\n";
-  EXPECT_GT(point_order, 5 * chance);  // the side channel exists in raw ids
-  EXPECT_LT(line_order, 2.5 * chance); // ~10 expected hits of 1038; 2.5× is > 4σ
+  EXPECT_GT(point_order, 5 * chance);   // the side channel exists in raw ids
+  EXPECT_LT(line_order, 2.5 * chance);  // ~10 expected hits of 1038; 2.5× is > 4σ
 }
 
 // The README's newcomer path on a real COLMAP project: lift with
@@ -278,8 +279,8 @@ TEST(Cli, NewcomerPathOnARealModel) {
   ASSERT_EQ(r.code, 0) << r.err;
   const nlohmann::json q = ReadJsonFile(tmp.Path("q.json"));
   const Rigid3d reference = JsonPose(q["reference"]["cam_from_world"], "reference");
-  for (const auto& [method, flag, map] : {std::tuple{"p6L", "--map", tmp.Path("m.lcm")},
-                                          std::tuple{"p3P", "--model", model}}) {
+  for (const auto& [method, flag, map] :
+       {std::tuple{"p6L", "--map", tmp.Path("m.lcm")}, std::tuple{"p3P", "--model", model}}) {
     r = RunCli({"localize", flag, map, "--query", tmp.Path("q.json"), "--method", method});
     ASSERT_EQ(r.code, 0) << r.err;
     const nlohmann::json result = nlohmann::json::parse(r.out);
@@ -293,8 +294,8 @@ TEST(Cli, NewcomerPathOnARealModel) {
     EXPECT_GT(result["num_inliers"].get<int>(), 900) << method;
   }
   // Without --method: p6L on a line cloud, p3P on a point model.
-  for (const auto& [flag, map, expected] : {std::tuple{"--map", tmp.Path("m.lcm"), "p6L"},
-                                            std::tuple{"--model", model, "p3P"}}) {
+  for (const auto& [flag, map, expected] :
+       {std::tuple{"--map", tmp.Path("m.lcm"), "p6L"}, std::tuple{"--model", model, "p3P"}}) {
     r = RunCli({"localize", flag, map, "--query", tmp.Path("q.json")});
     ASSERT_EQ(r.code, 0) << r.err;
     EXPECT_EQ(nlohmann::json::parse(r.out)["method"].get<std::string>(), expected);
@@ -320,8 +321,9 @@ TEST(Cli, LocalizeImageRejectsBadInput) {
   const std::string camera = "SIMPLE_PINHOLE 1919 1079 1847.53 959.5 539.5";
   const auto localize = [&](const std::string& map, const std::string& image,
                             const std::string& cam, std::vector<std::string> extra = {}) {
-    std::vector<std::string> args = {"localize", "--map", map, "--image", image, "--camera", cam,
-                                     "--method", "p6L", "--quiet", "--max-image-size", "480"};
+    std::vector<std::string> args = {"localize",         "--map", map,        "--image", image,
+                                     "--camera",         cam,     "--method", "p6L",     "--quiet",
+                                     "--max-image-size", "480"};
     args.insert(args.end(), extra.begin(), extra.end());
     return RunCli(args);
   };
@@ -339,8 +341,7 @@ TEST(Cli, LocalizeImageRejectsBadInput) {
   ExpectError(localize(tmp.Path("m.lcm"), photo, "SIMPLE_PINHOLE 640 480 500 320 240"),
               "the image is 1919x1079 pixels but the camera is 640x480");
   ExpectError(localize(tmp.Path("bare.lcm"), photo, camera), "lift it with --database");
-  ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--image", photo, "--method",
-                      "p6L"}),
+  ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--image", photo, "--method", "p6L"}),
               "--image needs --camera");
   ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--image", photo, "--query",
                       tmp.Path("q.json"), "--camera", camera, "--method", "p6L"}),
@@ -415,12 +416,12 @@ TEST(Cli, MapGravityFromLiftToLocalize) {
   const auto csv = [](const Eigen::Vector3d& v) {
     return fmt::format("{:.17g},{:.17g},{:.17g}", v.x(), v.y(), v.z());
   };
-  ExpectError(RunCli({"lift", "--model", demo + "/model", "--out", tmp.Path("m.lcm"),
-                      "--key-store", tmp.Path("keys"), "--gravity", "1,2"}),
+  ExpectError(RunCli({"lift", "--model", demo + "/model", "--out", tmp.Path("m.lcm"), "--key-store",
+                      tmp.Path("keys"), "--gravity", "1,2"}),
               "--gravity '1,2'");
   ASSERT_EQ(RunCli({"lift", "--model", demo + "/model", "--out", tmp.Path("m.lcm"), "--key-store",
-                    tmp.Path("keys"), "--key-file", FixedKeyFile(tmp, "g.key", 10),
-                    "--gravity", csv(3 * g_map)})
+                    tmp.Path("keys"), "--key-file", FixedKeyFile(tmp, "g.key", 10), "--gravity",
+                    csv(3 * g_map)})
                 .code,
             0);
   const LineCloud cloud = ReadLineCloud(tmp.Path("m.lcm"));
@@ -431,7 +432,8 @@ TEST(Cli, MapGravityFromLiftToLocalize) {
   // The demo's file carries the demo key's line ids: the ones of this map's key instead.
   nlohmann::json with_lines = q;
   const LiftingKey key = ReadKeyFile(tmp.Path("g.key"));
-  for (auto& o : with_lines["observations"]) o["line_id"] = LineIdOfPoint(key, o["id"].get<uint64_t>());
+  for (auto& o : with_lines["observations"])
+    o["line_id"] = LineIdOfPoint(key, o["id"].get<uint64_t>());
   std::ofstream(tmp.Path("q.json")) << with_lines.dump();
   ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--query", tmp.Path("q.json"),
                       "--method", "p4L+u"}),
@@ -451,9 +453,8 @@ TEST(Cli, LiftRefusesToReplaceAMapWithOtherLines) {
   TempDir tmp;
   const std::string model = SharedDataPath(kMaupertuis);
   const std::string store = tmp.Path("keys");
-  ASSERT_EQ(RunCli({"lift", "--model", model, "--key-store", store, "--out", tmp.Path("m.lcm")})
-                .code,
-            0);
+  ASSERT_EQ(
+      RunCli({"lift", "--model", model, "--key-store", store, "--out", tmp.Path("m.lcm")}).code, 0);
   const std::string before = ReadFileToString(tmp.Path("m.lcm"));
   // Another key over the map: refused (the store knows the model too: --force
   // passes that guard, not the map's).
@@ -462,9 +463,8 @@ TEST(Cli, LiftRefusesToReplaceAMapWithOtherLines) {
               "another key");
   EXPECT_EQ(ReadFileToString(tmp.Path("m.lcm")), before);
   // Re-lifting without --key-file reuses the model's key: the same bytes.
-  ASSERT_EQ(RunCli({"lift", "--model", model, "--key-store", store, "--out", tmp.Path("m.lcm")})
-                .code,
-            0);
+  ASSERT_EQ(
+      RunCli({"lift", "--model", model, "--key-store", store, "--out", tmp.Path("m.lcm")}).code, 0);
   EXPECT_EQ(ReadFileToString(tmp.Path("m.lcm")), before);
 
   // A version-1 compact map lifted (before direction sets) under a sphere key:
@@ -493,8 +493,8 @@ TEST(Cli, LiftWithDescriptorsCompactInfoAndExport) {
   TempDir tmp;
   const std::string model = SharedDataPath(kMaupertuis);
   CliResult r = RunCli({"lift", "--model", model, "--out", tmp.Path("d.lcm"), "--database",
-                        SharedDataPath("colmap-maupertuis/colmap.db"), "--compact",
-                        "--key-store", tmp.Path("keys"), "--key-file",
+                        SharedDataPath("colmap-maupertuis/colmap.db"), "--compact", "--key-store",
+                        tmp.Path("keys"), "--key-file",
                         FixedKeyFile(tmp, "d.key", 7, DirectionSet::kCompact256)});
   ASSERT_EQ(r.code, 0) << r.err;
   const LineCloud cloud = ReadLineCloud(tmp.Path("d.lcm"));
@@ -566,13 +566,12 @@ TEST(Cli, BadInputGivesOneErrorLineAndNoOutput) {
   WriteColmapModel(rec, tmp.Path("b"), ModelFormat::kBinary);
   const std::string pts = ReadFileToString(tmp.Path("b/points3D.bin"));
   std::ofstream(tmp.Path("b/points3D.bin"), std::ios::binary).write(pts.data(), pts.size() - 3);
-  ExpectError(RunCli({"lift", "--model", tmp.Path("b"), "--out", tmp.Path("x.lcm")}),
-              "truncated");
+  ExpectError(RunCli({"lift", "--model", tmp.Path("b"), "--out", tmp.Path("x.lcm")}), "truncated");
   EXPECT_FALSE(FileExists(tmp.Path("x.lcm")));
   // Malformed key.
   std::ofstream(tmp.Path("bad.key")) << "not a key\n";
-  ExpectError(RunCli({"lift", "--model", tmp.Path("m"), "--out", tmp.Path("x.lcm"),
-                   "--key-file", tmp.Path("bad.key")}),
+  ExpectError(RunCli({"lift", "--model", tmp.Path("m"), "--out", tmp.Path("x.lcm"), "--key-file",
+                      tmp.Path("bad.key")}),
               "bad.key");
   EXPECT_FALSE(FileExists(tmp.Path("x.lcm")));
   // Corrupt and truncated maps.
@@ -587,8 +586,8 @@ TEST(Cli, BadInputGivesOneErrorLineAndNoOutput) {
   ExpectError(RunCli({"info", tmp.Path("missing.lcm")}), "missing.lcm");
   // Database that is not one.
   std::ofstream(tmp.Path("fake.db")) << "hello";
-  ExpectError(RunCli({"lift", "--model", tmp.Path("m"), "--out", tmp.Path("x.lcm"),
-                   "--database", tmp.Path("fake.db")}),
+  ExpectError(RunCli({"lift", "--model", tmp.Path("m"), "--out", tmp.Path("x.lcm"), "--database",
+                      tmp.Path("fake.db")}),
               "fake.db");
   // Usage errors.
   ExpectError(RunCli({"lift", "--out", tmp.Path("x.lcm")}), "--model");
@@ -601,8 +600,8 @@ TEST(Cli, BadInputGivesOneErrorLineAndNoOutput) {
 // still runs and says why those queries have no pose.
 TEST(Cli, ATinyDemoSaysWhyQueriesHaveNoPose) {
   TempDir tmp;
-  const CliResult r = RunCli({"demo", "--out", tmp.Path("d"), "--points", "500", "--images", "6",
-                              "--queries", "2"});
+  const CliResult r = RunCli(
+      {"demo", "--out", tmp.Path("d"), "--points", "500", "--images", "6", "--queries", "2"});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("no pose: p6L query_000: method p6L needs at least 6 observations"),
             std::string::npos)
@@ -611,26 +610,26 @@ TEST(Cli, ATinyDemoSaysWhyQueriesHaveNoPose) {
 
 TEST(Cli, DemoIsReproducibleAndItsFilesDoNotIntersect) {
   TempDir tmp;
-  CliResult r = RunCli({"demo", "--out", tmp.Path("demo"), "--points", "800", "--images", "8",
-                        "--queries", "2"});
+  CliResult r = RunCli(
+      {"demo", "--out", tmp.Path("demo"), "--points", "800", "--images", "8", "--queries", "2"});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_NE(r.out.find("built-in public demo key"), std::string::npos);
   EXPECT_NE(r.out.find("lines differing between the two files: 0"), std::string::npos) << r.out;
   const std::string first = ReadFileToString(tmp.Path("demo/map.lcm"));
-  r = RunCli({"demo", "--out", tmp.Path("demo2"), "--points", "800", "--images", "8",
-              "--queries", "2"});
+  r = RunCli(
+      {"demo", "--out", tmp.Path("demo2"), "--points", "800", "--images", "8", "--queries", "2"});
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(ReadFileToString(tmp.Path("demo2/map.lcm")), first);  // same lines every run
   EXPECT_TRUE(FileExists(tmp.Path("demo/queries/query_001.json")));
   const Reconstruction rec = ReadColmapModel(tmp.Path("demo/model"));
   EXPECT_GT(rec.points3D.size(), 100u);
   // Every pair of line clouds the demo writes, across both runs.
-  const std::vector<std::string> maps = {"demo/map.lcm", "demo/map_compact.lcm",
-                                         "demo2/map.lcm", "demo2/map_compact.lcm"};
+  const std::vector<std::string> maps = {"demo/map.lcm", "demo/map_compact.lcm", "demo2/map.lcm",
+                                         "demo2/map_compact.lcm"};
   for (size_t i = 0; i < maps.size(); ++i) {
     for (size_t j = i + 1; j < maps.size(); ++j) {
-      const TwoLiftingsAttack attack =
-          IntersectLinesOfEqualId(ReadLineCloud(tmp.Path(maps[i])), ReadLineCloud(tmp.Path(maps[j])));
+      const TwoLiftingsAttack attack = IntersectLinesOfEqualId(ReadLineCloud(tmp.Path(maps[i])),
+                                                               ReadLineCloud(tmp.Path(maps[j])));
       EXPECT_EQ(attack.shared_ids, rec.points3D.size());
       EXPECT_EQ(attack.points.size(), 0u) << maps[i] << " x " << maps[j];
     }
@@ -690,8 +689,8 @@ TEST(Cli, SolveReturnsTheTruePoseForEveryImplementedMethod) {
 }
 
 TEST(Cli, BenchSolversReportsEveryRequestedMethod) {
-  const CliResult r = RunCli({"bench", "solvers", "--json", "--min-time", "0.01",
-                              "--instances", "50", "--methods", "p3P,m-P3P+l+s,m-P2L+l+u+s"});
+  const CliResult r = RunCli({"bench", "solvers", "--json", "--min-time", "0.01", "--instances",
+                              "50", "--methods", "p3P,m-P3P+l+s,m-P2L+l+u+s"});
   ASSERT_EQ(r.code, 0) << r.err;
   const nlohmann::json j = nlohmann::json::parse(r.out);
   std::set<std::string> ours;
@@ -717,8 +716,8 @@ TEST(Cli, BenchSolversReportsEveryRequestedMethod) {
 // every query, refine to about their Cramér–Rao bound, and the line cloud's
 // bound is about √2 above the point model's on the same queries.
 TEST(Cli, BenchLocalizeReportsTheRotationBound) {
-  const CliResult r = RunCli({"bench", "localize", "--json", "--queries", "20", "--methods",
-                              "p2P+u,p4L+u"});
+  const CliResult r =
+      RunCli({"bench", "localize", "--json", "--queries", "20", "--methods", "p2P+u,p4L+u"});
   ASSERT_EQ(r.code, 0) << r.err;
   const nlohmann::json j = nlohmann::json::parse(r.out);
   ASSERT_EQ(j["rows"].size(), 2u);
@@ -755,10 +754,9 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
   const std::string query = demo + "/queries/query_000.json";
   const nlohmann::json file = ReadJsonFile(query);
   const Rigid3d truth = JsonPose(file["ground_truth"]["cam_from_world"], "truth");
-  for (const auto& [method, map_flag, map] :
-       {std::tuple{"p4L+u", "--map", demo + "/map.lcm"},
-        std::tuple{"p2P+u", "--model", demo + "/model"},
-        std::tuple{"p3P", "--model", demo + "/model"}}) {
+  for (const auto& [method, map_flag, map] : {std::tuple{"p4L+u", "--map", demo + "/map.lcm"},
+                                              std::tuple{"p2P+u", "--model", demo + "/model"},
+                                              std::tuple{"p3P", "--model", demo + "/model"}}) {
     const CliResult r = RunCli({"localize", map_flag, map, "--query", query, "--method", method,
                                 "--out", tmp.Path("result.json"), "--inliers"});
     ASSERT_EQ(r.code, 0) << method << ": " << r.err;
@@ -780,11 +778,9 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
   // A rig query (3 images, local points): m-P4L+l against the line cloud,
   // m-p3P against the model.
   const std::string rig = demo + "/rig_queries/rig_000.json";
-  const Rigid3d rig_truth =
-      JsonPose(ReadJsonFile(rig)["ground_truth"]["rig_from_world"], "truth");
-  for (const auto& [method, map_flag, map] :
-       {std::tuple{"m-P4L+l", "--map", demo + "/map.lcm"},
-        std::tuple{"m-p3P", "--model", demo + "/model"}}) {
+  const Rigid3d rig_truth = JsonPose(ReadJsonFile(rig)["ground_truth"]["rig_from_world"], "truth");
+  for (const auto& [method, map_flag, map] : {std::tuple{"m-P4L+l", "--map", demo + "/map.lcm"},
+                                              std::tuple{"m-p3P", "--model", demo + "/model"}}) {
     const CliResult r = RunCli({"localize", map_flag, map, "--query", rig, "--method", method});
     ASSERT_EQ(r.code, 0) << method << ": " << r.err;
     const nlohmann::json result = nlohmann::json::parse(r.out);
@@ -834,7 +830,8 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
   ExpectError(RunCli({"localize", "--map", demo + "/map.lcm", "--query", tmp.Path("photo.jpg"),
                       "--method", "p6L"}),
               "this is an image, not a JSON file");
-  std::ofstream(tmp.Path("big.json")) << R"({"cameras": [{"model": "PINHOLE", "width": 9, "height": 9, "params": [1e400, 1, 5, 5]}]})";
+  std::ofstream(tmp.Path("big.json"))
+      << R"({"cameras": [{"model": "PINHOLE", "width": 9, "height": 9, "params": [1e400, 1, 5, 5]}]})";
   ExpectError(RunCli({"localize", "--map", demo + "/map.lcm", "--query", tmp.Path("big.json"),
                       "--method", "p6L"}),
               "big.json");
@@ -845,11 +842,10 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
   EXPECT_NE(r.out.find("version 2"), std::string::npos);
 
   // Wrong map kind, unknown method, missing query: one clear error line.
-  ExpectError(RunCli({"localize", "--model", demo + "/model", "--query", query, "--method",
-                      "p4L+u"}),
-              "needs a line cloud");
-  ExpectError(RunCli({"localize", "--map", demo + "/map.lcm", "--query", query, "--method",
-                      "p5P"}),
+  ExpectError(
+      RunCli({"localize", "--model", demo + "/model", "--query", query, "--method", "p4L+u"}),
+      "needs a line cloud");
+  ExpectError(RunCli({"localize", "--map", demo + "/map.lcm", "--query", query, "--method", "p5P"}),
               "unknown method 'p5P'");
   ExpectError(RunCli({"localize", "--map", demo + "/map.lcm", "--query", tmp.Path("no.json"),
                       "--method", "p4L+u"}),
@@ -874,12 +870,16 @@ TEST(Cli, AuditMeasuresWhatLeaksFromARealMap) {
   TempDir tmp;
   const std::string model = SharedDataPath(kMaupertuis);
   const std::string key = FixedKeyFile(tmp, "model.key", 3);
-  ASSERT_EQ(RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out", tmp.Path("map.lcm"), "--key-file", key}).code, 0);
-  // A second lifting with another key (refused unless forced: never share it).
-  ASSERT_EQ(RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out", tmp.Path("other.lcm"), "--key-file",
-                    FixedKeyFile(tmp, "other.key", 4), "--force"})
+  ASSERT_EQ(RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out",
+                    tmp.Path("map.lcm"), "--key-file", key})
                 .code,
             0);
+  // A second lifting with another key (refused unless forced: never share it).
+  ASSERT_EQ(
+      RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out",
+              tmp.Path("other.lcm"), "--key-file", FixedKeyFile(tmp, "other.key", 4), "--force"})
+          .code,
+      0);
   const std::string map_before = ReadFileToString(tmp.Path("map.lcm"));
   CliResult r = RunCli({"audit", "--map", tmp.Path("map.lcm"), "--model", model, "--key-file", key,
                         "--other", tmp.Path("other.lcm"), "--out", tmp.Path("audit"), "--quiet"});
@@ -922,15 +922,19 @@ TEST(Cli, AuditMeasuresWhatLeaksFromARealMap) {
   EXPECT_TRUE(other["two_keys"].contains("why_nothing"));
   // A tiny map: a clear error.
   ASSERT_EQ(RunCli({"demo", "--out", tmp.Path("tiny"), "--points", "12", "--images", "3",
-                    "--queries", "0"}).code, 0);
+                    "--queries", "0"})
+                .code,
+            0);
   ExpectError(RunCli({"attack", "--map", tmp.Path("tiny/map.lcm"), "--out", tmp.Path("t.ply")}),
               "needs at least 10");
   // An empty map (a demo too small to triangulate anything).
   ASSERT_EQ(RunCli({"demo", "--out", tmp.Path("empty"), "--points", "300", "--images", "3",
-                    "--queries", "0"}).code, 0);
+                    "--queries", "0"})
+                .code,
+            0);
   ASSERT_EQ(ReadLineCloud(tmp.Path("empty/map.lcm")).size(), 0u);
-  ExpectError(RunCli({"audit", "--map", tmp.Path("empty/map.lcm"), "--model", tmp.Path("empty/model"),
-                      "--quiet"}),
+  ExpectError(RunCli({"audit", "--map", tmp.Path("empty/map.lcm"), "--model",
+                      tmp.Path("empty/model"), "--quiet"}),
               "the map has no lines");
   ExpectError(RunCli({"attack", "--map", tmp.Path("empty/map.lcm"), "--out", tmp.Path("e.ply")}),
               "needs at least 10");
@@ -941,11 +945,15 @@ TEST(Cli, SparsifiedMapsHoldTheSameLines) {
   TempDir tmp;
   const std::string model = SharedDataPath(kMaupertuis);
   const std::string key = FixedKeyFile(tmp, "model.key", 5);
-  ASSERT_EQ(RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out", tmp.Path("full.lcm"), "--key-file", key}).code, 0);
+  ASSERT_EQ(RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out",
+                    tmp.Path("full.lcm"), "--key-file", key})
+                .code,
+            0);
   for (const char* mode : {"uniform", "balanced"}) {
     const std::string out = tmp.Path(std::string(mode) + ".lcm");
-    const CliResult r = RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out", out, "--key-file", key,
-                                "--sparsify", "0.75", "--sparsify-mode", mode});
+    const CliResult r =
+        RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out", out,
+                "--key-file", key, "--sparsify", "0.75", "--sparsify-mode", mode});
     ASSERT_EQ(r.code, 0) << r.err;
     const LineCloud full = ReadLineCloud(tmp.Path("full.lcm")), sparse = ReadLineCloud(out);
     EXPECT_NEAR(sparse.size(), 0.25 * full.size(), 40) << mode;
@@ -954,9 +962,9 @@ TEST(Cli, SparsifiedMapsHoldTheSameLines) {
     EXPECT_EQ(attack.points.size(), 0u) << mode;
   }
   // Attack-aware sparsification too: a subset of the same lines.
-  const CliResult r = RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out",
-                              tmp.Path("resist.lcm"), "--key-file", key, "--resist-attack", "0.2",
-                              "--quiet"});
+  const CliResult r =
+      RunCli({"lift", "--key-store", tmp.Path("store"), "--model", model, "--out",
+              tmp.Path("resist.lcm"), "--key-file", key, "--resist-attack", "0.2", "--quiet"});
   ASSERT_EQ(r.code, 0) << r.err;
   const LineCloud full = ReadLineCloud(tmp.Path("full.lcm"));
   const LineCloud resist = ReadLineCloud(tmp.Path("resist.lcm"));
@@ -979,8 +987,10 @@ namespace {
 // [harden] 2: outputs that are devices, links or the command's own inputs.
 TEST(Cli, OutputsNeverClobberInputsOrDevices) {
   TempDir tmp;
-  ASSERT_EQ(RunCli({"demo", "--out", tmp.Path("d"), "--points", "800", "--images", "8", "--queries",
-                    "2"}).code, 0);
+  ASSERT_EQ(
+      RunCli({"demo", "--out", tmp.Path("d"), "--points", "800", "--images", "8", "--queries", "2"})
+          .code,
+      0);
   const std::string map = tmp.Path("d/map.lcm"), query = tmp.Path("d/queries/query_000.json");
   const std::string map_before = ReadFileToString(map);
   const std::string points_before = ReadFileToString(tmp.Path("d/model/points3D.bin"));
@@ -988,8 +998,9 @@ TEST(Cli, OutputsNeverClobberInputsOrDevices) {
               "one of the command's inputs");
   ExpectError(RunCli({"localize", "--map", map, "--query", query, "--ply", query, "--quiet"}),
               "one of the command's inputs");
-  ExpectError(RunCli({"export", "--model", tmp.Path("d/model"), "--ply", tmp.Path("d/model/points3D.bin")}),
-              "one of the command's inputs");
+  ExpectError(
+      RunCli({"export", "--model", tmp.Path("d/model"), "--ply", tmp.Path("d/model/points3D.bin")}),
+      "one of the command's inputs");
   EXPECT_EQ(ReadFileToString(map), map_before);
   EXPECT_EQ(ReadFileToString(tmp.Path("d/model/points3D.bin")), points_before);
   // A device is written through and stays a device.

@@ -88,8 +88,8 @@ void RunDemo(const DemoArgs& args) {
   const auto max_relative_distance = [&](const LineMap& m) {
     double worst = 0;
     for (size_t i = 0; i < ids.size(); ++i) {
-      worst = std::max(worst, m.lines.at(ids[i]).DistanceTo(points[i]) /
-                                  std::max(1.0, points[i].norm()));
+      worst = std::max(worst,
+                       m.lines.at(ids[i]).DistanceTo(points[i]) / std::max(1.0, points[i].norm()));
     }
     return worst;
   };
@@ -148,19 +148,14 @@ void RunDemo(const DemoArgs& args) {
       "  queries      {} query files ({:.0f} observations on average) -> {}\n"
       "               {} rig query files (3 images, local points) -> {}\n"
       "  view         {} (points), {} (line segments)\n",
-      args.scene.seed, args.scene.room_size.x(), args.scene.room_size.y(),
-      args.scene.room_size.z(), model.images.size(), args.scene.width,
-      args.scene.height, args.scene.focal, args.scene.noise_px,
-      model.points3D.size(), model.MeanTrackLength(), num_obs, model_dir,
-      ToHex(cloud.key_fingerprint),
-      cloud.size(), map_path, map_bytes,
-      static_cast<double>(map_bytes) / cloud.size(), 1e3 * lift_s,
-      compact_path, compact_bytes,
-      static_cast<double>(compact_bytes) / cloud.size(),
-      max_relative_distance(full_lines), max_relative_distance(compact_lines), differing,
-      scene.queries.size(),
-      scene.queries.empty() ? 0.0
-                            : static_cast<double>(total_obs) / scene.queries.size(),
+      args.scene.seed, args.scene.room_size.x(), args.scene.room_size.y(), args.scene.room_size.z(),
+      model.images.size(), args.scene.width, args.scene.height, args.scene.focal,
+      args.scene.noise_px, model.points3D.size(), model.MeanTrackLength(), num_obs, model_dir,
+      ToHex(cloud.key_fingerprint), cloud.size(), map_path, map_bytes,
+      static_cast<double>(map_bytes) / cloud.size(), 1e3 * lift_s, compact_path, compact_bytes,
+      static_cast<double>(compact_bytes) / cloud.size(), max_relative_distance(full_lines),
+      max_relative_distance(compact_lines), differing, scene.queries.size(),
+      scene.queries.empty() ? 0.0 : static_cast<double>(total_obs) / scene.queries.size(),
       queries_dir, rig_queries.size(), rig_dir, JoinPaths(args.out, "model.ply"),
       JoinPaths(args.out, "map.ply"));
 
@@ -204,10 +199,10 @@ void RunDemo(const DemoArgs& args) {
 
 void RegisterDemoCommand(CLI::App& app) {
   auto args = std::make_shared<DemoArgs>();
-  CLI::App* cmd = app.add_subcommand(
-      "demo",
-      "Generate a seeded synthetic room, write it as a COLMAP model, lift it "
-      "to a line cloud and summarise");
+  CLI::App* cmd =
+      app.add_subcommand("demo",
+                         "Generate a seeded synthetic room, write it as a COLMAP model, lift it "
+                         "to a line cloud and summarise");
   cmd->add_option("--out", args->out, "Output folder")->capture_default_str();
   cmd->add_option("--seed", args->scene.seed, "Random seed")->capture_default_str();
   cmd->add_option("--points", args->scene.num_points, "Number of scene points")

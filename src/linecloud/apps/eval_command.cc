@@ -21,18 +21,26 @@ void RegisterEvalCommand(CLI::App& app) {
       "COLMAP on all images (ground truth), one map per query group without its images, "
       "the group's own reconstruction (+l, rig), 2D-3D correspondences by indirect matching");
   prepare->add_option("--dataset", prepare_options->dataset_dir, "dataset directory")->required();
-  prepare->add_option("--work", prepare_options->work_dir, "work directory (COLMAP results are cached here)")
+  prepare
+      ->add_option("--work", prepare_options->work_dir,
+                   "work directory (COLMAP results are cached here)")
       ->required();
-  prepare->add_option("--gravity-noise-deg", prepare_options->gravity_noise_deg,
-                      "+u without an IMU: tilt of the ground-truth gravity, |N(0, sigma)| degrees")
+  prepare
+      ->add_option("--gravity-noise-deg", prepare_options->gravity_noise_deg,
+                   "+u without an IMU: tilt of the ground-truth gravity, |N(0, sigma)| degrees")
       ->capture_default_str();
-  prepare->add_option("--colmap", prepare_options->colmap.executable, "COLMAP executable")->capture_default_str();
-  prepare->add_option("--threads", prepare_options->colmap.num_threads, "COLMAP threads (-1: all cores)")
+  prepare->add_option("--colmap", prepare_options->colmap.executable, "COLMAP executable")
+      ->capture_default_str();
+  prepare
+      ->add_option("--threads", prepare_options->colmap.num_threads,
+                   "COLMAP threads (-1: all cores)")
       ->capture_default_str();
   prepare->add_flag("--accurate-features", prepare_options->colmap.accurate_features,
                     "affine-covariant SIFT, domain-size pooling, guided matching (slower)");
-  prepare->add_flag("--verbose", prepare_options->colmap.verbose, "show COLMAP's output instead of logging it");
-  prepare->add_option("--seed", prepare_options->seed, "seed of the gravity noise")->capture_default_str();
+  prepare->add_flag("--verbose", prepare_options->colmap.verbose,
+                    "show COLMAP's output instead of logging it");
+  prepare->add_option("--seed", prepare_options->seed, "seed of the gravity noise")
+      ->capture_default_str();
   prepare->callback([prepare_options] { PrepareEvaluation(*prepare_options); });
 
   auto tradeoff = std::make_shared<PrivacyTradeoffOptions>();
@@ -44,15 +52,19 @@ void RegisterEvalCommand(CLI::App& app) {
   auto render_only = std::make_shared<bool>(false);
   privacy->add_option("--work", tradeoff->work_dir, "work directory of `eval prepare`");
   privacy->add_option("--out", tradeoff->out_dir, "results directory")->required();
-  privacy->add_flag("--render", *render_only, "only redo tradeoff.md and .png from OUT/tradeoff.json");
-  privacy->add_option("--methods", tradeoff->methods, "methods (paper protocol)")->capture_default_str();
+  privacy->add_flag("--render", *render_only,
+                    "only redo tradeoff.md and .png from OUT/tradeoff.json");
+  privacy->add_option("--methods", tradeoff->methods, "methods (paper protocol)")
+      ->capture_default_str();
   privacy->add_flag("!--no-direct-matching", tradeoff->direct_matching,
                     "skip the direct matching of the query photos");
-  privacy->add_flag("--quick", *tradeoff_quick, "only plain, uniform 90 %, balanced 90 %, resist 0.2");
+  privacy->add_flag("--quick", *tradeoff_quick,
+                    "only plain, uniform 90 %, balanced 90 %, resist 0.2");
   auto specs = std::make_shared<std::vector<std::string>>();
-  privacy->add_option("--lifting", *specs,
-                      "liftings to measure instead of the default set (repeat): plain, uniform:F, "
-                      "balanced:F, resist:S, compact, or several joined by + (plain is always first)");
+  privacy->add_option(
+      "--lifting", *specs,
+      "liftings to measure instead of the default set (repeat): plain, uniform:F, "
+      "balanced:F, resist:S, compact, or several joined by + (plain is always first)");
   privacy->callback([tradeoff, tradeoff_quick, specs, render_only] {
     PrivacyTradeoffOptions o = *tradeoff;
     if (*render_only) {
@@ -81,13 +93,16 @@ void RegisterEvalCommand(CLI::App& app) {
 
   auto registration = std::make_shared<ColmapRegistrationOptions>();
   CLI::App* colmap = eval->add_subcommand(
-      "colmap", "COLMAP itself registering the left-out query images on each group's point model "
-                "(one thread), beside linecloud's figures: colmap_registration.md/.json");
-  colmap->add_option("--work", registration->work_dir, "work directory of `eval prepare`")->required();
+      "colmap",
+      "COLMAP itself registering the left-out query images on each group's point model "
+      "(one thread), beside linecloud's figures: colmap_registration.md/.json");
+  colmap->add_option("--work", registration->work_dir, "work directory of `eval prepare`")
+      ->required();
   colmap->add_option("--out", registration->out_dir, "results directory")->required();
   colmap->add_option("--ours", registration->ours,
                      "report.json of `eval run` (direct matching) to set beside COLMAP's");
-  colmap->add_option("--colmap", registration->colmap.executable, "COLMAP executable")->capture_default_str();
+  colmap->add_option("--colmap", registration->colmap.executable, "COLMAP executable")
+      ->capture_default_str();
   colmap->callback([registration] {
     RunColmapRegistration(*registration);
     std::cout << ReadFileToString(JoinPaths(registration->out_dir, "colmap_registration.md"));
@@ -95,8 +110,9 @@ void RegisterEvalCommand(CLI::App& app) {
 
   auto scores = std::make_shared<MatchScoreOptions>();
   CLI::App* scores_cmd = eval->add_subcommand(
-      "scores", "match scores on real photos: Lowe-ratio histograms of true inliers and outliers "
-                "(ground-truth reprojection), inlier share of the best-ranked matches (JSON)");
+      "scores",
+      "match scores on real photos: Lowe-ratio histograms of true inliers and outliers "
+      "(ground-truth reprojection), inlier share of the best-ranked matches (JSON)");
   scores_cmd->add_option("--work", scores->work_dirs, "work directories of `eval prepare` (repeat)")
       ->required();
   scores_cmd->add_option("--out", scores->out, "JSON file")->required();
@@ -119,7 +135,8 @@ void RegisterEvalCommand(CLI::App& app) {
   run->add_option("--sparsify", run_options->lifting.sparsify,
                   "share of map points/lines dropped (keyed, as lift --sparsify)")
       ->capture_default_str();
-  run->add_option("--sparsify-mode", *sparsify_mode, "uniform or balanced (as lift --sparsify-mode)")
+  run->add_option("--sparsify-mode", *sparsify_mode,
+                  "uniform or balanced (as lift --sparsify-mode)")
       ->check(CLI::IsMember({"uniform", "balanced"}))
       ->capture_default_str();
   run->add_option("--resist-attack", run_options->lifting.resist_attack,
@@ -129,13 +146,17 @@ void RegisterEvalCommand(CLI::App& app) {
                 "the compact encoding (lines of a compact256 key derived from the evaluation's)");
   run->add_option("--noise", run_options->noise_px, "Gaussian noise (px) added to the query pixels")
       ->capture_default_str();
-  run->add_option("--threshold", run_options->threshold_px, "RANSAC inlier threshold (px)")->capture_default_str();
+  run->add_option("--threshold", run_options->threshold_px, "RANSAC inlier threshold (px)")
+      ->capture_default_str();
   run->add_option("--seed", run_options->seed, "RANSAC seed")->capture_default_str();
-  run->add_option("--density-sweep", run_options->density_sweep, "dropped shares for the density plot")
+  run->add_option("--density-sweep", run_options->density_sweep,
+                  "dropped shares for the density plot")
       ->capture_default_str();
-  run->add_option("--noise-sweep", run_options->noise_sweep, "synthetic pixel noise levels for the noise plot")
+  run->add_option("--noise-sweep", run_options->noise_sweep,
+                  "synthetic pixel noise levels for the noise plot")
       ->capture_default_str();
-  run->add_option("--noise-queries", run_options->noise_sweep_queries, "synthetic queries per noise level")
+  run->add_option("--noise-queries", run_options->noise_sweep_queries,
+                  "synthetic queries per noise level")
       ->capture_default_str();
   run->add_flag("--no-sweeps", *no_sweeps, "skip the density and noise sweeps (and their plots)");
   run->add_flag("!--no-direct-matching", run_options->direct_matching,

@@ -33,8 +33,8 @@ void RunExport(const ExportArgs& args) {
 
 void RegisterExportCommand(CLI::App& app) {
   auto args = std::make_shared<ExportArgs>();
-  CLI::App* cmd = app.add_subcommand(
-      "export", "Export a line cloud (segments) or a point model to PLY");
+  CLI::App* cmd =
+      app.add_subcommand("export", "Export a line cloud (segments) or a point model to PLY");
   auto* map = cmd->add_option("--map", args->map, "Line-cloud map (.lcm)");
   auto* model = cmd->add_option("--model", args->model, "COLMAP model folder");
   map->excludes(model);

@@ -40,8 +40,7 @@ void RunInfo(const InfoArgs& args) {
   }
   j["key_fingerprint"] = ToHex(cloud.key_fingerprint);
   if (cloud.gravity) j["gravity"] = {cloud.gravity->x(), cloud.gravity->y(), cloud.gravity->z()};
-  j["anchor_bbox"] = {{"min", {min.x(), min.y(), min.z()}},
-                      {"max", {max.x(), max.y(), max.z()}}};
+  j["anchor_bbox"] = {{"min", {min.x(), min.y(), min.z()}}, {"max", {max.x(), max.y(), max.z()}}};
   if (args.json) {
     std::cout << j.dump(2) << "\n";
     return;
@@ -58,16 +57,15 @@ void RunInfo(const InfoArgs& args) {
       "  anchor bbox max   ({:.4f}, {:.4f}, {:.4f})\n"
       "  file size         {} bytes ({:.1f} bytes per line)\n",
       args.map, j["format_version"].get<int>(), cloud.size(), LineEncodingName(cloud.encoding),
-      cloud.has_descriptors()
-          ? fmt::format("yes: {}-D {} ({})", cloud.descriptor_dim,
-                        cloud.descriptor_type, cloud.descriptor_aggregation)
-          : std::string("no"),
+      cloud.has_descriptors() ? fmt::format("yes: {}-D {} ({})", cloud.descriptor_dim,
+                                            cloud.descriptor_type, cloud.descriptor_aggregation)
+                              : std::string("no"),
       ToHex(cloud.key_fingerprint),
-      cloud.gravity ? fmt::format("({:.4f}, {:.4f}, {:.4f})", cloud.gravity->x(), cloud.gravity->y(),
-                                  cloud.gravity->z())
+      cloud.gravity ? fmt::format("({:.4f}, {:.4f}, {:.4f})", cloud.gravity->x(),
+                                  cloud.gravity->y(), cloud.gravity->z())
                     : std::string("unknown (lift --gravity x,y,z)"),
-      min.x(), min.y(), min.z(), max.x(),
-      max.y(), max.z(), data.size(), j["bytes_per_line"].get<double>());
+      min.x(), min.y(), min.z(), max.x(), max.y(), max.z(), data.size(),
+      j["bytes_per_line"].get<double>());
 }
 
 }  // namespace

@@ -32,13 +32,15 @@ void RunLift(LiftArgs args) {
     resist.max_recovered = args.resist_attack;
     resist.Check();
     const bool quiet = args.quiet;
-    args.options.select_points = [resist, quiet](const LiftingKey& key, std::span<const uint64_t> ids,
+    args.options.select_points = [resist, quiet](const LiftingKey& key,
+                                                 std::span<const uint64_t> ids,
                                                  std::span<const Eigen::Vector3d> points) {
       const ResistResult r = SelectAttackResistantPoints(key, ids, points, resist);
       if (!quiet) {
         for (size_t k = 0; k < r.recovered_share.size(); ++k) {
-          std::cerr << fmt::format("resist: round {}: the attack recovers {:.1f} % of the points kept\n",
-                                   k + 1, 100 * r.recovered_share[k]);
+          std::cerr << fmt::format(
+              "resist: round {}: the attack recovers {:.1f} % of the points kept\n", k + 1,
+              100 * r.recovered_share[k]);
         }
       }
       return r.kept;

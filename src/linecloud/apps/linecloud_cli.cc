@@ -32,8 +32,7 @@ int RunLinecloud(int argc, const char* const* argv) {
       names += (names.empty() ? "" : ", ") + sub->get_name();
     }
     if (!known) {
-      std::cerr << "error: unknown command '" << name << "' (commands: " << names
-                << ")\n";
+      std::cerr << "error: unknown command '" << name << "' (commands: " << names << ")\n";
       return 2;
     }
   }

@@ -61,11 +61,13 @@ void RunLocalize(LocalizeArgs args) {
     Fail("give exactly one of --map MAP.lcm (line cloud) or --model DIR (point model)");
   }
   {
-    std::vector<std::string> inputs = {args.map_path, args.model_dir, args.query_path, args.database,
-                                       args.rig};
+    std::vector<std::string> inputs = {args.map_path, args.model_dir, args.query_path,
+                                       args.database, args.rig};
     inputs.insert(inputs.end(), args.image_paths.begin(), args.image_paths.end());
-    for (const auto& [option, output] : {std::pair<const char*, const std::string&>{"--out", args.out},
-                                         {"--ply", args.ply}, {"--overlay", args.overlay}}) {
+    for (const auto& [option, output] :
+         {std::pair<const char*, const std::string&>{"--out", args.out},
+          {"--ply", args.ply},
+          {"--overlay", args.overlay}}) {
       if (!output.empty()) RefuseOutputOverInputs(output, inputs, option);
     }
   }
@@ -73,8 +75,9 @@ void RunLocalize(LocalizeArgs args) {
     Fail("--overlay draws on one photo: it needs exactly one --image");
   }
   if (args.query_path.empty() == args.image_paths.empty()) {
-    Fail("give exactly one of --query QUERY.json (correspondences) or --image PHOTO (with "
-         "--camera)");
+    Fail(
+        "give exactly one of --query QUERY.json (correspondences) or --image PHOTO (with "
+        "--camera)");
   }
   std::optional<LineCloud> cloud;
   std::optional<Reconstruction> model;
@@ -115,8 +118,8 @@ void RunLocalize(LocalizeArgs args) {
       query.gravity_map = cloud->gravity;
     }
   }
-  const LocalizationMap map =
-      model ? LocalizationMap(PointMapFromModel(*model)) : LocalizationMap(LineMapFromCloud(*cloud));
+  const LocalizationMap map = model ? LocalizationMap(PointMapFromModel(*model))
+                                    : LocalizationMap(LineMapFromCloud(*cloud));
   LocalizeOptions& options = args.options;
   options.ransac.max_error = args.threshold;
   options.ransac.seed = args.seed;
@@ -229,8 +232,7 @@ void RegisterLocalizeCommand(CLI::App& app) {
   cmd->add_option("--threshold", args->threshold, "RANSAC inlier threshold in pixels")
       ->capture_default_str();
   cmd->add_option("--seed", args->seed, "RANSAC seed")->capture_default_str();
-  cmd->add_option("--max-iterations", args->options.ransac.max_iterations,
-                  "RANSAC iteration cap")
+  cmd->add_option("--max-iterations", args->options.ransac.max_iterations, "RANSAC iteration cap")
       ->capture_default_str();
   cmd->add_option("--max-seconds", args->options.ransac.max_seconds,
                   "RANSAC time budget in seconds (0: none)")

@@ -26,8 +26,8 @@ void RunMakeQuery(const MakeQueryArgs& args) {
   const ModelQuery q = QueryFromModelImage(model, args.model, args.image, key ? &*key : nullptr);
   nlohmann::json j = QueryToJson(q.query);
   j["image"] = args.image;
-  j["reference"] = {{"cam_from_world", PoseToJson(q.cam_from_world.rotation,
-                                                  q.cam_from_world.translation)}};
+  j["reference"] = {
+      {"cam_from_world", PoseToJson(q.cam_from_world.rotation, q.cam_from_world.translation)}};
   const std::string text = j.dump(1) + "\n";
   WriteFileAtomically(args.out, [&](std::ostream& os) { os << text; });
   std::cout << fmt::format("{} correspondences of {} -> {}{}\n", q.query.observations.size(),
@@ -48,8 +48,7 @@ void RegisterMakeQueryCommand(CLI::App& app) {
   cmd->add_option("--out", args->out, "Output QUERY.json")->required();
   cmd->add_option("--key-file", args->key_file, "The model's lifting key (default: key store)");
   cmd->add_option("--key-store", args->key_store, "Key store (default as for lift)");
-  cmd->add_flag("--points-only", args->points_only,
-                "Point ids only (for --model); needs no key");
+  cmd->add_flag("--points-only", args->points_only, "Point ids only (for --model); needs no key");
   cmd->callback([args] { RunMakeQuery(*args); });
 }
 

@@ -60,8 +60,8 @@ void RunAttack(AttackArgs args) {
 void RunAuditCommand(AuditOptions options, bool quiet) {
   SetProgress(options.attack, quiet);
   if (!options.out_dir.empty()) {
-    RefuseOutputOverInputs(options.out_dir, {options.map_path, options.other_map_path, options.model_dir},
-                           "--out");
+    RefuseOutputOverInputs(options.out_dir,
+                           {options.map_path, options.other_map_path, options.model_dir}, "--out");
   }
   const nlohmann::ordered_json report = RunAudit(options);
   std::cout << report.dump(2) << "\n";

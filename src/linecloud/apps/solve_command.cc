@@ -32,9 +32,10 @@ void RunSolve(const std::string& path) {
 
 void RegisterSolveCommand(CLI::App& app) {
   auto path = std::make_shared<std::string>();
-  CLI::App* cmd = app.add_subcommand(
-      "solve", "Run one minimal solver on one minimal sample (PROBLEM.json) and print "
-               "every solution");
+  CLI::App* cmd =
+      app.add_subcommand("solve",
+                         "Run one minimal solver on one minimal sample (PROBLEM.json) and print "
+                         "every solution");
   cmd->add_option("problem", *path, "Problem file (see SPEC.md)")->required();
   cmd->callback([path] { RunSolve(*path); });
 }

@@ -108,8 +108,7 @@ int ReprojectionResidual(const PoseData& data, const PoseLinearization& pose, si
       const Eigen::Vector3d c = rc.transpose() * a.cross(cam_from_rig.translation);
       const Eigen::Vector3d bt = b.cross(pose.translation);
       jacobian->setZero();
-      jacobian->block<1, 3>(0, 0) =
-          (-s * b.cross(rw) - bt.cross(rv) - c.cross(rv)).transpose();
+      jacobian->block<1, 3>(0, 0) = (-s * b.cross(rw) - bt.cross(rv) - c.cross(rv)).transpose();
       jacobian->block<1, 3>(0, 3) = -b.cross(rv).transpose();
       (*jacobian)(0, 6) = s * b.dot(rw);
     }

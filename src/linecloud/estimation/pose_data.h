@@ -23,14 +23,14 @@ namespace linecloud {
 constexpr double kCheiralityBelow = 1e4;
 
 struct PoseData {
-  std::vector<Rigid3d> cam_from_rig;        // one per camera; identity for one image
-  std::vector<int> camera;                  // camera of each correspondence
-  std::vector<Eigen::Vector2d> normalized;  // undistorted image point (x/z, y/z)
-  std::vector<double> focal;                // pixels per normalised unit, per correspondence
-  std::vector<Eigen::Vector3d> bearings;    // unit, camera frame
+  std::vector<Rigid3d> cam_from_rig;          // one per camera; identity for one image
+  std::vector<int> camera;                    // camera of each correspondence
+  std::vector<Eigen::Vector2d> normalized;    // undistorted image point (x/z, y/z)
+  std::vector<double> focal;                  // pixels per normalised unit, per correspondence
+  std::vector<Eigen::Vector3d> bearings;      // unit, camera frame
   std::vector<Eigen::Vector3d> points_local;  // +l: X̃ in the rig frame
-  std::vector<Eigen::Vector3d> points;      // point map (empty for a line map)
-  std::vector<PluckerLine> lines;           // line map (empty for a point map)
+  std::vector<Eigen::Vector3d> points;        // point map (empty for a line map)
+  std::vector<PluckerLine> lines;             // line map (empty for a point map)
   // Correspondence indices by match quality, best first (PROSAC); empty when
   // the matches have no scores.
   std::vector<int> ranking;
@@ -51,8 +51,8 @@ void CheckIndices(const PoseData& data, std::span<const int> indices, const char
 
 // Per-camera cam_from_world (Sim3: scale of query_from_world) for one pose.
 struct CameraPoses {
-  std::vector<Eigen::Matrix3d> rotation;      // R_C = R_c R
-  std::vector<Eigen::Vector3d> translation;   // t_C = R_c t + t_c
+  std::vector<Eigen::Matrix3d> rotation;         // R_C = R_c R
+  std::vector<Eigen::Vector3d> translation;      // t_C = R_c t + t_c
   std::vector<Eigen::Matrix3d> scaled_rotation;  // s R_C
   std::vector<Eigen::Matrix3d> moment_from_v;    // [t_C]× R_C: w_cam = s R_C w + [t_C]× R_C v
   double scale = 1;
@@ -65,16 +65,16 @@ struct CameraPoses {
 // viewing ray comes closest to it. That line test is skipped for errors of at
 // least `cheirality_below` px² (outliers to the caller anyway).
 // (Inline below: RANSAC scores every correspondence of every model with it.)
-inline double SquaredReprojectionError(const PoseData& data, const CameraPoses& poses,
-                                       size_t i, double cheirality_below = kCheiralityBelow);
+inline double SquaredReprojectionError(const PoseData& data, const CameraPoses& poses, size_t i,
+                                       double cheirality_below = kCheiralityBelow);
 
 // A pose with its rotation matrices computed once, for evaluating many
 // residuals.
 struct PoseLinearization {
-  Eigen::Matrix3d rotation;                      // of query_from_world
+  Eigen::Matrix3d rotation;  // of query_from_world
   Eigen::Vector3d translation;
   double scale = 1;
-  std::vector<Eigen::Matrix3d> cam_rotation;     // of cam_from_rig, per camera
+  std::vector<Eigen::Matrix3d> cam_rotation;  // of cam_from_rig, per camera
 
   PoseLinearization(const PoseData& data, const Sim3d& query_from_world);
 };
@@ -89,8 +89,7 @@ struct PoseLinearization {
 int ReprojectionResidual(const PoseData& data, const PoseLinearization& pose, size_t i,
                          Eigen::Vector2d* residual, Eigen::Matrix<double, 2, 7>* jacobian);
 inline int ReprojectionResidual(const PoseData& data, const Sim3d& query_from_world, size_t i,
-                                Eigen::Vector2d* residual,
-                                Eigen::Matrix<double, 2, 7>* jacobian) {
+                                Eigen::Vector2d* residual, Eigen::Matrix<double, 2, 7>* jacobian) {
   return ReprojectionResidual(data, PoseLinearization(data, query_from_world), i, residual,
                               jacobian);
 }
@@ -110,8 +109,8 @@ inline bool LineInFront(const Eigen::Vector3d& anchor, const Eigen::Vector3d& v,
 
 }  // namespace internal
 
-inline double SquaredReprojectionError(const PoseData& data, const CameraPoses& poses,
-                                       size_t i, double cheirality_below) {
+inline double SquaredReprojectionError(const PoseData& data, const CameraPoses& poses, size_t i,
+                                       double cheirality_below) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
   const int c = data.camera[i];
   const Eigen::Matrix3d& r = poses.rotation[c];
@@ -120,8 +119,7 @@ inline double SquaredReprojectionError(const PoseData& data, const CameraPoses& 
   const double f = data.focal[i];
   if (data.has_lines()) {
     const PluckerLine& l = data.lines[i];
-    const Eigen::Vector3d w =
-        poses.scaled_rotation[c] * l.w + poses.moment_from_v[c] * l.v;
+    const Eigen::Vector3d w = poses.scaled_rotation[c] * l.w + poses.moment_from_v[c] * l.v;
     const double n2 = w.x() * w.x() + w.y() * w.y();
     if (!(n2 > 0)) return kInf;
     const double e = w.x() * x.x() + w.y() * x.y() + w.z();

@@ -96,8 +96,7 @@ double PoseEstimator::score_model(const Sim3d& model, double threshold, double b
   return score;
 }
 
-void PoseEstimator::inliers(const Sim3d& model, double threshold,
-                            std::vector<char>* mask) const {
+void PoseEstimator::inliers(const Sim3d& model, double threshold, std::vector<char>* mask) const {
   const CameraPoses poses(data_, model);
   mask->assign(data_.size(), 0);
   const double t2 = threshold * threshold;

@@ -31,8 +31,7 @@ class PoseEstimator {
   int num_data() const { return static_cast<int>(data_.size()); }
   int sample_size() const { return method_.sample_size; }
   int generate_models(std::span<const int> sample, std::vector<Sim3d>* out);
-  double score_model(const Sim3d& model, double threshold, double bound,
-                     int* num_inliers) const;
+  double score_model(const Sim3d& model, double threshold, double bound, int* num_inliers) const;
   void refine_model(Sim3d* model, double threshold);
   void inliers(const Sim3d& model, double threshold, std::vector<char>* mask) const;
 

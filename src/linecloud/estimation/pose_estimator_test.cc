@@ -22,21 +22,25 @@ TEST(PoseEstimator, PreconditionsAtTheEntryPoints) {
   const PreparedQuery prepared = PrepareQuery(p6l, inst.query, LocalizationMap(inst.line_map));
   PoseData short_focal = prepared.data;
   short_focal.focal.pop_back();
-  EXPECT_NE(testing::ErrorOf([&] { PoseEstimator(p6l, short_focal, RefineOptions{}); })
-                .find("PoseEstimator: pose data has 40 cameras but 39 focal lengths"),
+  EXPECT_NE(testing::ErrorOf([&] {
+              PoseEstimator(p6l, short_focal, RefineOptions{});
+            }).find("PoseEstimator: pose data has 40 cameras but 39 focal lengths"),
             std::string::npos);
   PoseData bad_camera = prepared.data;
   bad_camera.camera[3] = 2;
-  EXPECT_NE(testing::ErrorOf([&] { PoseEstimator(p6l, bad_camera, RefineOptions{}); })
-                .find("correspondence 3 has camera 2"),
+  EXPECT_NE(testing::ErrorOf([&] {
+              PoseEstimator(p6l, bad_camera, RefineOptions{});
+            }).find("correspondence 3 has camera 2"),
             std::string::npos);
-  EXPECT_NE(testing::ErrorOf([&] { PoseEstimator(FindMethod("p3P"), prepared.data, {}); })
-                .find("method p3P needs points"),
+  EXPECT_NE(testing::ErrorOf([&] {
+              PoseEstimator(FindMethod("p3P"), prepared.data, {});
+            }).find("method p3P needs points"),
             std::string::npos);
   Sim3d pose = inst.truth;
   const std::vector<int> out_of_range = {0, 1, 40};
-  EXPECT_NE(testing::ErrorOf([&] { RefinePose(prepared.data, out_of_range, {}, &pose); })
-                .find("RefinePose: correspondence index 40 out of range"),
+  EXPECT_NE(testing::ErrorOf([&] {
+              RefinePose(prepared.data, out_of_range, {}, &pose);
+            }).find("RefinePose: correspondence index 40 out of range"),
             std::string::npos);
   EXPECT_THROW(RefinePose(prepared.data, std::vector<int>{0}, {}, nullptr), Error);
   EXPECT_THROW(EstimatePoseUncertainty(prepared.data, out_of_range, pose, false), Error);
@@ -58,29 +62,31 @@ TEST_P(PoseEstimatorTest, ScoresTheTruePoseAndRejectsWrongOnes) {
   options.local_noise = 0;
   for (int trial = 0; trial < 10; ++trial) {
     const LocalizationInstance inst = RandomLocalizationInstance(method, options, rng);
-    const LocalizationMap map = method.lines ? LocalizationMap(inst.line_map)
-                                             : LocalizationMap(inst.point_map);
+    const LocalizationMap map =
+        method.lines ? LocalizationMap(inst.line_map) : LocalizationMap(inst.point_map);
     const PreparedQuery prepared = PrepareQuery(method, inst.query, map);
     PoseEstimator estimator(method, prepared.data, RefineOptions{});
     // The truth in the solvers' (gravity-aligned) frames.
-    const Sim3d aligned_truth = Sim3d(1.0, prepared.aligned_from_query, Eigen::Vector3d::Zero()) *
-                                inst.truth *
-                                Sim3d(1.0, prepared.aligned_from_map.inverse(), Eigen::Vector3d::Zero());
+    const Sim3d aligned_truth =
+        Sim3d(1.0, prepared.aligned_from_query, Eigen::Vector3d::Zero()) * inst.truth *
+        Sim3d(1.0, prepared.aligned_from_map.inverse(), Eigen::Vector3d::Zero());
     constexpr double kThreshold = 4.0;
     int inliers = 0;
-    const double score =
-        estimator.score_model(aligned_truth, kThreshold, std::numeric_limits<double>::infinity(), &inliers);
+    const double score = estimator.score_model(aligned_truth, kThreshold,
+                                               std::numeric_limits<double>::infinity(), &inliers);
     int true_inliers = 0;
     for (char c : inst.is_inlier) true_inliers += c;
     EXPECT_GE(inliers, true_inliers * 99 / 100) << method.name;
     EXPECT_LE(inliers, true_inliers + 6) << method.name;  // chance agreements
     int bounded_inliers = 0;
-    EXPECT_DOUBLE_EQ(estimator.score_model(aligned_truth, kThreshold, 1.01 * score, &bounded_inliers), score);
+    EXPECT_DOUBLE_EQ(
+        estimator.score_model(aligned_truth, kThreshold, 1.01 * score, &bounded_inliers), score);
     // 5° and 5 % of the scene off: a wrong model.
     Eigen::Matrix<double, 7, 1> offset;
     offset << 0.05, -0.06, 0.04, 0.5, -0.3, 0.2, 0.0;
     const Sim3d wrong = PerturbPose(aligned_truth, offset);
-    EXPECT_GE(estimator.score_model(wrong, kThreshold, 1.01 * score, &bounded_inliers), 1.01 * score);
+    EXPECT_GE(estimator.score_model(wrong, kThreshold, 1.01 * score, &bounded_inliers),
+              1.01 * score);
     // An all-inlier sample gives back the truth (up to the noise).
     std::vector<int> sample;
     for (int i = 0; sample.size() < static_cast<size_t>(method.sample_size); ++i) {

@@ -40,13 +40,13 @@
 namespace linecloud {
 
 struct RansacOptions {
-  double max_error = 4.0;        // inlier threshold, in the estimator's units (px)
-  double confidence = 0.9999;    // probability of drawing one all-inlier sample
-  int min_iterations = 10;       // uniform sampling only (see `enough` in Ransac)
+  double max_error = 4.0;      // inlier threshold, in the estimator's units (px)
+  double confidence = 0.9999;  // probability of drawing one all-inlier sample
+  int min_iterations = 10;     // uniform sampling only (see `enough` in Ransac)
   int max_iterations = 10000;
   bool local_optimization = true;
   uint64_t seed = 0;
-  double max_seconds = 0;        // wall-clock budget; 0: none
+  double max_seconds = 0;  // wall-clock budget; 0: none
   // With a ranking of the data (best first): PROSAC sampling and stopping
   // (sampler.h). Without one, or when false: uniform samples.
   bool progressive_sampling = true;
@@ -77,13 +77,13 @@ struct RansacStats {
   int iterations = 0;
   int num_inliers = 0;
   double inlier_ratio = 0;
-  double mean_solutions = 0;     // models per minimal sample
-  double solver_us = 0;          // mean time of one generate_models call
-  double ransac_ms = 0;          // whole run, local optimisation included
-  double solver_ms = 0;          // of which minimal solvers,
-  double scoring_ms = 0;         // scoring hypotheses,
-  double lo_ms = 0;              // local optimisation (refine and re-score)
-  bool progressive = false;      // PROSAC samples (a ranking was given)
+  double mean_solutions = 0;  // models per minimal sample
+  double solver_us = 0;       // mean time of one generate_models call
+  double ransac_ms = 0;       // whole run, local optimisation included
+  double solver_ms = 0;       // of which minimal solvers,
+  double scoring_ms = 0;      // scoring hypotheses,
+  double lo_ms = 0;           // local optimisation (refine and re-score)
+  bool progressive = false;   // PROSAC samples (a ranking was given)
   int local_optimizations = 0;
   // Why the run stopped: "confidence" (enough iterations for an all-inlier
   // sample), "max_iterations" or "max_seconds".
@@ -205,8 +205,7 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
         estimator.inliers(model, options.max_error, &mask);
         stopping.Update(mask, ranking);
         prosac->LimitGrowth(stopping.best_prefix());
-        needed = iteration + 1 +
-                 stopping.Remaining(prosac->subset_size(), options.max_iterations);
+        needed = iteration + 1 + stopping.Remaining(prosac->subset_size(), options.max_iterations);
       } else {
         needed = RequiredIterations(static_cast<double>(inliers) / n, k, options.confidence,
                                     options.max_iterations);

@@ -156,7 +156,7 @@ TEST(ProgressiveSampler, DrawsTheBestFirstAndGrowsToAllTheData) {
     std::sort(sample.begin(), sample.end());
     ASSERT_EQ(std::adjacent_find(sample.begin(), sample.end()), sample.end()) << "repeated index";
     for (int s : sample) ASSERT_LT(n - 1 - s, sampler.subset_size());  // inside U_n
-    if (sampler.last_with_newest()) {  // u_n is in the sample
+    if (sampler.last_with_newest()) {                                  // u_n is in the sample
       ASSERT_EQ(sample.front(), n - sampler.subset_size());
     }
   }

@@ -32,8 +32,8 @@ struct Linearization {
   Eigen::Matrix<double, 7, 1> g;
 };
 
-void Linearize(const PoseData& data, std::span<const int> indices, const Sim3d& pose,
-               double c2, Linearization* out) {
+void Linearize(const PoseData& data, std::span<const int> indices, const Sim3d& pose, double c2,
+               Linearization* out) {
   out->cost = 0;
   out->h.setZero();
   out->g.setZero();
@@ -69,9 +69,9 @@ void RefineOptions::Check() const {
 Sim3d PerturbPose(const Sim3d& pose, const Eigen::Matrix<double, 7, 1>& delta) {
   const Eigen::Vector3d omega = delta.head<3>();
   const double angle = omega.norm();
-  const Eigen::Quaterniond dq =
-      angle > 0 ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, omega / angle))
-                : Eigen::Quaterniond::Identity();
+  const Eigen::Quaterniond dq = angle > 0
+                                    ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, omega / angle))
+                                    : Eigen::Quaterniond::Identity();
   return Sim3d(pose.scale * std::exp(delta[6]), (dq * pose.rotation).normalized(),
                pose.translation + delta.segment<3>(3));
 }
@@ -144,8 +144,8 @@ struct PoseInformation {
   int rows = 0;
 };
 
-PoseInformation InformationAt(const PoseData& data, std::span<const int> indices,
-                              const Sim3d& pose, int dim) {
+PoseInformation InformationAt(const PoseData& data, std::span<const int> indices, const Sim3d& pose,
+                              int dim) {
   const PoseLinearization linearization(data, pose);
   Eigen::Matrix<double, 7, 7> fisher = Eigen::Matrix<double, 7, 7>::Zero();
   Eigen::Vector2d r;
@@ -161,8 +161,8 @@ PoseInformation InformationAt(const PoseData& data, std::span<const int> indices
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(f);
   const Eigen::VectorXd& values = eigen.eigenvalues();  // ascending
   if (values[0] > 1e-12 * values[dim - 1]) {
-    info.inverse =
-        eigen.eigenvectors() * values.cwiseInverse().asDiagonal() * eigen.eigenvectors().transpose();
+    info.inverse = eigen.eigenvectors() * values.cwiseInverse().asDiagonal() *
+                   eigen.eigenvectors().transpose();
   }
   return info;
 }

@@ -12,10 +12,10 @@ namespace linecloud {
 
 struct RefineOptions {
   int max_iterations = 30;
-  double loss_scale = 1.0;             // Cauchy loss scale, px
-  double function_tolerance = 1e-5;    // stop when the cost drops by less (relative)
-  double step_tolerance = 1e-12;       // stop when the update is smaller
-  bool similarity = false;             // also refine the scale (Sim3)
+  double loss_scale = 1.0;           // Cauchy loss scale, px
+  double function_tolerance = 1e-5;  // stop when the cost drops by less (relative)
+  double step_tolerance = 1e-12;     // stop when the update is smaller
+  bool similarity = false;           // also refine the scale (Sim3)
 
   void Check() const;
 };

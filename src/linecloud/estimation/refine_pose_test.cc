@@ -14,14 +14,13 @@ namespace {
 
 // Noise-free correspondences of a 3-camera rig (or one camera at the origin)
 // seeing points, optionally replaced by random lines through them.
-PoseData RandomPoseData(bool lines, bool rig, const Sim3d& query_from_world,
-                        std::mt19937_64& rng) {
+PoseData RandomPoseData(bool lines, bool rig, const Sim3d& query_from_world, std::mt19937_64& rng) {
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   PoseData d;
   const int cameras = rig ? 3 : 1;
   for (int c = 0; c < cameras; ++c) {
-    d.cam_from_rig.push_back(rig ? Rigid3d(RandomRotation(rng), Eigen::Vector3d(u(rng), u(rng), u(rng)))
-                                 : Rigid3d());
+    d.cam_from_rig.push_back(
+        rig ? Rigid3d(RandomRotation(rng), Eigen::Vector3d(u(rng), u(rng), u(rng))) : Rigid3d());
   }
   const Sim3d world_from_query = query_from_world.Inverse();
   for (int i = 0; i < 60; ++i) {
@@ -73,8 +72,8 @@ TEST_P(RefinePoseTest, JacobiansMatchCentralDifferences) {
       ReprojectionResidual(d, PerturbPose(pose, -delta), i, &rm, nullptr);
       const Eigen::Vector2d numeric = (rp - rm) / (2 * h);
       for (int row = 0; row < n; ++row) {
-        worst = std::max(worst, std::abs(numeric[row] - j(row, k)) /
-                                    std::max(1.0, std::abs(numeric[row])));
+        worst = std::max(
+            worst, std::abs(numeric[row] - j(row, k)) / std::max(1.0, std::abs(numeric[row])));
       }
     }
   }
@@ -110,14 +109,14 @@ TEST_P(RefinePoseTest, RecoversThePoseFromAPerturbedStart) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    AllCases, RefinePoseTest,
-    ::testing::Combine(::testing::Bool(), ::testing::Bool(), ::testing::Bool()),
-    [](const auto& info) {
-      return std::string(std::get<0>(info.param) ? "Lines" : "Points") +
-             (std::get<1>(info.param) ? "Rig" : "Single") +
-             (std::get<2>(info.param) ? "Sim3" : "SE3");
-    });
+INSTANTIATE_TEST_SUITE_P(AllCases, RefinePoseTest,
+                         ::testing::Combine(::testing::Bool(), ::testing::Bool(),
+                                            ::testing::Bool()),
+                         [](const auto& info) {
+                           return std::string(std::get<0>(info.param) ? "Lines" : "Points") +
+                                  (std::get<1>(info.param) ? "Rig" : "Single") +
+                                  (std::get<2>(info.param) ? "Sim3" : "SE3");
+                         });
 
 // The same correspondences against lines through their points, with random
 // directions.
@@ -166,8 +165,8 @@ TEST(RotationErrorBound, IsAttainedByTheRefinementForPointsAndLines) {
       }
       rms[kind] = std::sqrt(sum / kTrials);
       // 400 trials of a 3-D error: the RMS is known to ~3 % (one σ).
-      EXPECT_NEAR(rms[kind] / bound[kind], 1.0, 0.12) << (kind ? "lines" : "points")
-                                                      << (rig ? ", rig" : ", single");
+      EXPECT_NEAR(rms[kind] / bound[kind], 1.0, 0.12)
+          << (kind ? "lines" : "points") << (rig ? ", rig" : ", single");
     }
     // F_line = Σ Jᵀ n nᵀ J ⪯ F_point: a line never informs more than its point.
     EXPECT_GT(bound[1], bound[0]);

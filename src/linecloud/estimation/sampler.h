@@ -140,7 +140,7 @@ class ProgressiveSampler {
   double t_n_ = 0;   // T_n
   int t_prime_ = 1;  // T'_n
   bool with_newest_ = true;
-  int limit_;        // n*: the prefix does not grow beyond it
+  int limit_;  // n*: the prefix does not grow beyond it
 };
 
 class ProgressiveStopping {
@@ -149,7 +149,9 @@ class ProgressiveStopping {
   static constexpr double kPsi = 0.05;   // level of the non-randomness test
 
   ProgressiveStopping(int num_data, int sample_size, double confidence)
-      : n_(num_data), k_(sample_size), log_eta_(std::log(1 - confidence)),
+      : n_(num_data),
+        k_(sample_size),
+        log_eta_(std::log(1 - confidence)),
         counts_(2 * (static_cast<size_t>(num_data) + 1), 0) {
     min_inliers_.resize(static_cast<size_t>(n_) + 1);
     for (int n = 0; n <= n_; ++n) min_inliers_[static_cast<size_t>(n)] = ComputeMinInliers(n);
@@ -233,8 +235,7 @@ class ProgressiveStopping {
     if (m > 60) {
       // Normal approximation of the binomial tail.
       constexpr double kZ = 1.6449;  // one-sided 5 %
-      return k_ + static_cast<int>(
-                      std::ceil(kBeta * m + kZ * std::sqrt(kBeta * (1 - kBeta) * m)));
+      return k_ + static_cast<int>(std::ceil(kBeta * m + kZ * std::sqrt(kBeta * (1 - kBeta) * m)));
     }
     // Exact: the smallest j with P(Bin(m, β) ≥ j) < ψ.
     double pmf = std::pow(1 - kBeta, m);  // P(0)
@@ -252,7 +253,7 @@ class ProgressiveStopping {
   bool has_model_ = false;
   double log_miss_ = 0;
   int best_prefix_ = 0;
-  std::vector<int> counts_;          // samples per (prefix, with_newest)
+  std::vector<int> counts_;  // samples per (prefix, with_newest)
   std::vector<int> min_inliers_;
   std::vector<char> ranking_inlier_;  // [n]: the n-th ranked datum is an inlier
   std::vector<int> prefix_inliers_;

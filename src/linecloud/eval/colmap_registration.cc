@@ -56,7 +56,8 @@ std::map<std::string, int64_t> DatabaseWithout(const std::string& source, const 
     if (!copied) Fail("{}: copying the COLMAP database to {} failed", source, target);
     for (const std::string& name : names) {
       sqlite3_stmt* stmt = nullptr;
-      sqlite3_prepare_v2(dst, "SELECT image_id, camera_id FROM images WHERE name = ?", -1, &stmt, nullptr);
+      sqlite3_prepare_v2(dst, "SELECT image_id, camera_id FROM images WHERE name = ?", -1, &stmt,
+                         nullptr);
       sqlite3_bind_text(stmt, 1, name.c_str(), -1, SQLITE_TRANSIENT);
       int64_t id = -1, camera = -1;
       if (sqlite3_step(stmt) == SQLITE_ROW) {
@@ -70,8 +71,9 @@ std::map<std::string, int64_t> DatabaseWithout(const std::string& source, const 
         Exec(dst, fmt::format("DELETE FROM {} WHERE image_id = {}", table, id), target);
       }
       for (const char* table : {"matches", "two_view_geometries"}) {
-        Exec(dst, fmt::format("DELETE FROM {} WHERE pair_id / {} = {} OR pair_id % {} = {}", table,
-                              kMaxNumImages, id, kMaxNumImages, id),
+        Exec(dst,
+             fmt::format("DELETE FROM {} WHERE pair_id / {} = {} OR pair_id % {} = {}", table,
+                         kMaxNumImages, id, kMaxNumImages, id),
              target);
       }
     }
@@ -116,8 +118,9 @@ std::string Markdown(const ojson& r) {
       "Errors against the ground truth as in `eval run`; seconds per image (COLMAP: the group's "
       "matching and registration shared among its images).\n\n",
       r["colmap_version"].get<std::string>(), r["dataset"].get<std::string>());
-  md += "| image | COLMAP error | COLMAP s (extract + match + register) | linecloud p6L error | "
-        "p6L s | linecloud p3P error | p3P s |\n|---|---|---|---|---|---|---|\n";
+  md +=
+      "| image | COLMAP error | COLMAP s (extract + match + register) | linecloud p6L error | "
+      "p6L s | linecloud p3P error | p3P s |\n|---|---|---|---|---|---|---|\n";
   auto err = [](const ojson& j) {
     return j.is_null() ? std::string("not registered")
                        : fmt::format("{:.4f}° / {:.4f}", j["rotation_deg"].get<double>(),
@@ -146,14 +149,13 @@ std::string Markdown(const ojson& r) {
                     s["colmap_median_translation"].get<double>(),
                     s["colmap_mean_seconds"].get<double>());
   if (s.contains("p6L_median_rotation_deg")) {
-    md += fmt::format(" linecloud p6L: median {:.4f}° / {:.4f} ({:.2f}× COLMAP's rotation error), "
-                      "{:.2f} s per image ({:.2f}× COLMAP's time).",
-                      s["p6L_median_rotation_deg"].get<double>(),
-                      s["p6L_median_translation"].get<double>(),
-                      s["p6L_median_rotation_deg"].get<double>() /
-                          s["colmap_median_rotation_deg"].get<double>(),
-                      s["p6L_mean_seconds"].get<double>(),
-                      s["p6L_mean_seconds"].get<double>() / s["colmap_mean_seconds"].get<double>());
+    md += fmt::format(
+        " linecloud p6L: median {:.4f}° / {:.4f} ({:.2f}× COLMAP's rotation error), "
+        "{:.2f} s per image ({:.2f}× COLMAP's time).",
+        s["p6L_median_rotation_deg"].get<double>(), s["p6L_median_translation"].get<double>(),
+        s["p6L_median_rotation_deg"].get<double>() / s["colmap_median_rotation_deg"].get<double>(),
+        s["p6L_mean_seconds"].get<double>(),
+        s["p6L_mean_seconds"].get<double>() / s["colmap_mean_seconds"].get<double>());
   }
   return md + "\n";
 }
@@ -194,11 +196,12 @@ GroupRegistration RegisterGroup(const std::string& work_dir, const EvalGroup& g,
   const std::string out_model = JoinPaths(dir, "model");
   CreateDirectories(out_model);
   t0 = std::chrono::steady_clock::now();
-  RunColmapCommand({colmap.executable, "image_registrator", "--database_path", db, "--input_path",
-                    JoinPaths(work_dir, g.map_dir), "--output_path", out_model,
-                    "--Mapper.num_threads", "1", "--Mapper.ba_refine_focal_length", "0",
-                    "--Mapper.ba_refine_principal_point", "0", "--Mapper.ba_refine_extra_params", "0"},
-                   JoinPaths(dir, "image_registrator.log"), colmap);
+  RunColmapCommand(
+      {colmap.executable, "image_registrator", "--database_path", db, "--input_path",
+       JoinPaths(work_dir, g.map_dir), "--output_path", out_model, "--Mapper.num_threads", "1",
+       "--Mapper.ba_refine_focal_length", "0", "--Mapper.ba_refine_principal_point", "0",
+       "--Mapper.ba_refine_extra_params", "0"},
+      JoinPaths(dir, "image_registrator.log"), colmap);
   r.register_s = SecondsSince(t0);
   r.model = ReadRegistered(out_model);
   return r;
@@ -215,9 +218,9 @@ ojson ImageRow(const EvalGroup& g, const EvalImage& im, const GroupRegistration&
              {"error", nullptr}};
   for (const auto& [id, image] : r.model.images) {
     if (image.name != im.name) continue;
-    const LocalizationError e =
-        CompareLocalization(Sim3d(1.0, image.cam_from_world.rotation, image.cam_from_world.translation),
-                            Sim3d(1.0, im.cam_from_world.rotation, im.cam_from_world.translation));
+    const LocalizationError e = CompareLocalization(
+        Sim3d(1.0, image.cam_from_world.rotation, image.cam_from_world.translation),
+        Sim3d(1.0, im.cam_from_world.rotation, im.cam_from_world.translation));
     c["error"] = {{"rotation_deg", e.rotation_rad * kDeg}, {"translation", e.position}};
   }
   return {{"group", g.name}, {"image", im.name}, {"colmap", c}, {"ours", OursFor(ours, im.name)}};
@@ -293,8 +296,11 @@ ojson RunColmapRegistration(const ColmapRegistrationOptions& o) {
                g.images.size(), r.match_s, r.register_s);
     std::fflush(stdout);
   }
-  const ojson report = {{"dataset", work.dataset}, {"colmap_version", ColmapVersion(o.work_dir)},
-                        {"units", work.units}, {"summary", Summary(images)}, {"images", images}};
+  const ojson report = {{"dataset", work.dataset},
+                        {"colmap_version", ColmapVersion(o.work_dir)},
+                        {"units", work.units},
+                        {"summary", Summary(images)},
+                        {"images", images}};
   WriteFileAtomically(JoinPaths(o.out_dir, "colmap_registration.json"),
                       [&](std::ostream& out) { out << report.dump(2) << "\n"; });
   WriteFileAtomically(JoinPaths(o.out_dir, "colmap_registration.md"),

@@ -61,7 +61,8 @@ class Fingerprint {
 
 std::string ColmapVersion(const ColmapOptions& options, const std::string& log_dir) {
   const std::string log = JoinPaths(log_dir, "colmap_version.log");
-  RunColmapCommand({options.executable, "help"}, log, ColmapOptions{.executable = options.executable});
+  RunColmapCommand({options.executable, "help"}, log,
+                   ColmapOptions{.executable = options.executable});
   std::ifstream in(log);
   std::string line;
   while (std::getline(in, line)) {
@@ -106,7 +107,8 @@ void WriteStamp(const std::string& stamp_path, const std::string& fingerprint) {
 
 void ColmapOptions::Check() const {
   if (executable.empty()) Fail("colmap executable: empty path");
-  if (num_threads == 0 || num_threads < -1) Fail("colmap threads: {} (use -1 for all cores)", num_threads);
+  if (num_threads == 0 || num_threads < -1)
+    Fail("colmap threads: {} (use -1 for all cores)", num_threads);
   if (max_image_size < 100) Fail("colmap max image size: {} < 100", max_image_size);
 }
 
@@ -118,14 +120,16 @@ void RunColmapCommand(const std::vector<std::string>& args, const std::string& l
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   if (!options.verbose) {
-    posix_spawn_file_actions_addopen(&actions, 1, log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    posix_spawn_file_actions_addopen(&actions, 1, log_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC,
+                                     0644);
     posix_spawn_file_actions_adddup2(&actions, 1, 2);
   }
   pid_t pid = 0;
   const int rc = posix_spawnp(&pid, args[0].c_str(), &actions, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&actions);
   if (rc != 0) {
-    Fail("cannot run '{}': {} (install COLMAP: apt-get install colmap)", args[0], std::strerror(rc));
+    Fail("cannot run '{}': {} (install COLMAP: apt-get install colmap)", args[0],
+         std::strerror(rc));
   }
   int status = 0;
   if (waitpid(pid, &status, 0) < 0) Fail("waiting for '{}' failed", args[0]);
@@ -142,7 +146,8 @@ Reconstruction ReconstructDataset(const EvalDataset& dataset, const std::string&
   const std::string images_dir = JoinPaths(dataset.dir, "images");
   Fingerprint fp;
   fp.Add(ColmapVersion(options, colmap_dir));
-  fp.Add(fmt::format("max_image_size={} accurate={}", options.max_image_size, options.accurate_features));
+  fp.Add(fmt::format("max_image_size={} accurate={}", options.max_image_size,
+                     options.accurate_features));
   for (const auto& [id, camera] : dataset.cameras) {
     fp.Add(fmt::format("{} {} {} {} {}", id, CameraModelName(camera.model_id), camera.width,
                        camera.height, CameraParams(camera)));
@@ -183,36 +188,54 @@ Reconstruction ReconstructDataset(const EvalDataset& dataset, const std::string&
     fmt::print("[eval] COLMAP feature extraction: camera {} ({}), {} images ...\n", camera_id,
                CameraModelName(camera.model_id), names.size());
     std::fflush(stdout);
-    RunColmapCommand({options.executable, "feature_extractor", "--database_path", database,
-                      "--image_path", images_dir, "--image_list_path", list,
-                      "--ImageReader.camera_model", std::string(CameraModelName(camera.model_id)),
-                      "--ImageReader.camera_params", CameraParams(camera),
-                      "--ImageReader.single_camera", "1", "--SiftExtraction.use_gpu", "0",
-                      "--SiftExtraction.num_threads", ThreadsArg(options),
-                      "--SiftExtraction.max_image_size", std::to_string(options.max_image_size),
-                      "--SiftExtraction.estimate_affine_shape", options.accurate_features ? "1" : "0",
-                      "--SiftExtraction.domain_size_pooling", options.accurate_features ? "1" : "0"},
-                     JoinPaths(colmap_dir, fmt::format("feature_extractor_camera{}.log", camera_id)),
-                     options);
+    RunColmapCommand(
+        {options.executable,
+         "feature_extractor",
+         "--database_path",
+         database,
+         "--image_path",
+         images_dir,
+         "--image_list_path",
+         list,
+         "--ImageReader.camera_model",
+         std::string(CameraModelName(camera.model_id)),
+         "--ImageReader.camera_params",
+         CameraParams(camera),
+         "--ImageReader.single_camera",
+         "1",
+         "--SiftExtraction.use_gpu",
+         "0",
+         "--SiftExtraction.num_threads",
+         ThreadsArg(options),
+         "--SiftExtraction.max_image_size",
+         std::to_string(options.max_image_size),
+         "--SiftExtraction.estimate_affine_shape",
+         options.accurate_features ? "1" : "0",
+         "--SiftExtraction.domain_size_pooling",
+         options.accurate_features ? "1" : "0"},
+        JoinPaths(colmap_dir, fmt::format("feature_extractor_camera{}.log", camera_id)), options);
   }
   fmt::print("[eval]   done in {:.0f} s; exhaustive matching of {} images ...\n", SecondsSince(t0),
              dataset.images.size());
   std::fflush(stdout);
   t0 = std::chrono::steady_clock::now();
-  RunColmapCommand({options.executable, "exhaustive_matcher", "--database_path", database,
-                    "--SiftMatching.use_gpu", "0", "--SiftMatching.num_threads", ThreadsArg(options),
-                    "--SiftMatching.guided_matching", options.accurate_features ? "1" : "0"},
-                   JoinPaths(colmap_dir, "exhaustive_matcher.log"), options);
+  RunColmapCommand(
+      {options.executable, "exhaustive_matcher", "--database_path", database,
+       "--SiftMatching.use_gpu", "0", "--SiftMatching.num_threads", ThreadsArg(options),
+       "--SiftMatching.guided_matching", options.accurate_features ? "1" : "0"},
+      JoinPaths(colmap_dir, "exhaustive_matcher.log"), options);
   fmt::print("[eval]   done in {:.0f} s; mapping (intrinsics fixed) ...\n", SecondsSince(t0));
   std::fflush(stdout);
   t0 = std::chrono::steady_clock::now();
-  RunColmapCommand({options.executable, "mapper", "--database_path", database, "--image_path",
-                    images_dir, "--output_path", sparse, "--Mapper.num_threads", ThreadsArg(options),
-                    "--Mapper.ba_refine_focal_length", "0", "--Mapper.ba_refine_principal_point", "0",
-                    "--Mapper.ba_refine_extra_params", "0"},
-                   JoinPaths(colmap_dir, "mapper.log"), options);
+  RunColmapCommand(
+      {options.executable, "mapper", "--database_path", database, "--image_path", images_dir,
+       "--output_path", sparse, "--Mapper.num_threads", ThreadsArg(options),
+       "--Mapper.ba_refine_focal_length", "0", "--Mapper.ba_refine_principal_point", "0",
+       "--Mapper.ba_refine_extra_params", "0"},
+      JoinPaths(colmap_dir, "mapper.log"), options);
   Reconstruction model = LargestModel(sparse);
-  if (model.images.empty()) Fail("COLMAP's mapper reconstructed nothing (log {})", JoinPaths(colmap_dir, "mapper.log"));
+  if (model.images.empty())
+    Fail("COLMAP's mapper reconstructed nothing (log {})", JoinPaths(colmap_dir, "mapper.log"));
   fmt::print("[eval]   done in {:.0f} s: {} of {} images, {} points\n", SecondsSince(t0),
              model.images.size(), dataset.images.size(), model.points3D.size());
   WriteStamp(stamp, fingerprint);
@@ -242,12 +265,28 @@ Reconstruction ReconstructImageSubset(const std::string& database_path,
   // A query group spans a short baseline: the initial pair may triangulate
   // at 4° instead of COLMAP's 16° (which it relaxes to 8° at most).
   try {
-    RunColmapCommand({options.executable, "mapper", "--database_path", database_path, "--image_path",
-                      image_dir, "--image_list_path", list, "--output_path", sparse,
-                      "--Mapper.num_threads", ThreadsArg(options), "--Mapper.min_model_size", "2",
-                      "--Mapper.init_min_tri_angle", "4",
-                      "--Mapper.ba_refine_focal_length", "0", "--Mapper.ba_refine_principal_point", "0",
-                      "--Mapper.ba_refine_extra_params", "0"},
+    RunColmapCommand({options.executable,
+                      "mapper",
+                      "--database_path",
+                      database_path,
+                      "--image_path",
+                      image_dir,
+                      "--image_list_path",
+                      list,
+                      "--output_path",
+                      sparse,
+                      "--Mapper.num_threads",
+                      ThreadsArg(options),
+                      "--Mapper.min_model_size",
+                      "2",
+                      "--Mapper.init_min_tri_angle",
+                      "4",
+                      "--Mapper.ba_refine_focal_length",
+                      "0",
+                      "--Mapper.ba_refine_principal_point",
+                      "0",
+                      "--Mapper.ba_refine_extra_params",
+                      "0"},
                      JoinPaths(out_dir, "mapper.log"), options);
   } catch (const Error&) {
     // No model (e.g. no initial pair): a result too, cached like any other.

@@ -14,12 +14,12 @@ namespace linecloud {
 
 struct ColmapOptions {
   std::string executable = "colmap";
-  int num_threads = -1;      // COLMAP's default: all cores
-  int max_image_size = 3200; // SiftExtraction.max_image_size (COLMAP's default)
+  int num_threads = -1;       // COLMAP's default: all cores
+  int max_image_size = 3200;  // SiftExtraction.max_image_size (COLMAP's default)
   // Affine-covariant SIFT with domain-size pooling and guided matching
   // (slower; more accurate keypoints).
   bool accurate_features = false;
-  bool verbose = false;      // stream COLMAP's output instead of logging it to files
+  bool verbose = false;  // stream COLMAP's output instead of logging it to files
 
   void Check() const;
 };

@@ -16,7 +16,8 @@ namespace {
 
 bool IsImageFile(const fs::path& p) {
   std::string ext = p.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
   return ext == ".jpg" || ext == ".jpeg" || ext == ".png" || ext == ".tif" || ext == ".tiff" ||
          ext == ".bmp" || ext == ".pgm" || ext == ".ppm";
 }
@@ -28,7 +29,8 @@ Rigid3d ReadBodyFromSensor(const std::string& path) {
   if (key == std::string::npos) Fail("{}: no T_BS entry", path);
   const size_t open = text.find('[', text.find("data:", key));
   const size_t close = text.find(']', open);
-  if (open == std::string::npos || close == std::string::npos) Fail("{}: T_BS has no data: [...]", path);
+  if (open == std::string::npos || close == std::string::npos)
+    Fail("{}: T_BS has no data: [...]", path);
   std::string numbers = text.substr(open + 1, close - open - 1);
   std::replace(numbers.begin(), numbers.end(), ',', ' ');
   std::replace(numbers.begin(), numbers.end(), '\n', ' ');
@@ -60,7 +62,8 @@ void ReadImu(const std::string& path, DatasetSensors* sensors) {
     std::string row(line);
     std::replace(row.begin(), row.end(), ',', ' ');
     const auto tokens = SplitWhitespace(row);
-    if (tokens.size() != 7) lines.FailHere(fmt::format("expected 7 columns, found {}", tokens.size()));
+    if (tokens.size() != 7)
+      lines.FailHere(fmt::format("expected 7 columns, found {}", tokens.size()));
     sensors->imu_time_ns.push_back(ParseNumber<int64_t>(tokens[0], lines, "timestamp"));
     Eigen::Vector3d a;
     for (int k = 0; k < 3; ++k) a[k] = ParseNumber<double>(tokens[4 + k], lines, "a_RS_S");
@@ -104,7 +107,8 @@ Eigen::Vector3d GravityInBody(const DatasetSensors& sensors, int64_t time_ns, in
       ++n;
     }
   }
-  if (n == 0 || sum.norm() == 0) Fail("no IMU sample within {} ms of t = {} ns", window_ns / 1e6, time_ns);
+  if (n == 0 || sum.norm() == 0)
+    Fail("no IMU sample within {} ms of t = {} ns", window_ns / 1e6, time_ns);
   // An accelerometer at rest measures the reaction to gravity (pointing up).
   return -sum.normalized();
 }
@@ -167,8 +171,10 @@ EvalDataset ReadEvalDataset(const std::string& dir) {
       std::vector<std::string> group;
       for (std::string_view token : SplitWhitespace(line)) {
         const std::string name(token);
-        if (!image_set.count(name)) lines.FailHere(fmt::format("image '{}' is not in images/", name));
-        if (!seen.insert(name).second) lines.FailHere(fmt::format("image '{}' is in two query groups", name));
+        if (!image_set.count(name))
+          lines.FailHere(fmt::format("image '{}' is not in images/", name));
+        if (!seen.insert(name).second)
+          lines.FailHere(fmt::format("image '{}' is in two query groups", name));
         group.push_back(name);
       }
       d.query_groups.push_back(std::move(group));
@@ -186,7 +192,8 @@ EvalDataset ReadEvalDataset(const std::string& dir) {
     Reconstruction gt;
     ParseImagesText(ReadFileToString(gt_path), gt_path, &gt);
     for (const auto& [id, image] : gt.images) {
-      if (!image_set.count(image.name)) Fail("{}: image '{}' is not in images/", gt_path, image.name);
+      if (!image_set.count(image.name))
+        Fail("{}: image '{}' is not in images/", gt_path, image.name);
       d.ground_truth[image.name] = image.cam_from_world;
     }
   }

@@ -23,7 +23,7 @@ namespace linecloud {
 struct DatasetSensors {
   std::map<uint32_t, Rigid3d> body_from_cam;  // by camera id
   std::vector<int64_t> imu_time_ns;
-  std::vector<Eigen::Vector3d> imu_accel;     // m/s², body frame
+  std::vector<Eigen::Vector3d> imu_accel;  // m/s², body frame
 };
 
 struct EvalDataset {
@@ -33,8 +33,8 @@ struct EvalDataset {
   std::vector<std::string> images;               // sorted names in images/
   std::map<std::string, uint32_t> image_camera;  // name -> camera id
   std::vector<std::vector<std::string>> query_groups;
-  std::map<std::string, Rigid3d> ground_truth;   // gt/images.txt, cam_from_world (metres)
-  std::optional<DatasetSensors> sensors;         // meta/*_sensor.yaml + imu0_window.csv
+  std::map<std::string, Rigid3d> ground_truth;  // gt/images.txt, cam_from_world (metres)
+  std::optional<DatasetSensors> sensors;        // meta/*_sensor.yaml + imu0_window.csv
 
   bool IsQueryImage(const std::string& image_name) const;
   // Images in no query group: the cameras every map keeps.

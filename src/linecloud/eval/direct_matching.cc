@@ -23,7 +23,7 @@ using json = nlohmann::json;
 struct GroupMap {
   MapDescriptors descriptors;  // ids are point ids
   PointMap points;
-  LineMap lines;               // keyed by point id (the owner's view)
+  LineMap lines;  // keyed by point id (the owner's view)
 };
 
 GroupMap LoadGroupMap(const std::string& work_dir, const EvalGroup& g, const LiftingKey& key,
@@ -61,9 +61,10 @@ MapDescriptors MapDescriptorsExcluding(const Reconstruction& map, const std::str
   for (const auto& [id, image] : map.images) {
     for (const std::string& name : excluded_images) {
       if (image.name == name) {
-        Fail("the map registers the query image {}: its descriptors would reach the map it is "
-             "localized against",
-             name);
+        Fail(
+            "the map registers the query image {}: its descriptors would reach the map it is "
+            "localized against",
+            name);
       }
     }
   }
@@ -86,10 +87,12 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
     const GroupMap map = LoadGroupMap(work_dir, g, key, options);
     for (const EvalImage& im : g.images) {
       const std::string path = JoinPaths(JoinPaths(work.dataset_dir, "images"), im.name);
-      const ImageQuery q =
-          QueryFromImage(path, work.cameras.at(im.camera_id), map.descriptors, {});
-      json row = {{"group", g.name}, {"image", im.name}, {"features", q.features.size()},
-                  {"matches", q.matches.size()}, {"extract_ms", q.times.extract_ms},
+      const ImageQuery q = QueryFromImage(path, work.cameras.at(im.camera_id), map.descriptors, {});
+      json row = {{"group", g.name},
+                  {"image", im.name},
+                  {"features", q.features.size()},
+                  {"matches", q.matches.size()},
+                  {"extract_ms", q.times.extract_ms},
                   {"match_ms", q.times.match_ms}};
       for (const std::string& name : options.methods) {
         const MethodInfo& method = FindMethod(name);
@@ -114,8 +117,8 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
           failure = r.failure;
           if (r.success) {
             const LocalizationError e = CompareLocalization(
-                r.query_from_world, Sim3d(1.0, im.cam_from_world.rotation,
-                                          im.cam_from_world.translation));
+                r.query_from_world,
+                Sim3d(1.0, im.cam_from_world.rotation, im.cam_from_world.translation));
             rot = e.rotation_rad * kDeg;
             trans = e.position;
           }
@@ -144,14 +147,19 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
                      {"localized", t.localized},
                      {"median_rotation_deg", Median(t.rotation)},
                      {"median_translation", Median(t.translation)},
-                     {"mean_ms", {{"extract", t.extract_ms / n}, {"match", t.match_ms / n},
-                                  {"ransac", t.ransac_ms / n}, {"refine", t.refine_ms / n}}},
-                     {"mean_ransac_ms", {{"solver", t.solver_ms / n}, {"scoring", t.scoring_ms / n},
-                                         {"local_optimization", t.lo_ms / n}}},
+                     {"mean_ms",
+                      {{"extract", t.extract_ms / n},
+                       {"match", t.match_ms / n},
+                       {"ransac", t.ransac_ms / n},
+                       {"refine", t.refine_ms / n}}},
+                     {"mean_ransac_ms",
+                      {{"solver", t.solver_ms / n},
+                       {"scoring", t.scoring_ms / n},
+                       {"local_optimization", t.lo_ms / n}}},
                      {"mean_iterations", t.iterations / n}};
   }
-  return {{"thresholds", {{"rotation_deg", options.max_rotation_deg},
-                          {"translation", options.max_translation}}},
+  return {{"thresholds",
+           {{"rotation_deg", options.max_rotation_deg}, {"translation", options.max_translation}}},
           {"methods", methods},
           {"per_query", per_query}};
 }

@@ -21,8 +21,8 @@ namespace linecloud {
 
 struct DirectMatchingOptions {
   std::vector<std::string> methods = {"p6L", "p3P"};
-  double max_rotation_deg = 0.5;   // "localized" thresholds of [image]
-  double max_translation = 0.05;   // work units (metres with ground truth)
+  double max_rotation_deg = 0.5;  // "localized" thresholds of [image]
+  double max_translation = 0.05;  // work units (metres with ground truth)
   double threshold_px = 4.0;
   uint64_t seed = 1;
   MapLifting lifting;  // how the maps are lifted (lift's --sparsify, ...)

@@ -66,7 +66,8 @@ Sim3d AlignToGroundTruth(const Reconstruction& rec, const std::map<std::string, 
       dst.push_back(gt.at(name).Center());
     }
   }
-  if (src.size() < 3) Fail("ground truth: only {} map cameras are both reconstructed and in gt/", src.size());
+  if (src.size() < 3)
+    Fail("ground truth: only {} map cameras are both reconstructed and in gt/", src.size());
   // Rotation from the camera orientations (chordal mean of R_gt_iᵀ R_rec_i:
   // well constrained even when the centres lie near a line), then scale and
   // translation from the centres by least squares.
@@ -74,7 +75,8 @@ Sim3d AlignToGroundTruth(const Reconstruction& rec, const std::map<std::string, 
   for (const std::string& name : align_names) {
     const Image* im = FindImage(rec, name);
     if (im && gt.count(name)) {
-      M += gt.at(name).rotation.toRotationMatrix().transpose() * im->cam_from_world.rotation.toRotationMatrix();
+      M += gt.at(name).rotation.toRotationMatrix().transpose() *
+           im->cam_from_world.rotation.toRotationMatrix();
     }
   }
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(M, Eigen::ComputeFullU | Eigen::ComputeFullV);
@@ -105,19 +107,25 @@ Sim3d AlignToGroundTruth(const Reconstruction& rec, const std::map<std::string, 
     if (!gt.count(im.name)) continue;
     const double r = RotationDistance(im.cam_from_world.rotation, gt.at(im.name).rotation) * kDeg;
     const double p = (im.cam_from_world.Center() - gt.at(im.name).Center()).norm();
-    const bool is_map = std::find(align_names.begin(), align_names.end(), im.name) != align_names.end();
+    const bool is_map =
+        std::find(align_names.begin(), align_names.end(), im.name) != align_names.end();
     (is_map ? rot_map : rot_query).push_back(r);
     (is_map ? pos_map : pos_query).push_back(p);
-    per_image.push_back({{"name", im.name}, {"map_camera", is_map}, {"rotation_deg", r}, {"position_m", p}});
+    per_image.push_back(
+        {{"name", im.name}, {"map_camera", is_map}, {"rotation_deg", r}, {"position_m", p}});
   }
-  auto max_of = [](const std::vector<double>& v) { return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end()); };
-  (*report)["ground_truth"] = {
-      {"aligned_on", src.size()},        {"scale", s},
-      {"max_rotation_deg", std::max(max_of(rot_map), max_of(rot_query))},
-      {"max_position_m", std::max(max_of(pos_map), max_of(pos_query))},
-      {"map_max_rotation_deg", max_of(rot_map)}, {"map_max_position_m", max_of(pos_map)},
-      {"query_max_rotation_deg", max_of(rot_query)}, {"query_max_position_m", max_of(pos_query)},
-      {"per_image", per_image}};
+  auto max_of = [](const std::vector<double>& v) {
+    return v.empty() ? 0.0 : *std::max_element(v.begin(), v.end());
+  };
+  (*report)["ground_truth"] = {{"aligned_on", src.size()},
+                               {"scale", s},
+                               {"max_rotation_deg", std::max(max_of(rot_map), max_of(rot_query))},
+                               {"max_position_m", std::max(max_of(pos_map), max_of(pos_query))},
+                               {"map_max_rotation_deg", max_of(rot_map)},
+                               {"map_max_position_m", max_of(pos_map)},
+                               {"query_max_rotation_deg", max_of(rot_query)},
+                               {"query_max_position_m", max_of(pos_query)},
+                               {"per_image", per_image}};
   return gt_from_rec;
 }
 
@@ -133,13 +141,16 @@ double ScaleFromRig(const EvalDataset& d, const Reconstruction& rec, int* pairs)
     if (ims.size() != 2) continue;
     const uint32_t c0 = d.image_camera.at(ims[0]->name), c1 = d.image_camera.at(ims[1]->name);
     if (!d.sensors->body_from_cam.count(c0) || !d.sensors->body_from_cam.count(c1)) continue;
-    const double calibrated = (d.sensors->body_from_cam.at(c0).translation -
-                               d.sensors->body_from_cam.at(c1).translation).norm();
-    const double reconstructed = (ims[0]->cam_from_world.Center() - ims[1]->cam_from_world.Center()).norm();
+    const double calibrated =
+        (d.sensors->body_from_cam.at(c0).translation - d.sensors->body_from_cam.at(c1).translation)
+            .norm();
+    const double reconstructed =
+        (ims[0]->cam_from_world.Center() - ims[1]->cam_from_world.Center()).norm();
     if (reconstructed > 0) ratios.push_back(calibrated / reconstructed);
   }
   *pairs = static_cast<int>(ratios.size());
-  if (ratios.empty()) Fail("no stereo pair is reconstructed: cannot make the reconstruction metric");
+  if (ratios.empty())
+    Fail("no stereo pair is reconstructed: cannot make the reconstruction metric");
   return Median(ratios);
 }
 
@@ -150,7 +161,8 @@ std::string GroupName(size_t k) { return fmt::format("g{:02d}", k); }
 void EvalPrepareOptions::Check() const {
   if (dataset_dir.empty()) Fail("--dataset: empty");
   if (work_dir.empty()) Fail("--work: empty");
-  if (!(gravity_noise_deg >= 0 && gravity_noise_deg < 90)) Fail("--gravity-noise-deg: {} not in [0, 90)", gravity_noise_deg);
+  if (!(gravity_noise_deg >= 0 && gravity_noise_deg < 90))
+    Fail("--gravity-noise-deg: {} not in [0, 90)", gravity_noise_deg);
   colmap.Check();
 }
 
@@ -229,7 +241,8 @@ Reconstruction MapWithoutImages(const Reconstruction& full, const std::vector<st
   for (uint32_t id : removed) map.images.erase(id);
   std::vector<uint64_t> dropped;
   for (auto& [pid, point] : map.points3D) {
-    std::erase_if(point.track, [&](const TrackElement& e) { return removed.count(e.image_id) > 0; });
+    std::erase_if(point.track,
+                  [&](const TrackElement& e) { return removed.count(e.image_id) > 0; });
     if (point.track.size() < 2) {
       dropped.push_back(pid);
       continue;
@@ -237,7 +250,8 @@ Reconstruction MapWithoutImages(const Reconstruction& full, const std::vector<st
     std::vector<PointObservation> obs;
     for (const TrackElement& e : point.track) {
       const Image& im = map.images.at(e.image_id);
-      obs.push_back({&map.cameras.at(im.camera_id), im.cam_from_world, im.points2D.at(e.point2D_idx).xy});
+      obs.push_back(
+          {&map.cameras.at(im.camera_id), im.cam_from_world, im.points2D.at(e.point2D_idx).xy});
     }
     RefinePointFixedPoses(obs, &point.xyz);
   }
@@ -263,25 +277,32 @@ void SetUnits(const EvalDataset& dataset, Reconstruction* full_ptr, EvalWork* wo
     for (const auto& n : align) usable += FindImage(full, n) && dataset.ground_truth.count(n);
     if (usable < 3) {
       align = dataset.images;  // too few map-only cameras: align on all
-      work.reconstruction["alignment_note"] = "every image is a query of some group: aligned on all cameras";
+      work.reconstruction["alignment_note"] =
+          "every image is a query of some group: aligned on all cameras";
     }
-    const Sim3d gt_from_rec = AlignToGroundTruth(full, dataset.ground_truth, align, &work.reconstruction);
+    const Sim3d gt_from_rec =
+        AlignToGroundTruth(full, dataset.ground_truth, align, &work.reconstruction);
     TransformReconstruction(gt_from_rec, &full);
     work.units = "metres";
     const auto& g = work.reconstruction["ground_truth"];
-    fmt::print("[eval] reconstruction vs ground truth (similarity on {} map cameras): max {:.3f}° / {:.4f} m\n",
-               g["aligned_on"].get<int>(), g["max_rotation_deg"].get<double>(), g["max_position_m"].get<double>());
+    fmt::print(
+        "[eval] reconstruction vs ground truth (similarity on {} map cameras): max {:.3f}° / "
+        "{:.4f} m\n",
+        g["aligned_on"].get<int>(), g["max_rotation_deg"].get<double>(),
+        g["max_position_m"].get<double>());
   } else if (dataset.sensors && dataset.sensors->body_from_cam.size() >= 2) {
     int pairs = 0;
     const double s = ScaleFromRig(dataset, full, &pairs);
-    TransformReconstruction(Sim3d(s, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero()), &full);
+    TransformReconstruction(Sim3d(s, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero()),
+                            &full);
     work.units = "metres";
-    work.reconstruction["metric_scale"] = {{"source", "calibrated stereo baseline"}, {"pairs", pairs}, {"scale", s}};
-    fmt::print("[eval] metric scale from the calibrated stereo baseline ({} pairs): {:.5f}\n", pairs, s);
+    work.reconstruction["metric_scale"] = {
+        {"source", "calibrated stereo baseline"}, {"pairs", pairs}, {"scale", s}};
+    fmt::print("[eval] metric scale from the calibrated stereo baseline ({} pairs): {:.5f}\n",
+               pairs, s);
   } else {
     work.units = "reconstruction units";
   }
-
 }
 
 // Gravity per image (camera frame) and in the world: the real IMU where there
@@ -298,24 +319,29 @@ std::map<std::string, Eigen::Vector3d> GravityPerImage(const EvalDataset& datase
     for (const auto& [id, im] : full.images) {
       const auto t = EurocTimestampNs(im.name);
       const uint32_t cam = dataset.image_camera.at(im.name);
-      if (!t || !dataset.sensors->body_from_cam.count(cam)) Fail("{}: no timestamp or sensor for image {}", dataset.dir, im.name);
+      if (!t || !dataset.sensors->body_from_cam.count(cam))
+        Fail("{}: no timestamp or sensor for image {}", dataset.dir, im.name);
       const Eigen::Vector3d g_body = GravityInBody(*dataset.sensors, *t);
       const Eigen::Vector3d g = dataset.sensors->body_from_cam.at(cam).rotation.inverse() * g_body;
       gravity_cam[im.name] = g;
       if (!dataset.IsQueryImage(im.name)) sum += im.cam_from_world.rotation.inverse() * g;
     }
     work.gravity_world = sum.normalized();
-    work.gravity_source = "IMU accelerometer (mean within ±25 ms of each image); map: mean over map images";
+    work.gravity_source =
+        "IMU accelerometer (mean within ±25 ms of each image); map: mean over map images";
     work.gravity_noise_deg = 0;
   } else {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (const auto& [id, im] : full.images) sum += im.cam_from_world.rotation.inverse() * Eigen::Vector3d::UnitY();
+    for (const auto& [id, im] : full.images)
+      sum += im.cam_from_world.rotation.inverse() * Eigen::Vector3d::UnitY();
     work.gravity_world = sum.normalized();
     for (const auto& [id, im] : full.images) {
-      gravity_cam[im.name] = RandomlyTilted(im.cam_from_world.rotation * work.gravity_world, options.gravity_noise_deg, rng);
+      gravity_cam[im.name] = RandomlyTilted(im.cam_from_world.rotation * work.gravity_world,
+                                            options.gravity_noise_deg, rng);
     }
     work.gravity_source = fmt::format(
-        "ground truth: the mean image-down direction of all cameras, per image tilted by |N(0, {}°)|",
+        "ground truth: the mean image-down direction of all cameras, per image tilted by |N(0, "
+        "{}°)|",
         options.gravity_noise_deg);
   }
 
@@ -355,9 +381,8 @@ EvalImage IndirectCorrespondences(const std::string& name, const EvalDataset& da
   std::sort(kps.begin(), kps.end());
   for (uint32_t kq : kps) {
     const auto& v = votes.at(kq);
-    const auto best = std::max_element(v.begin(), v.end(), [](const auto& a, const auto& b) {
-      return a.second < b.second;
-    });
+    const auto best = std::max_element(
+        v.begin(), v.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
     EvalCorrespondence c;
     c.xy = {keypoints(kq, 0), keypoints(kq, 1)};
     c.point_id = best->first;
@@ -377,7 +402,7 @@ void AttachLocalStructure(const EvalDataset& dataset, const EvalPrepareOptions& 
                           EvalGroup* group_ptr) {
   EvalGroup& group = *group_ptr;
   const std::string images_dir = JoinPaths(dataset.dir, "images");
-    const EvalImage& first = group.images.front();
+  const EvalImage& first = group.images.front();
   const Rigid3d& cam0_from_world = first.cam_from_world;
   Rigid3d rig_from_cam0;  // identity: the rig frame is the first camera's
   const uint32_t cam0 = first.camera_id;
@@ -386,8 +411,9 @@ void AttachLocalStructure(const EvalDataset& dataset, const EvalPrepareOptions& 
   group.rig_from_world = rig_from_cam0 * cam0_from_world;
   group.gravity_rig = rig_from_cam0.rotation * first.gravity;
   if (registered.size() >= 2) {
-    const Reconstruction local = ReconstructImageSubset(
-        JoinPaths(colmap_dir, "database.db"), images_dir, registered, JoinPaths(group_dir, "local"), options.colmap);
+    const Reconstruction local =
+        ReconstructImageSubset(JoinPaths(colmap_dir, "database.db"), images_dir, registered,
+                               JoinPaths(group_dir, "local"), options.colmap);
     const Image* l0 = FindImage(local, first.name);
     bool all = l0 != nullptr;
     for (const EvalImage& im : group.images) all = all && FindImage(local, im.name);
@@ -401,7 +427,8 @@ void AttachLocalStructure(const EvalDataset& dataset, const EvalPrepareOptions& 
         if (calibrated_rig && dataset.sensors->body_from_cam.count(im.camera_id) &&
             EurocTimestampNs(im.name) == EurocTimestampNs(first.name)) {
           metric_baseline += (dataset.sensors->body_from_cam.at(im.camera_id).translation -
-                              rig_from_cam0.translation).norm();
+                              rig_from_cam0.translation)
+                                 .norm();
         } else {
           metric_baseline += (im.cam_from_world.Center() - cam0_from_world.Center()).norm();
         }
@@ -410,7 +437,8 @@ void AttachLocalStructure(const EvalDataset& dataset, const EvalPrepareOptions& 
         const double m = metric_baseline / local_baseline;
         group.has_rig = true;
         group.local_scale = 1.0 / m;
-        group.rig_source = calibrated_rig ? "calibration" : "local reconstruction (metric scale from ground truth)";
+        group.rig_source = calibrated_rig ? "calibration"
+                                          : "local reconstruction (metric scale from ground truth)";
         // rig_from_local: X_rig = rig_from_cam0 (m (R0 X + t0)).
         auto rig_from_local = [&](const Eigen::Vector3d& X) {
           return rig_from_cam0 * (m * (l0->cam_from_world * X));
@@ -429,13 +457,17 @@ void AttachLocalStructure(const EvalDataset& dataset, const EvalPrepareOptions& 
           for (size_t k = 0; k < im.correspondences.size(); ++k) {
             if (kps[k] >= li->points2D.size()) continue;
             const uint64_t pid = li->points2D[kps[k]].point3D_id;
-            if (pid != kInvalidPoint3DId) im.correspondences[k].point_local = rig_from_local(local.points3D.at(pid).xyz);
+            if (pid != kInvalidPoint3DId)
+              im.correspondences[k].point_local = rig_from_local(local.points3D.at(pid).xyz);
           }
         }
       }
     }
     if (!group.has_rig) {
-      fmt::print("[eval] group {}: COLMAP could not reconstruct the group on its own; m- methods skip it\n", group.name);
+      fmt::print(
+          "[eval] group {}: COLMAP could not reconstruct the group on its own; m- methods skip "
+          "it\n",
+          group.name);
     }
   }
 }
@@ -463,8 +495,10 @@ EvalWork PrepareEvaluation(const EvalPrepareOptions& options) {
   for (const std::string& name : dataset.images) {
     if (!FindImage(full, name)) unregistered.push_back(name);
   }
-  work.reconstruction = {{"images", dataset.images.size()}, {"registered", full.images.size()},
-                         {"points", full.points3D.size()}, {"unregistered", unregistered},
+  work.reconstruction = {{"images", dataset.images.size()},
+                         {"registered", full.images.size()},
+                         {"points", full.points3D.size()},
+                         {"unregistered", unregistered},
                          {"mean_track_length", full.MeanTrackLength()}};
   if (!unregistered.empty()) {
     fmt::print("[eval] warning: COLMAP did not register {} image(s): {}\n", unregistered.size(),
@@ -492,7 +526,8 @@ EvalWork PrepareEvaluation(const EvalPrepareOptions& options) {
       if (FindImage(full, n)) registered.push_back(n);
     }
     if (registered.empty()) {
-      fmt::print("[eval] group {} ({}): no image registered, skipped\n", group.name, fmt::join(names, " "));
+      fmt::print("[eval] group {} ({}): no image registered, skipped\n", group.name,
+                 fmt::join(names, " "));
       continue;
     }
     const Reconstruction map = MapWithoutImages(full, names);
@@ -504,8 +539,9 @@ EvalWork PrepareEvaluation(const EvalPrepareOptions& options) {
 
     std::map<std::string, std::vector<uint32_t>> keypoint_of;  // per correspondence
     for (const std::string& name : registered) {
-      group.images.push_back(IndirectCorrespondences(name, dataset, full, database, db_id, map_by_name,
-                                                     gravity_cam, colmap_dir, &keypoint_of[name]));
+      group.images.push_back(IndirectCorrespondences(name, dataset, full, database, db_id,
+                                                     map_by_name, gravity_cam, colmap_dir,
+                                                     &keypoint_of[name]));
     }
 
     AttachLocalStructure(dataset, options, colmap_dir, group_dir, registered, keypoint_of, &group);
@@ -514,10 +550,12 @@ EvalWork PrepareEvaluation(const EvalPrepareOptions& options) {
       corr += static_cast<int>(im.correspondences.size());
       for (const auto& c : im.correspondences) local_pts += c.point_local.has_value();
     }
-    fmt::print("[eval] group {} ({}): map {} images / {} points, {} correspondences, {} with local points{} ({:.1f} s)\n",
-               group.name, fmt::join(registered, " "), map.images.size(), map.points3D.size(), corr,
-               local_pts, group.has_rig ? ", rig from " + group.rig_source : "",
-               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+    fmt::print(
+        "[eval] group {} ({}): map {} images / {} points, {} correspondences, {} with local "
+        "points{} ({:.1f} s)\n",
+        group.name, fmt::join(registered, " "), map.images.size(), map.points3D.size(), corr,
+        local_pts, group.has_rig ? ", rig from " + group.rig_source : "",
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
     std::fflush(stdout);
     work.groups.push_back(std::move(group));
   }

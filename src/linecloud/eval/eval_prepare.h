@@ -39,6 +39,7 @@ struct PointObservation {
   Rigid3d cam_from_world;
   Eigen::Vector2d xy;
 };
-bool RefinePointFixedPoses(const std::vector<PointObservation>& observations, Eigen::Vector3d* point);
+bool RefinePointFixedPoses(const std::vector<PointObservation>& observations,
+                           Eigen::Vector3d* point);
 
 }  // namespace linecloud

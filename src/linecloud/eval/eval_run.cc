@@ -39,7 +39,8 @@ using nlohmann::json;
 constexpr double kDeg = 180.0 / std::numbers::pi;
 
 // Recall thresholds (rotation °, translation in the work's units).
-constexpr std::pair<double, double> kRecall[] = {{0.25, 0.025}, {0.5, 0.05}, {1, 0.1}, {2, 0.25}, {5, 1}};
+constexpr std::pair<double, double> kRecall[] = {
+    {0.25, 0.025}, {0.5, 0.05}, {1, 0.1}, {2, 0.25}, {5, 1}};
 
 struct GroupMaps {
   PointMap points;
@@ -89,7 +90,8 @@ std::vector<EvalQuery> QueriesForMethod(const EvalWork& work, const MethodInfo& 
         EvalQuery q{g.name, im.name, {}, ToSim3(im.cam_from_world)};
         q.query.cameras = {work.cameras.at(im.camera_id)};
         for (const EvalCorrespondence& c : im.correspondences) {
-          if (ids.count(c.point_id)) q.query.observations.push_back({0, c.xy, c.point_id, std::nullopt, std::nullopt});
+          if (ids.count(c.point_id))
+            q.query.observations.push_back({0, c.xy, c.point_id, std::nullopt, std::nullopt});
         }
         if (method.gravity) {
           q.query.gravity_query = im.gravity;
@@ -102,7 +104,10 @@ std::vector<EvalQuery> QueriesForMethod(const EvalWork& work, const MethodInfo& 
     if (!g.has_rig || g.images.size() < 2) continue;
     const double scale = method.similarity() ? g.local_scale : 1.0;
     std::string name = g.name;
-    EvalQuery q{g.name, "", {}, Sim3d(scale, g.rig_from_world.rotation, scale * g.rig_from_world.translation)};
+    EvalQuery q{g.name,
+                "",
+                {},
+                Sim3d(scale, g.rig_from_world.rotation, scale * g.rig_from_world.translation)};
     for (size_t c = 0; c < g.images.size(); ++c) {
       const EvalImage& im = g.images[c];
       name += (c ? "+" : ":") + im.name;
@@ -116,7 +121,8 @@ std::vector<EvalQuery> QueriesForMethod(const EvalWork& work, const MethodInfo& 
           if (!corr.point_local) continue;
           q.query.points_local.push_back(scale * *corr.point_local);
         }
-        q.query.observations.push_back({static_cast<int>(c), corr.xy, corr.point_id, std::nullopt, std::nullopt});
+        q.query.observations.push_back(
+            {static_cast<int>(c), corr.xy, corr.point_id, std::nullopt, std::nullopt});
       }
     }
     q.name = name;
@@ -165,14 +171,16 @@ void BoundRotation(const MethodInfo& method, const EvalQuery& q, const Localizat
   r->noise_px = Median(errors) / std::sqrt(2 * std::numbers::ln2);
   const PreparedQuery prepared = PrepareQuery(method, q.query, map, q.name);
   // query_from_world = query_from_aligned ∘ aligned_pose ∘ aligned_from_map.
-  const Sim3d aligned_truth = Sim3d(1.0, prepared.aligned_from_query, Eigen::Vector3d::Zero()) * q.truth *
-                              Sim3d(1.0, prepared.aligned_from_map.inverse(), Eigen::Vector3d::Zero());
-  r->rotation_bound_deg =
-      kDeg * RotationErrorBound(prepared.data, inliers, aligned_truth, r->noise_px, method.similarity());
+  const Sim3d aligned_truth =
+      Sim3d(1.0, prepared.aligned_from_query, Eigen::Vector3d::Zero()) * q.truth *
+      Sim3d(1.0, prepared.aligned_from_map.inverse(), Eigen::Vector3d::Zero());
+  r->rotation_bound_deg = kDeg * RotationErrorBound(prepared.data, inliers, aligned_truth,
+                                                    r->noise_px, method.similarity());
 }
 
 std::vector<QueryRecord> RunMethod(const EvalWork& work, const MethodInfo& method,
-                                   const std::vector<GroupMaps>& maps, const EvalRunOptions& options) {
+                                   const std::vector<GroupMaps>& maps,
+                                   const EvalRunOptions& options) {
   std::vector<QueryRecord> records;
   std::map<std::string, size_t> group_index;
   for (size_t gi = 0; gi < work.groups.size(); ++gi) group_index[work.groups[gi].name] = gi;
@@ -252,16 +260,23 @@ json MethodReport(const std::vector<QueryRecord>& records) {
       }
     }
     localized += r.rotation_deg[1] < 1.0 && r.position[1] < 0.1;
-    json q = {{"group", r.group}, {"query", r.name}, {"correspondences", r.correspondences},
+    json q = {{"group", r.group},
+              {"query", r.name},
+              {"correspondences", r.correspondences},
               {"success", r.success},
               {"rotation_deg", {{"initial", r.rotation_deg[0]}, {"refined", r.rotation_deg[1]}}},
               {"translation", {{"initial", r.position[0]}, {"refined", r.position[1]}}},
-              {"iterations", r.stats.iterations}, {"inlier_ratio", r.stats.inlier_ratio},
-              {"mean_solutions", r.stats.mean_solutions}, {"solver_us", r.stats.solver_us},
-              {"ransac_ms", r.stats.ransac_ms}, {"refine_ms", r.refine_ms},
-              {"reprojection_px", {{"initial", r.reprojection_px[0]}, {"refined", r.reprojection_px[1]},
-                                   {"point_initial", r.point_reprojection_px[0]},
-                                   {"point_refined", r.point_reprojection_px[1]}}}};
+              {"iterations", r.stats.iterations},
+              {"inlier_ratio", r.stats.inlier_ratio},
+              {"mean_solutions", r.stats.mean_solutions},
+              {"solver_us", r.stats.solver_us},
+              {"ransac_ms", r.stats.ransac_ms},
+              {"refine_ms", r.refine_ms},
+              {"reprojection_px",
+               {{"initial", r.reprojection_px[0]},
+                {"refined", r.reprojection_px[1]},
+                {"point_initial", r.point_reprojection_px[0]},
+                {"point_refined", r.point_reprojection_px[1]}}}};
     if (r.success) {
       q["noise_px"] = r.noise_px;
       q["rotation_bound_deg"] = FiniteOrNull(r.rotation_bound_deg);
@@ -289,13 +304,16 @@ json MethodReport(const std::vector<QueryRecord>& records) {
           {"solver_us", solver_us / n},
           {"ransac_ms", ransac_ms / n},
           {"refine_ms", refine_ms / n},
-          {"reprojection_px", {{"initial", reproj[0] / ns}, {"refined", reproj[1] / ns},
-                               {"point_initial", point_reproj[0] / ns},
-                               {"point_refined", point_reproj[1] / ns}}},
+          {"reprojection_px",
+           {{"initial", reproj[0] / ns},
+            {"refined", reproj[1] / ns},
+            {"point_initial", point_reproj[0] / ns},
+            {"point_refined", point_reproj[1] / ns}}},
           // Cramér–Rao check of the refined rotation (see BoundRotation).
           {"median_noise_px", Median(noises)},
           {"median_rotation_bound_deg", FiniteOrNull(Median(bounds))},
-          {"rms_rotation_error_over_bound", bounded ? json(std::sqrt(normalized_sq / bounded)) : json(nullptr)},
+          {"rms_rotation_error_over_bound",
+           bounded ? json(std::sqrt(normalized_sq / bounded)) : json(nullptr)},
           {"per_query", per_query}};
 }
 
@@ -360,7 +378,8 @@ std::string SweepTable(const std::vector<std::string>& columns, const json& valu
 std::string DirectMatchingMarkdown(const json& d) {
   std::string md = fmt::format(
       "\n## Direct matching (the deployable protocol)\n\nEach query image's own SIFT features "
-      "(COLMAP 3.8's CPU extractor reproduced) matched to the map's descriptors (medoids of the map "
+      "(COLMAP 3.8's CPU extractor reproduced) matched to the map's descriptors (medoids of the "
+      "map "
       "images' observations only), then the same RANSAC, refinement and success criteria as "
       "`localize --image`. Localized: within {}° and {} units of the ground truth.\n\n"
       "| method | queries | localized | median rot. ° | median transl. | extract ms | match ms | "
@@ -368,8 +387,8 @@ std::string DirectMatchingMarkdown(const json& d) {
       d["thresholds"]["rotation_deg"].get<double>(), d["thresholds"]["translation"].get<double>());
   for (const auto& [name, m] : d["methods"].items()) {
     const json& t = m["mean_ms"];
-    md += fmt::format("| {} | {} | {} | {:.4f} | {:.4f} | {:.0f} | {:.0f} | {:.1f} | {:.1f} |\n", name,
-                      m["queries"].get<int>(), m["localized"].get<int>(),
+    md += fmt::format("| {} | {} | {} | {:.4f} | {:.4f} | {:.0f} | {:.0f} | {:.1f} | {:.1f} |\n",
+                      name, m["queries"].get<int>(), m["localized"].get<int>(),
                       m["median_rotation_deg"].get<double>(), m["median_translation"].get<double>(),
                       t["extract"].get<double>(), t["match"].get<double>(),
                       t["ransac"].get<double>(), t["refine"].get<double>());
@@ -377,26 +396,35 @@ std::string DirectMatchingMarkdown(const json& d) {
   return md;
 }
 
-std::string ReportMarkdown(const EvalWork& work, const EvalRunOptions& options, const json& report) {
+std::string ReportMarkdown(const EvalWork& work, const EvalRunOptions& options,
+                           const json& report) {
   std::string md = fmt::format("# linecloud eval — {}\n\n", work.dataset);
-  md += fmt::format("Units: {}. RANSAC threshold {} px for every method; seed {}; map sparsified by {:.0f} %; "
-                    "extra pixel noise σ = {} px.\n\n",
-                    work.units, options.threshold_px, options.seed, 100 * options.lifting.sparsify, options.noise_px);
+  md += fmt::format(
+      "Units: {}. RANSAC threshold {} px for every method; seed {}; map sparsified by {:.0f} %; "
+      "extra pixel noise σ = {} px.\n\n",
+      work.units, options.threshold_px, options.seed, 100 * options.lifting.sparsify,
+      options.noise_px);
   if (work.reconstruction.contains("ground_truth")) {
     const json& g = work.reconstruction["ground_truth"];
-    md += fmt::format("COLMAP reconstruction vs. ground truth, after a similarity alignment on {} cameras "
-                      "(rotation from their orientations, scale and translation from their centres): "
-                      "max {:.3f}° / {:.4f} m.\n\n",
-                      g["aligned_on"].get<int>(), g["max_rotation_deg"].get<double>(),
-                      g["max_position_m"].get<double>());
+    md += fmt::format(
+        "COLMAP reconstruction vs. ground truth, after a similarity alignment on {} cameras "
+        "(rotation from their orientations, scale and translation from their centres): "
+        "max {:.3f}° / {:.4f} m.\n\n",
+        g["aligned_on"].get<int>(), g["max_rotation_deg"].get<double>(),
+        g["max_position_m"].get<double>());
   }
   md += fmt::format("Gravity (+u): {}.\n\n", work.gravity_source);
-  md += "Table 2 layout. Rotation error (°) and translation error; `loc.` = within 1° and 0.1; "
-        "iterations, inlier ratio, solutions and solver time are means per query; reprojection "
-        "errors (px) are means over the inliers: point-to-line for line methods with the point-to-point "
-        "error against the secret points in brackets. Paper = Speciale et al., CVPR 2019, Table 2.\n\n";
-  md += "| method | queries | loc. | rot. init / ref. | trans. init / ref. | iters | inliers % | "
-        "solutions | solver µs | reproj. init / ref. px | paper: iters / inl. % / sol. | paper reproj. |\n";
+  md +=
+      "Table 2 layout. Rotation error (°) and translation error; `loc.` = within 1° and 0.1; "
+      "iterations, inlier ratio, solutions and solver time are means per query; reprojection "
+      "errors (px) are means over the inliers: point-to-line for line methods with the "
+      "point-to-point "
+      "error against the secret points in brackets. Paper = Speciale et al., CVPR 2019, Table "
+      "2.\n\n";
+  md +=
+      "| method | queries | loc. | rot. init / ref. | trans. init / ref. | iters | inliers % | "
+      "solutions | solver µs | reproj. init / ref. px | paper: iters / inl. % / sol. | paper "
+      "reproj. |\n";
   md += "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
   for (const MethodInfo& info : AllMethods()) {
     const std::string name(info.name);
@@ -406,59 +434,71 @@ std::string ReportMarkdown(const EvalWork& work, const EvalRunOptions& options, 
     const json& rp = m["reprojection_px"];
     std::string reproj = Fixed(rp["initial"], 2) + " / " + Fixed(rp["refined"], 2);
     if (lines) {
-      reproj = fmt::format("{} ({}) / {} ({})", Fixed(rp["initial"], 2), Fixed(rp["point_initial"], 2),
-                           Fixed(rp["refined"], 2), Fixed(rp["point_refined"], 2));
+      reproj =
+          fmt::format("{} ({}) / {} ({})", Fixed(rp["initial"], 2), Fixed(rp["point_initial"], 2),
+                      Fixed(rp["refined"], 2), Fixed(rp["point_refined"], 2));
     }
     std::string paper = "–", paper_reproj = "–";
     if (const PaperRow* p = PaperFor(name)) {
       paper = fmt::format("{:g} / {:g} / {:g}", p->iterations, p->inlier_percent, p->solutions);
-      if (p->reprojection_initial > 0) paper_reproj = fmt::format("{:.2f} / {:.2f}", p->reprojection_initial, p->reprojection_refined);
+      if (p->reprojection_initial > 0)
+        paper_reproj =
+            fmt::format("{:.2f} / {:.2f}", p->reprojection_initial, p->reprojection_refined);
     }
-    md += fmt::format("| {} | {} | {} | {} / {} | {} / {} | {:.1f} | {:.0f} | {:.2f} | {:.1f} | {} | {} | {} |\n",
-                      name, m["queries"].get<int>(), m["localized"].get<int>(),
-                      Fixed(m["median_rotation_deg_initial"], 3), Fixed(m["median_rotation_deg"], 3),
-                      Fixed(m["median_translation_initial"], 4), Fixed(m["median_translation"], 4),
-                      m["mean_iterations"].get<double>(), 100 * m["inlier_ratio"].get<double>(),
-                      m["mean_solutions"].get<double>(), m["solver_us"].get<double>(), reproj, paper,
-                      paper_reproj);
+    md += fmt::format(
+        "| {} | {} | {} | {} / {} | {} / {} | {:.1f} | {:.0f} | {:.2f} | {:.1f} | {} | {} | {} |\n",
+        name, m["queries"].get<int>(), m["localized"].get<int>(),
+        Fixed(m["median_rotation_deg_initial"], 3), Fixed(m["median_rotation_deg"], 3),
+        Fixed(m["median_translation_initial"], 4), Fixed(m["median_translation"], 4),
+        m["mean_iterations"].get<double>(), 100 * m["inlier_ratio"].get<double>(),
+        m["mean_solutions"].get<double>(), m["solver_us"].get<double>(), reproj, paper,
+        paper_reproj);
   }
-  md += "\n## Cramér–Rao check of the refined rotation\n\n"
-        "How close each method comes to the least rotation error any estimator could reach on its "
-        "inliers: σ̂ = the observation noise at the ground truth (median reprojection error of the "
-        "inliers' points / √(2 ln 2)), bound = √trace of the Cramér–Rao covariance of the rotation "
-        "at the ground truth with σ̂ (eq. 2 residuals for points, eq. 6 for lines: a line measures "
-        "only the offset across it), medians over the queries; RMS error / bound ≈ 1 for an "
-        "efficient estimator. The bound ratio is the least by which the line method must trail its "
-        "point twin on these queries.\n\n"
-        "| point / line method | σ̂ px | refined rot. ° point / line (ratio) | bound ° point / line (ratio) | "
-        "RMS error / bound point / line |\n|---|---|---|---|---|\n";
+  md +=
+      "\n## Cramér–Rao check of the refined rotation\n\n"
+      "How close each method comes to the least rotation error any estimator could reach on its "
+      "inliers: σ̂ = the observation noise at the ground truth (median reprojection error of the "
+      "inliers' points / √(2 ln 2)), bound = √trace of the Cramér–Rao covariance of the rotation "
+      "at the ground truth with σ̂ (eq. 2 residuals for points, eq. 6 for lines: a line measures "
+      "only the offset across it), medians over the queries; RMS error / bound ≈ 1 for an "
+      "efficient estimator. The bound ratio is the least by which the line method must trail its "
+      "point twin on these queries.\n\n"
+      "| point / line method | σ̂ px | refined rot. ° point / line (ratio) | bound ° point / line "
+      "(ratio) | "
+      "RMS error / bound point / line |\n|---|---|---|---|---|\n";
   for (const MethodInfo& info : AllMethods()) {
     const std::string name(info.name), twin = CounterpartMethod(info);
-    if (info.lines || !report["methods"].contains(name) || !report["methods"].contains(twin)) continue;
+    if (info.lines || !report["methods"].contains(name) || !report["methods"].contains(twin))
+      continue;
     const json& p = report["methods"][name];
     const json& l = report["methods"][twin];
     const auto value = [](const json& v) { return v.is_number() ? v.get<double>() : NAN; };
     const double rp = value(p["median_rotation_deg"]), rl = value(l["median_rotation_deg"]);
-    const double bp = value(p["median_rotation_bound_deg"]), bl = value(l["median_rotation_bound_deg"]);
+    const double bp = value(p["median_rotation_bound_deg"]),
+                 bl = value(l["median_rotation_bound_deg"]);
     md += fmt::format("| {} / {} | {} | {} / {} ({}×) | {} / {} ({}×) | {} / {} |\n", name, twin,
-                      Fixed(value(p["median_noise_px"]), 2), Fixed(rp, 4), Fixed(rl, 4), Fixed(rl / rp, 2),
-                      Fixed(bp, 4), Fixed(bl, 4), Fixed(bl / bp, 2),
+                      Fixed(value(p["median_noise_px"]), 2), Fixed(rp, 4), Fixed(rl, 4),
+                      Fixed(rl / rp, 2), Fixed(bp, 4), Fixed(bl, 4), Fixed(bl / bp, 2),
                       Fixed(value(p["rms_rotation_error_over_bound"]), 2),
                       Fixed(value(l["rms_rotation_error_over_bound"]), 2));
   }
   if (report.contains("density")) {
     std::vector<std::string> columns;
-    for (double f : report["density"]["dropped"]) columns.push_back(fmt::format("{:.0f} %", 100 * f));
-    md += "\n## Error vs. map density (Fig. 7)\n\nMedian refined rotation error (°) when a share of the "
-          "map's points (and the same lines) is dropped at random.\n\n" +
-          SweepTable(columns, report["density"]["median_rotation_deg"]);
+    for (double f : report["density"]["dropped"])
+      columns.push_back(fmt::format("{:.0f} %", 100 * f));
+    md +=
+        "\n## Error vs. map density (Fig. 7)\n\nMedian refined rotation error (°) when a share of "
+        "the "
+        "map's points (and the same lines) is dropped at random.\n\n" +
+        SweepTable(columns, report["density"]["median_rotation_deg"]);
   }
   if (report.contains("direct_matching")) md += DirectMatchingMarkdown(report["direct_matching"]);
   if (report.contains("noise")) {
     std::vector<std::string> columns;
     for (double f : report["noise"]["noise_px"]) columns.push_back(fmt::format("{:g} px", f));
-    md += "\n## Error vs. pixel noise, synthetic (Fig. 8)\n\nMedian refined rotation error (°).\n\n" +
-          SweepTable(columns, report["noise"]["median_rotation_deg"]);
+    md +=
+        "\n## Error vs. pixel noise, synthetic (Fig. 8)\n\nMedian refined rotation error (°).\n\n" +
+        SweepTable(columns, report["noise"]["median_rotation_deg"]);
   }
   return md;
 }
@@ -470,8 +510,10 @@ void EvalRunOptions::Check() const {
   if (out_dir.empty()) Fail("--out: empty");
   for (const std::string& m : methods) FindMethod(m);
   lifting.Check();
-  if (!(noise_px >= 0 && std::isfinite(noise_px))) Fail("--noise: {} is not a pixel std. dev. >= 0", noise_px);
-  if (!(threshold_px > 0 && std::isfinite(threshold_px))) Fail("--threshold: {} must be > 0", threshold_px);
+  if (!(noise_px >= 0 && std::isfinite(noise_px)))
+    Fail("--noise: {} is not a pixel std. dev. >= 0", noise_px);
+  if (!(threshold_px > 0 && std::isfinite(threshold_px)))
+    Fail("--threshold: {} must be > 0", threshold_px);
   for (double f : density_sweep) {
     if (!(f >= 0 && f < 1)) Fail("density sweep: {} not in [0, 1)", f);
   }
@@ -483,7 +525,8 @@ void EvalRunOptions::Check() const {
 
 EvalWork ReadPreparedWork(const std::string& work_dir) {
   const std::string work_path = JoinPaths(work_dir, "prepared.json");
-  if (!FileExists(work_path)) Fail("{}: not found (run `linecloud eval prepare --work {}` first)", work_path, work_dir);
+  if (!FileExists(work_path))
+    Fail("{}: not found (run `linecloud eval prepare --work {}` first)", work_path, work_dir);
   return EvalWorkFromJson(ReadJsonFile(work_path), work_path);
 }
 
@@ -511,7 +554,8 @@ EvalInputs LoadInputs(const EvalRunOptions& options) {
     std::normal_distribution<double> noise(0.0, options.noise_px);
     for (EvalGroup& g : in.work.groups) {
       for (EvalImage& im : g.images) {
-        for (EvalCorrespondence& c : im.correspondences) c.xy += Eigen::Vector2d(noise(rng), noise(rng));
+        for (EvalCorrespondence& c : im.correspondences)
+          c.xy += Eigen::Vector2d(noise(rng), noise(rng));
       }
     }
   }
@@ -534,12 +578,14 @@ RecordsByMethod RunPaperProtocol(const EvalInputs& in, const EvalRunOptions& opt
     const auto t0 = std::chrono::steady_clock::now();
     std::vector<QueryRecord> records = RunMethod(in.work, *m, maps, options);
     json mr = MethodReport(records);
-    fmt::print("[eval] {:<12} {:>3} queries, {:>3} localized, median {:.3f}° / {:.4f}, {:>6.1f} iterations, "
-               "inliers {:.0f} %, reprojection {:.2f} px ({:.1f} s)\n",
-               m->name, mr["queries"].get<int>(), mr["localized"].get<int>(),
-               mr["median_rotation_deg"].get<double>(), mr["median_translation"].get<double>(),
-               mr["mean_iterations"].get<double>(), 100 * mr["inlier_ratio"].get<double>(),
-               mr["reprojection_px"]["refined"].get<double>(), SecondsSince(t0));
+    fmt::print(
+        "[eval] {:<12} {:>3} queries, {:>3} localized, median {:.3f}° / {:.4f}, {:>6.1f} "
+        "iterations, "
+        "inliers {:.0f} %, reprojection {:.2f} px ({:.1f} s)\n",
+        m->name, mr["queries"].get<int>(), mr["localized"].get<int>(),
+        mr["median_rotation_deg"].get<double>(), mr["median_translation"].get<double>(),
+        mr["mean_iterations"].get<double>(), 100 * mr["inlier_ratio"].get<double>(),
+        mr["reprojection_px"]["refined"].get<double>(), SecondsSince(t0));
     std::fflush(stdout);
     (*report)["methods"][std::string(m->name)] = mr;
     all_records[std::string(m->name)] = std::move(records);
@@ -575,16 +621,26 @@ void WriteCumulativeFigures(const EvalInputs& in, const EvalRunOptions& options,
       r.push_back(q.rotation_deg[1]);
       t.push_back(q.position[1]);
     }
-    rs.push_back({std::string(m->name), xr, CumulativeAt(r, xr), PairColor(*m), m->lines, false, {}});
-    ts.push_back({std::string(m->name), xt, CumulativeAt(t, xt), PairColor(*m), m->lines, false, {}});
+    rs.push_back(
+        {std::string(m->name), xr, CumulativeAt(r, xr), PairColor(*m), m->lines, false, {}});
+    ts.push_back(
+        {std::string(m->name), xt, CumulativeAt(t, xt), PairColor(*m), m->lines, false, {}});
   }
   WriteLinePlot(JoinPaths(options.out_dir, "cumulative_rotation.png"),
-                {.title = in.work.dataset + ": cumulative rotation error (refined)", .x_label = "rotation error (deg)",
-                 .y_label = "queries (%)", .log_x = true, .y_min = 0, .y_max = 100},
+                {.title = in.work.dataset + ": cumulative rotation error (refined)",
+                 .x_label = "rotation error (deg)",
+                 .y_label = "queries (%)",
+                 .log_x = true,
+                 .y_min = 0,
+                 .y_max = 100},
                 rs);
   WriteLinePlot(JoinPaths(options.out_dir, "cumulative_translation.png"),
                 {.title = in.work.dataset + ": cumulative translation error (refined)",
-                 .x_label = "translation error (" + in.work.units + ")", .y_label = "queries (%)", .log_x = true, .y_min = 0, .y_max = 100},
+                 .x_label = "translation error (" + in.work.units + ")",
+                 .y_label = "queries (%)",
+                 .log_x = true,
+                 .y_min = 0,
+                 .y_max = 100},
                 ts);
 }
 
@@ -592,7 +648,8 @@ void WriteCumulativeFigures(const EvalInputs& in, const EvalRunOptions& options,
 void RunDensitySweep(const EvalInputs& in, const EvalRunOptions& options,
                      RecordsByMethod& all_records, json* report) {
   if (options.density_sweep.empty()) return;
-  json d = {{"dropped", options.density_sweep}, {"median_rotation_deg", json::object()},
+  json d = {{"dropped", options.density_sweep},
+            {"median_rotation_deg", json::object()},
             {"median_translation", json::object()}};
   std::map<std::string, std::vector<double>> rot, pos;
   for (double drop : options.density_sweep) {
@@ -601,8 +658,9 @@ void RunDensitySweep(const EvalInputs& in, const EvalRunOptions& options,
     at_drop.sparsify = drop;
     const std::vector<GroupMaps> maps = LoadMaps(in.work, options.work_dir, in.key, at_drop);
     for (const MethodInfo* m : in.methods) {
-      std::vector<QueryRecord> records = drop == options.lifting.sparsify ? all_records[std::string(m->name)]
-                                                                  : RunMethod(in.work, *m, maps, options);
+      std::vector<QueryRecord> records = drop == options.lifting.sparsify
+                                             ? all_records[std::string(m->name)]
+                                             : RunMethod(in.work, *m, maps, options);
       std::vector<double> r, t;
       for (const QueryRecord& q : records) {
         r.push_back(q.rotation_deg[1]);
@@ -611,7 +669,8 @@ void RunDensitySweep(const EvalInputs& in, const EvalRunOptions& options,
       rot[std::string(m->name)].push_back(Median(r));
       pos[std::string(m->name)].push_back(Median(t));
     }
-    fmt::print("[eval] map density: {:.0f} % of the points dropped ({:.1f} s)\n", 100 * drop, SecondsSince(t0));
+    fmt::print("[eval] map density: {:.0f} % of the points dropped ({:.1f} s)\n", 100 * drop,
+               SecondsSince(t0));
     std::fflush(stdout);
   }
   std::vector<PlotSeries> series;
@@ -626,15 +685,19 @@ void RunDensitySweep(const EvalInputs& in, const EvalRunOptions& options,
   (*report)["density"] = d;
   WriteLinePlot(JoinPaths(options.out_dir, "error_vs_density.png"),
                 {.title = in.work.dataset + ": median rotation error vs. map density",
-                 .x_label = "points / lines dropped (%)", .y_label = "median rotation error (deg)", .log_y = true},
+                 .x_label = "points / lines dropped (%)",
+                 .y_label = "median rotation error (deg)",
+                 .log_y = true},
                 series);
 }
 
 // Fig. 8: error vs. pixel noise on the synthetic scene.
 void RunNoiseSweep(const EvalInputs& in, const EvalRunOptions& options, json* report) {
   if (options.noise_sweep.empty()) return;
-  json d = {{"noise_px", options.noise_sweep}, {"queries_per_level", options.noise_sweep_queries},
-            {"median_rotation_deg", json::object()}, {"median_translation_relative", json::object()}};
+  json d = {{"noise_px", options.noise_sweep},
+            {"queries_per_level", options.noise_sweep_queries},
+            {"median_rotation_deg", json::object()},
+            {"median_translation_relative", json::object()}};
   std::map<std::string, std::vector<double>> rot, pos;
   for (double noise : options.noise_sweep) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -647,7 +710,8 @@ void RunNoiseSweep(const EvalInputs& in, const EvalRunOptions& options, json* re
     std::vector<Eigen::Vector3d> xyz;
     for (uint64_t id : ids) xyz.push_back(scene.model.points3D.at(id).xyz);
     const PointMap point_map = PointMapFromModel(scene.model);
-    const LineMap line_map = LineMapByPointId(LiftPoints(ids, xyz, in.key, {LineEncoding::kPlucker}), in.key);
+    const LineMap line_map =
+        LineMapByPointId(LiftPoints(ids, xyz, in.key, {LineEncoding::kPlucker}), in.key);
     SceneQueryOptions qo;
     qo.seed = options.seed;
     LocalizeOptions lo;
@@ -656,8 +720,9 @@ void RunNoiseSweep(const EvalInputs& in, const EvalRunOptions& options, json* re
     lo.ransac.seed = options.seed;
     for (const MethodInfo* m : in.methods) {
       const auto queries = SceneQueriesForMethod(scene, *m, qo);
-      const MethodSummary s = EvaluateMethod(*m, queries, m->lines ? LocalizationMap(line_map) : LocalizationMap(point_map),
-                                             lo, 1.0, 0.01 * scene.extent);
+      const MethodSummary s = EvaluateMethod(
+          *m, queries, m->lines ? LocalizationMap(line_map) : LocalizationMap(point_map), lo, 1.0,
+          0.01 * scene.extent);
       rot[std::string(m->name)].push_back(s.median_rotation_deg[1]);
       pos[std::string(m->name)].push_back(s.median_position[1] / scene.extent);
     }
@@ -673,8 +738,10 @@ void RunNoiseSweep(const EvalInputs& in, const EvalRunOptions& options, json* re
   }
   (*report)["noise"] = d;
   WriteLinePlot(JoinPaths(options.out_dir, "error_vs_noise.png"),
-                {.title = "synthetic scene: median rotation error vs. pixel noise", .x_label = "pixel noise σ (px)",
-                 .y_label = "median rotation error (deg)", .log_y = true},
+                {.title = "synthetic scene: median rotation error vs. pixel noise",
+                 .x_label = "pixel noise σ (px)",
+                 .y_label = "median rotation error (deg)",
+                 .log_y = true},
                 series);
 }
 
@@ -694,11 +761,15 @@ json RunEvaluation(const EvalRunOptions& options) {
   options.Check();
   const EvalInputs in = LoadInputs(options);
   CreateDirectories(options.out_dir);
-  json report = {{"dataset", in.work.dataset}, {"units", in.work.units},
-                 {"threshold_px", options.threshold_px}, {"sparsify", options.lifting.sparsify},
+  json report = {{"dataset", in.work.dataset},
+                 {"units", in.work.units},
+                 {"threshold_px", options.threshold_px},
+                 {"sparsify", options.lifting.sparsify},
                  {"lifting", options.lifting.Name()},
-                 {"noise_px", options.noise_px}, {"seed", options.seed},
-                 {"gravity_source", in.work.gravity_source}, {"reconstruction", in.work.reconstruction}};
+                 {"noise_px", options.noise_px},
+                 {"seed", options.seed},
+                 {"gravity_source", in.work.gravity_source},
+                 {"reconstruction", in.work.reconstruction}};
   report["methods"] = json::object();
   RecordsByMethod all_records = RunPaperProtocol(in, options, &report);
   RunDirectMatchingStage(in, options, &report);

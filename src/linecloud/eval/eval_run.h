@@ -28,7 +28,7 @@ struct EvalRunOptions {
   std::vector<double> density_sweep = {0.0, 0.5, 0.75, 0.9, 0.95};
   // Fig. 8: synthetic pixel-noise levels; empty: no sweep.
   std::vector<double> noise_sweep = {0.0, 1.0, 2.0, 3.0, 4.0, 5.0};
-  int noise_sweep_queries = 10;      // synthetic queries per method and level
+  int noise_sweep_queries = 10;  // synthetic queries per method and level
   // The deployable protocol beside the paper's: query images' own features
   // matched to the map's descriptors (direct_matching.h).
   bool direct_matching = true;

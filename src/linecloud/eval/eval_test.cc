@@ -27,9 +27,7 @@ namespace {
 using testing::ErrorOf;
 using testing::TempDir;
 
-void WriteText(const std::string& path, const std::string& text) {
-  std::ofstream(path) << text;
-}
+void WriteText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
 // A dataset folder with empty image files (the reader does not decode them).
 void MakeDataset(const TempDir& tmp, const std::string& queries) {
@@ -58,14 +56,18 @@ TEST(EvalDataset, ReadsTheEurocRigAndImu) {
   ASSERT_TRUE(d.sensors.has_value());
   ASSERT_EQ(d.sensors->body_from_cam.size(), 2u);
   // The stereo baseline of the VI-Sensor is about 11 cm.
-  const double baseline = (d.sensors->body_from_cam.at(1).translation - d.sensors->body_from_cam.at(2).translation).norm();
+  const double baseline =
+      (d.sensors->body_from_cam.at(1).translation - d.sensors->body_from_cam.at(2).translation)
+          .norm();
   EXPECT_NEAR(baseline, 0.11, 0.005);
   const int64_t t = *EurocTimestampNs(d.images.front());
   const Eigen::Vector3d g = GravityInBody(*d.sensors, t);
   EXPECT_NEAR(g.norm(), 1.0, 1e-12);
   // The IMU's x axis points up on the MAV: gravity is mostly along -x.
   EXPECT_LT(g.x(), -0.8);
-  EXPECT_NE(ErrorOf([&] { GravityInBody(*d.sensors, t + 3'600'000'000'000LL); }).find("no IMU sample"), std::string::npos);
+  EXPECT_NE(
+      ErrorOf([&] { GravityInBody(*d.sensors, t + 3'600'000'000'000LL); }).find("no IMU sample"),
+      std::string::npos);
 }
 
 TEST(EvalDataset, BadInputNamesTheFileAndLine) {
@@ -79,12 +81,14 @@ TEST(EvalDataset, BadInputNamesTheFileAndLine) {
   {
     TempDir tmp;
     MakeDataset(tmp, "a.jpg b.jpg\nb.jpg\n");
-    EXPECT_NE(ErrorOf([&] { ReadEvalDataset(tmp.Path()); }).find("two query groups"), std::string::npos);
+    EXPECT_NE(ErrorOf([&] { ReadEvalDataset(tmp.Path()); }).find("two query groups"),
+              std::string::npos);
   }
   {
     TempDir tmp;
     MakeDataset(tmp, "a.jpg b.jpg c.jpg\n");
-    EXPECT_NE(ErrorOf([&] { ReadEvalDataset(tmp.Path()); }).find("fewer than 2 images"), std::string::npos);
+    EXPECT_NE(ErrorOf([&] { ReadEvalDataset(tmp.Path()); }).find("fewer than 2 images"),
+              std::string::npos);
   }
   {
     TempDir tmp;
@@ -99,7 +103,8 @@ TEST(EvalDataset, BadInputNamesTheFileAndLine) {
     WriteText(tmp.Path("gt/images.txt"), "1 1 0 0 0 0 0 0 1 zzz.jpg\n\n");
     EXPECT_NE(ErrorOf([&] { ReadEvalDataset(tmp.Path()); }).find("zzz.jpg"), std::string::npos);
   }
-  EXPECT_NE(ErrorOf([] { ReadEvalDataset("/nonexistent/dataset"); }).find("not found"), std::string::npos);
+  EXPECT_NE(ErrorOf([] { ReadEvalDataset("/nonexistent/dataset"); }).find("not found"),
+            std::string::npos);
 }
 
 TEST(EvalPrepare, RefinePointWithFixedPosesRecoversThePoint) {
@@ -110,7 +115,8 @@ TEST(EvalPrepare, RefinePointWithFixedPosesRecoversThePoint) {
     const Eigen::Vector3d X(n(rng), n(rng), 6 + n(rng));
     std::vector<PointObservation> obs;
     for (int k = 0; k < 4; ++k) {
-      Rigid3d cam_from_world(Eigen::Quaterniond(Eigen::AngleAxisd(0.1 * n(rng), Eigen::Vector3d::Random().normalized())),
+      Rigid3d cam_from_world(Eigen::Quaterniond(Eigen::AngleAxisd(
+                                 0.1 * n(rng), Eigen::Vector3d::Random().normalized())),
                              Eigen::Vector3d(k - 1.5, 0.3 * n(rng), 0));
       obs.push_back({&camera, cam_from_world, camera.ImgFromCam(cam_from_world * X)});
     }
@@ -155,7 +161,8 @@ TEST(EvalPrepare, MapWithoutImagesDropsTheGroupAndItsOnlyPoints) {
     ASSERT_GE(p.track.size(), 2u);
     for (const TrackElement& e : p.track) ASSERT_FALSE(group_ids.count(e.image_id));
     // Re-optimised with 0.5 px noise: close to where it was.
-    EXPECT_LT((p.xyz - full.points3D.at(pid).xyz).norm(), 0.05 * full.points3D.at(pid).xyz.norm() + 0.05);
+    EXPECT_LT((p.xyz - full.points3D.at(pid).xyz).norm(),
+              0.05 * full.points3D.at(pid).xyz.norm() + 0.05);
   }
   for (const auto& [id, im] : map.images) {
     for (const Point2D& p : im.points2D) {
@@ -207,28 +214,44 @@ TEST(EvalWork, JsonRoundTripAndFieldErrors) {
   EXPECT_EQ(*im.correspondences[0].point_local, Eigen::Vector3d(0.1, 0.2, 3));
   EXPECT_FALSE(im.correspondences[1].point_local.has_value());
   EXPECT_EQ(im.correspondences[0].xy, Eigen::Vector2d(10.25, 20.5));
-  EXPECT_LT(RotationDistance(r.groups[0].rig_from_world.rotation, w.groups[0].rig_from_world.rotation), 1e-15);
+  EXPECT_LT(
+      RotationDistance(r.groups[0].rig_from_world.rotation, w.groups[0].rig_from_world.rotation),
+      1e-15);
   EXPECT_EQ(r.groups[0].local_scale, 0.25);
   EXPECT_EQ(r.cameras.at(3).params, w.cameras.at(3).params);
 
   nlohmann::json j = EvalWorkToJson(w);
   j["groups"][0]["images"][0]["correspondences"][1] = {1, 2};
-  EXPECT_NE(ErrorOf([&] { EvalWorkFromJson(j, "prepared.json"); }).find("groups[0].images[0].correspondences[1]"),
+  EXPECT_NE(ErrorOf([&] {
+              EvalWorkFromJson(j, "prepared.json");
+            }).find("groups[0].images[0].correspondences[1]"),
             std::string::npos);
   j = EvalWorkToJson(w);
   j["groups"][0]["images"][0]["camera"] = 9;
-  EXPECT_NE(ErrorOf([&] { EvalWorkFromJson(j, "prepared.json"); }).find("unknown camera 9"), std::string::npos);
+  EXPECT_NE(ErrorOf([&] { EvalWorkFromJson(j, "prepared.json"); }).find("unknown camera 9"),
+            std::string::npos);
   j = EvalWorkToJson(w);
   j["groups"][0]["images"][0]["local_points"][0][0] = 5;
-  EXPECT_NE(ErrorOf([&] { EvalWorkFromJson(j, "prepared.json"); }).find("out of range"), std::string::npos);
-  EXPECT_NE(ErrorOf([&] { EvalWorkFromJson(nlohmann::json::object(), "x.json"); }).find("eval prepare"), std::string::npos);
+  EXPECT_NE(ErrorOf([&] { EvalWorkFromJson(j, "prepared.json"); }).find("out of range"),
+            std::string::npos);
+  EXPECT_NE(
+      ErrorOf([&] { EvalWorkFromJson(nlohmann::json::object(), "x.json"); }).find("eval prepare"),
+      std::string::npos);
 }
 
 TEST(Plot, WritesAPngOfTheRequestedSize) {
   TempDir tmp;
   const std::string path = tmp.Path("p.png");
-  WriteLinePlot(path, {.title = "t", .x_label = "x", .y_label = "y", .log_x = true, .log_y = true, .width = 640, .height = 400},
-                {{"a", {0.01, 0.1, 1}, {1, 10, 100}, 0, false, false, {}}, {"b", {0.01, 1}, {0, 5}, 1, true, false, {}}});
+  WriteLinePlot(path,
+                {.title = "t",
+                 .x_label = "x",
+                 .y_label = "y",
+                 .log_x = true,
+                 .log_y = true,
+                 .width = 640,
+                 .height = 400},
+                {{"a", {0.01, 0.1, 1}, {1, 10, 100}, 0, false, false, {}},
+                 {"b", {0.01, 1}, {0, 5}, 1, true, false, {}}});
   const std::string png = ReadFileToString(path);
   ASSERT_GT(png.size(), 24u);
   EXPECT_EQ(png.substr(1, 3), "PNG");
@@ -238,7 +261,9 @@ TEST(Plot, WritesAPngOfTheRequestedSize) {
   };
   EXPECT_EQ(be32(16), 640u);  // IHDR width
   EXPECT_EQ(be32(20), 400u);  // IHDR height
-  EXPECT_NE(ErrorOf([&] { WriteLinePlot("/nonexistent/dir/p.png", {}, {}); }).find("/nonexistent/dir/p.png"),
+  EXPECT_NE(ErrorOf([&] {
+              WriteLinePlot("/nonexistent/dir/p.png", {}, {});
+            }).find("/nonexistent/dir/p.png"),
             std::string::npos);
 }
 
@@ -279,14 +304,16 @@ TEST(EvalRun, SyntheticWorkLocalizesEveryQueryWithAllMethods) {
       im.cam_from_rig = q.cam_from_world * rig_from_world.Inverse();
       im.gravity = q.gravity_in_cam;
       for (const SyntheticObservation& o : q.observations) {
-        im.correspondences.push_back({o.xy, o.point3D_id, 1, rig_from_world * scene.model.points3D.at(o.point3D_id).xyz});
+        im.correspondences.push_back(
+            {o.xy, o.point3D_id, 1, rig_from_world * scene.model.points3D.at(o.point3D_id).xyz});
       }
       g.images.push_back(im);
     }
     w.groups.push_back(g);
   }
   WriteColmapModel(scene.model, tmp.Path("work/map"), ModelFormat::kBinary);
-  WriteFileAtomically(tmp.Path("work/prepared.json"), [&](std::ostream& o) { o << EvalWorkToJson(w).dump(); });
+  WriteFileAtomically(tmp.Path("work/prepared.json"),
+                      [&](std::ostream& o) { o << EvalWorkToJson(w).dump(); });
   EvalRunOptions ro;
   ro.work_dir = tmp.Path("work");
   ro.out_dir = tmp.Path("out");
@@ -377,7 +404,8 @@ TEST(DirectMatching, RefusesAMapThatRegistersTheQueryImage) {
 
 TEST(EvalReport, StrechaSceneMeetsTheMeasuredTargets) {
   const char* path = std::getenv("LINECLOUD_EVAL_REPORT");
-  if (!path) GTEST_SKIP() << "LINECLOUD_EVAL_REPORT is not set (CI sets it after `linecloud eval run`)";
+  if (!path)
+    GTEST_SKIP() << "LINECLOUD_EVAL_REPORT is not set (CI sets it after `linecloud eval run`)";
   const nlohmann::json r = ReadJsonFile(path);
   const nlohmann::json& gt = r["reconstruction"]["ground_truth"];
   EXPECT_LE(gt["max_rotation_deg"].get<double>(), 0.1);
@@ -413,7 +441,9 @@ namespace {
 // and every lifting still localizes the photos.
 TEST(EvalPrivacy, FountainTradeoffMeetsTheMeasuredFigures) {
   const char* path = std::getenv("LINECLOUD_PRIVACY_REPORT");
-  if (!path) GTEST_SKIP() << "LINECLOUD_PRIVACY_REPORT is not set (CI sets it after `linecloud eval privacy`)";
+  if (!path)
+    GTEST_SKIP()
+        << "LINECLOUD_PRIVACY_REPORT is not set (CI sets it after `linecloud eval privacy`)";
   const nlohmann::json r = ReadJsonFile(path);
   const nlohmann::json& rows = r["liftings"];
   ASSERT_GE(rows.size(), 2u);
@@ -456,11 +486,13 @@ namespace {
 // COLMAP's extraction + matching + registration.
 TEST(EvalColmap, P6lAgainstColmapsOwnRegistration) {
   const char* path = std::getenv("LINECLOUD_COLMAP_REPORT");
-  if (!path) GTEST_SKIP() << "LINECLOUD_COLMAP_REPORT is not set (CI sets it after `linecloud eval colmap`)";
+  if (!path)
+    GTEST_SKIP() << "LINECLOUD_COLMAP_REPORT is not set (CI sets it after `linecloud eval colmap`)";
   const nlohmann::json s = ReadJsonFile(path)["summary"];
   EXPECT_EQ(s["colmap_registered"], s["images"]);
   ASSERT_TRUE(s.contains("p6L_median_rotation_deg")) << "eval colmap without --ours";
-  EXPECT_LE(s["p6L_median_rotation_deg"].get<double>(), 1.5 * s["colmap_median_rotation_deg"].get<double>());
+  EXPECT_LE(s["p6L_median_rotation_deg"].get<double>(),
+            1.5 * s["colmap_median_rotation_deg"].get<double>());
   EXPECT_LT(s["p6L_mean_seconds"].get<double>(), s["colmap_mean_seconds"].get<double>());
 }
 

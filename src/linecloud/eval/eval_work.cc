@@ -40,17 +40,24 @@ json EvalWorkToJson(const EvalWork& w) {
   j["reconstruction"] = w.reconstruction;
   json cams = json::array();
   for (const auto& [id, c] : w.cameras) {
-    cams.push_back({{"id", id}, {"model", CameraModelName(c.model_id)}, {"width", c.width},
-                    {"height", c.height}, {"params", c.params}});
+    cams.push_back({{"id", id},
+                    {"model", CameraModelName(c.model_id)},
+                    {"width", c.width},
+                    {"height", c.height},
+                    {"params", c.params}});
   }
   j["cameras"] = cams;
   json groups = json::array();
   for (const EvalGroup& g : w.groups) {
-    json jg = {{"name", g.name}, {"map", g.map_dir}, {"has_rig", g.has_rig},
-               {"rig_source", g.rig_source}, {"local_scale", g.local_scale},
-               {"map_points", g.map_points},
-               {"rig_from_world", PoseToJson(g.rig_from_world.rotation, g.rig_from_world.translation)},
-               {"gravity_rig", Vec(g.gravity_rig)}};
+    json jg = {
+        {"name", g.name},
+        {"map", g.map_dir},
+        {"has_rig", g.has_rig},
+        {"rig_source", g.rig_source},
+        {"local_scale", g.local_scale},
+        {"map_points", g.map_points},
+        {"rig_from_world", PoseToJson(g.rig_from_world.rotation, g.rig_from_world.translation)},
+        {"gravity_rig", Vec(g.gravity_rig)}};
     json images = json::array();
     for (const EvalImage& im : g.images) {
       json corr = json::array(), local = json::array();
@@ -58,14 +65,19 @@ json EvalWorkToJson(const EvalWork& w) {
         const EvalCorrespondence& c = im.correspondences[k];
         corr.push_back(json::array({c.xy.x(), c.xy.y(), c.point_id, c.votes}));
         if (c.point_local) {
-          local.push_back(json::array({k, c.point_local->x(), c.point_local->y(), c.point_local->z()}));
+          local.push_back(
+              json::array({k, c.point_local->x(), c.point_local->y(), c.point_local->z()}));
         }
       }
-      images.push_back({{"name", im.name}, {"camera", im.camera_id},
-                        {"cam_from_world", PoseToJson(im.cam_from_world.rotation, im.cam_from_world.translation)},
-                        {"cam_from_rig", PoseToJson(im.cam_from_rig.rotation, im.cam_from_rig.translation)},
-                        {"gravity", Vec(im.gravity)},
-                        {"correspondences", corr}, {"local_points", local}});
+      images.push_back(
+          {{"name", im.name},
+           {"camera", im.camera_id},
+           {"cam_from_world",
+            PoseToJson(im.cam_from_world.rotation, im.cam_from_world.translation)},
+           {"cam_from_rig", PoseToJson(im.cam_from_rig.rotation, im.cam_from_rig.translation)},
+           {"gravity", Vec(im.gravity)},
+           {"correspondences", corr},
+           {"local_points", local}});
     }
     jg["images"] = images;
     groups.push_back(jg);
@@ -125,7 +137,8 @@ EvalWork EvalWorkFromJson(const json& j, const std::string& source) {
       im.gravity = JsonVector3(Field(ji, "gravity", wi), wi + ".gravity");
       const json& corr = Field(ji, "correspondences", wi);
       for (size_t k = 0; k < corr.size(); ++k) {
-        if (!corr[k].is_array() || corr[k].size() != 4) Fail("{}.correspondences[{}]: expected [x, y, id, votes]", wi, k);
+        if (!corr[k].is_array() || corr[k].size() != 4)
+          Fail("{}.correspondences[{}]: expected [x, y, id, votes]", wi, k);
         EvalCorrespondence c;
         try {
           c.xy = {corr[k][0].get<double>(), corr[k][1].get<double>()};

@@ -30,8 +30,8 @@ struct EvalCorrespondence {
 struct EvalImage {
   std::string name;
   uint32_t camera_id = 0;
-  Rigid3d cam_from_world;               // ground truth (full reconstruction)
-  Rigid3d cam_from_rig;                 // valid when the group has a rig
+  Rigid3d cam_from_world;                             // ground truth (full reconstruction)
+  Rigid3d cam_from_rig;                               // valid when the group has a rig
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  // unit, camera frame
   std::vector<EvalCorrespondence> correspondences;
 };
@@ -40,9 +40,9 @@ struct EvalGroup {
   std::string name;     // g00, g01, ...
   std::string map_dir;  // relative to the work directory
   std::vector<EvalImage> images;
-  bool has_rig = false;          // cam_from_rig and local points are valid
-  std::string rig_source;        // "calibration" or "local reconstruction"
-  Rigid3d rig_from_world;        // ground truth
+  bool has_rig = false;    // cam_from_rig and local points are valid
+  std::string rig_source;  // "calibration" or "local reconstruction"
+  Rigid3d rig_from_world;  // ground truth
   Eigen::Vector3d gravity_rig = Eigen::Vector3d::Zero();
   // The +l points without known scale are the metric ones times this factor
   // (the local reconstruction's own scale); the rig's translations too.

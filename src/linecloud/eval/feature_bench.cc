@@ -40,7 +40,8 @@ SiftAgreement CompareSiftWithColmap(const std::string& image_dir, const std::str
                           Quote(JoinPaths(work_dir, "colmap.log")) + " 2>&1";
   auto t = Clock::now();
   if (std::system(cmd.c_str()) != 0) {
-    Fail("colmap feature_extractor failed on {} (log: {})", name, JoinPaths(work_dir, "colmap.log"));
+    Fail("colmap feature_extractor failed on {} (log: {})", name,
+         JoinPaths(work_dir, "colmap.log"));
   }
   SiftAgreement a;
   a.image = name;
@@ -86,11 +87,16 @@ SiftAgreement CompareSiftWithColmap(const std::string& image_dir, const std::str
 
 nlohmann::json SiftAgreementToJson(const SiftAgreement& a) {
   const double mp = a.width * a.height / 1e6;
-  return {{"image", a.image},         {"width", a.width},
-          {"height", a.height},       {"colmap_keypoints", a.colmap},
-          {"our_keypoints", a.ours},  {"located", a.located},
-          {"identical", a.identical}, {"within_one", a.within_one},
-          {"ours_ms_per_mp", a.ours_ms / mp}, {"colmap_ms_per_mp", a.colmap_ms / mp}};
+  return {{"image", a.image},
+          {"width", a.width},
+          {"height", a.height},
+          {"colmap_keypoints", a.colmap},
+          {"our_keypoints", a.ours},
+          {"located", a.located},
+          {"identical", a.identical},
+          {"within_one", a.within_one},
+          {"ours_ms_per_mp", a.ours_ms / mp},
+          {"colmap_ms_per_mp", a.colmap_ms / mp}};
 }
 
 }  // namespace linecloud

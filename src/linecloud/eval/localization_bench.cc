@@ -45,8 +45,7 @@ double RotationBoundDeg(const MethodInfo& method, const LocalizationInstance& in
   for (size_t i = 0; i < inst.is_inlier.size(); ++i) {
     if (inst.is_inlier[i]) inliers.push_back(static_cast<int>(i));
   }
-  return RotationErrorBound(prepared.data, inliers, aligned_truth, sigma_px,
-                            method.similarity()) *
+  return RotationErrorBound(prepared.data, inliers, aligned_truth, sigma_px, method.similarity()) *
          180.0 / std::numbers::pi;
 }
 
@@ -59,9 +58,8 @@ std::vector<LocalizationBenchRow> RunLocalizationBench(
   std::vector<LocalizationBenchRow> rows;
   for (const MethodInfo& method : AllMethods()) {
     if (!method.implemented) continue;
-    if (!options.methods.empty() &&
-        std::find(options.methods.begin(), options.methods.end(), method.name) ==
-            options.methods.end()) {
+    if (!options.methods.empty() && std::find(options.methods.begin(), options.methods.end(),
+                                              method.name) == options.methods.end()) {
       continue;
     }
     progress(fmt::format("{} ({} queries)", method.name, options.queries));
@@ -77,16 +75,16 @@ std::vector<LocalizationBenchRow> RunLocalizationBench(
       std::mt19937_64 rng(options.seed * 1000003 + static_cast<uint64_t>(k));
       const LocalizationInstance inst = RandomLocalizationInstance(method, options.instance, rng);
       localize.ransac.seed = options.seed + static_cast<uint64_t>(k);
-      const LocalizationMap map = method.lines ? LocalizationMap(inst.line_map)
-                                               : LocalizationMap(inst.point_map);
+      const LocalizationMap map =
+          method.lines ? LocalizationMap(inst.line_map) : LocalizationMap(inst.point_map);
       tally.Add(Localize(method, inst.query, map, localize), inst.truth, inst.scene_size);
       if (options.instance.noise_px > 0) {
-        const LocalizationMap other = method.lines ? LocalizationMap(inst.point_map)
-                                                   : LocalizationMap(inst.line_map);
+        const LocalizationMap other =
+            method.lines ? LocalizationMap(inst.point_map) : LocalizationMap(inst.line_map);
         bound.push_back(RotationBoundDeg(method, inst, map, options.instance.noise_px));
         if (!counterpart.empty()) {
-          counterpart_bound.push_back(RotationBoundDeg(FindMethod(counterpart), inst, other,
-                                                       options.instance.noise_px));
+          counterpart_bound.push_back(
+              RotationBoundDeg(FindMethod(counterpart), inst, other, options.instance.noise_px));
         }
       }
     }

@@ -19,18 +19,18 @@ namespace linecloud {
 struct LocalizationBenchOptions {
   int queries = 100;
   uint64_t seed = 1;
-  LocalizationInstanceOptions instance;     // 500 correspondences, 70 % inliers, 1 px
+  LocalizationInstanceOptions instance;  // 500 correspondences, 70 % inliers, 1 px
   LocalizeOptions localize;
-  double max_rotation_deg = 1.0;            // "localized" thresholds
-  double max_position_rel = 0.01;           // of the scene size
-  std::vector<std::string> methods;         // empty: all implemented
+  double max_rotation_deg = 1.0;     // "localized" thresholds
+  double max_position_rel = 0.01;    // of the scene size
+  std::vector<std::string> methods;  // empty: all implemented
 
   void Check() const;
 };
 
 struct LocalizationBenchRow : LocalizationSummary {
-  std::string method;             // median_position relative to the scene size
-  std::string counterpart;        // the same problem with the other map kind
+  std::string method;       // median_position relative to the scene size
+  std::string counterpart;  // the same problem with the other map kind
   // Cramér–Rao bound of the refined rotation (RotationErrorBound at the true
   // pose, on the query's true inliers, σ = the pixel noise), degrees, median
   // over the queries: for this method's map and for the counterpart's map of

@@ -48,8 +48,8 @@ LocalizationSummary LocalizationTally::Summary() const {
   LocalizationSummary s = sums_;
   const double n = std::max(1, s.queries);
   for (double* v : {&s.iterations, &s.inlier_ratio, &s.solutions, &s.solver_us, &s.ransac_ms,
-                    &s.solver_ms, &s.scoring_ms, &s.lo_ms, &s.refine_ms, &s.refine_iterations, &s.reprojection_px[0],
-                    &s.reprojection_px[1]}) {
+                    &s.solver_ms, &s.scoring_ms, &s.lo_ms, &s.refine_ms, &s.refine_iterations,
+                    &s.reprojection_px[0], &s.reprojection_px[1]}) {
     *v /= n;
   }
   s.total_ms = s.ransac_ms + s.refine_ms;

@@ -13,23 +13,23 @@ namespace linecloud {
 
 struct LocalizationSummary {
   int queries = 0;
-  int localized = 0;                        // refined pose within the thresholds
-  double median_rotation_deg[2] = {0, 0};   // initial, refined
-  double median_position[2] = {0, 0};       // in the unit passed to Add
-  double iterations = 0;                    // means per query from here on
+  int localized = 0;                       // refined pose within the thresholds
+  double median_rotation_deg[2] = {0, 0};  // initial, refined
+  double median_position[2] = {0, 0};      // in the unit passed to Add
+  double iterations = 0;                   // means per query from here on
   double inlier_ratio = 0;
   double solutions = 0;
   double solver_us = 0;
   double ransac_ms = 0;
   double refine_ms = 0;
   double refine_iterations = 0;
-  double total_ms = 0;                      // RANSAC + refinement
-  double median_total_ms = 0;               // median over the queries
+  double total_ms = 0;         // RANSAC + refinement
+  double median_total_ms = 0;  // median over the queries
   // Where RANSAC's time goes (means): minimal solvers, scoring, local
   // optimisation; the rest of ransac_ms is sampling and bookkeeping.
   double solver_ms = 0, scoring_ms = 0, lo_ms = 0;
-  double reprojection_px[2] = {0, 0};       // initial, refined
-  std::vector<std::string> failures;        // "name: reason" of each query without a pose
+  double reprojection_px[2] = {0, 0};  // initial, refined
+  std::vector<std::string> failures;   // "name: reason" of each query without a pose
 };
 
 class LocalizationTally {

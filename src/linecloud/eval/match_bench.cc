@@ -42,7 +42,8 @@ void NoisyCopy(std::mt19937_64& rng, const uint8_t* in, uint8_t* out) {
     norm += v[i] * v[i];
   }
   const double s = norm > 0 ? 512 / std::sqrt(norm) : 0;
-  for (int i = 0; i < 128; ++i) out[i] = static_cast<uint8_t>(std::clamp(std::round(v[i] * s), 0.0, 255.0));
+  for (int i = 0; i < 128; ++i)
+    out[i] = static_cast<uint8_t>(std::clamp(std::round(v[i] * s), 0.0, 255.0));
 }
 
 }  // namespace

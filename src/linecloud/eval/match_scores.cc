@@ -27,8 +27,8 @@ struct ScoredMatch {
 // The matches of one photo with their ratio and whether the ground truth
 // makes them inliers.
 std::vector<ScoredMatch> ScoreImageMatches(const EvalWork& work, const EvalImage& im,
-                                           const Reconstruction& model,
-                                           const MapDescriptors& map, double inlier_px) {
+                                           const Reconstruction& model, const MapDescriptors& map,
+                                           double inlier_px) {
   const std::string path = JoinPaths(JoinPaths(work.dataset_dir, "images"), im.name);
   const Camera& camera = work.cameras.at(im.camera_id);
   const ImageQuery q = QueryFromImage(path, camera, map, {});
@@ -36,8 +36,7 @@ std::vector<ScoredMatch> ScoreImageMatches(const EvalWork& work, const EvalImage
   for (size_t k = 0; k < q.matches.size(); ++k) {
     const QueryObservation& obs = q.query.observations[k];
     const Eigen::Vector3d p = im.cam_from_world * model.points3D.at(obs.id).xyz;
-    const bool inlier =
-        p.z() > 0 && (camera.ImgFromCam(p) - obs.xy).norm() < inlier_px;
+    const bool inlier = p.z() > 0 && (camera.ImgFromCam(p) - obs.xy).norm() < inlier_px;
     out.push_back({q.matches[k].ratio, inlier});
   }
   return out;
@@ -50,14 +49,16 @@ ojson TopShares(const std::vector<std::vector<ScoredMatch>>& images) {
     int counted = 0;
     for (std::vector<ScoredMatch> m : images) {
       if (m.size() < static_cast<size_t>(top)) continue;
-      std::stable_sort(m.begin(), m.end(),
-                       [](const ScoredMatch& a, const ScoredMatch& b) { return a.ratio < b.ratio; });
+      std::stable_sort(m.begin(), m.end(), [](const ScoredMatch& a, const ScoredMatch& b) {
+        return a.ratio < b.ratio;
+      });
       int in = 0;
       for (int i = 0; i < top; ++i) in += m[static_cast<size_t>(i)].inlier;
       sum += static_cast<double>(in) / top;
       ++counted;
     }
-    if (counted > 0) shares[fmt::format("{}", top)] = {{"images", counted}, {"inlier_share", sum / counted}};
+    if (counted > 0)
+      shares[fmt::format("{}", top)] = {{"images", counted}, {"inlier_share", sum / counted}};
   }
   return shares;
 }
@@ -93,13 +94,16 @@ ojson RunMatchScores(const MatchScoreOptions& options) {
         std::vector<ScoredMatch> m = ScoreImageMatches(work, im, model, map, options.inlier_px);
         int inliers = 0;
         for (const ScoredMatch& s : m) {
-          const int b = std::clamp(static_cast<int>(s.ratio / max_ratio * options.bins), 0,
-                                   options.bins - 1);
+          const int b =
+              std::clamp(static_cast<int>(s.ratio / max_ratio * options.bins), 0, options.bins - 1);
           (s.inlier ? hist_in : hist_out)[static_cast<size_t>(b)]++;
           inliers += s.inlier;
         }
-        per_image.push_back({{"dataset", work.dataset}, {"group", g.name}, {"image", im.name},
-                             {"matches", m.size()}, {"inliers", inliers},
+        per_image.push_back({{"dataset", work.dataset},
+                             {"group", g.name},
+                             {"image", im.name},
+                             {"matches", m.size()},
+                             {"inliers", inliers},
                              {"inlier_ratio", m.empty() ? 0.0 : double(inliers) / m.size()}});
         fmt::print("[scores] {} {}: {} matches, {} inliers\n", work.dataset, im.name, m.size(),
                    inliers);
@@ -112,7 +116,9 @@ ojson RunMatchScores(const MatchScoreOptions& options) {
   report["datasets"] = datasets;
   report["inlier_px"] = options.inlier_px;
   report["histogram"] = {{"score", "Lowe ratio (best / second-best descriptor angle)"},
-                         {"edges", edges}, {"inliers", hist_in}, {"outliers", hist_out}};
+                         {"edges", edges},
+                         {"inliers", hist_in},
+                         {"outliers", hist_out}};
   report["top_share"] = TopShares(all_images);
   report["per_image"] = per_image;
   WriteFileAtomically(options.out, [&](std::ostream& os) { os << report.dump(2) << "\n"; });

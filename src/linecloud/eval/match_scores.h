@@ -20,7 +20,7 @@ struct MatchScoreOptions {
   std::vector<std::string> work_dirs;  // prepared by `eval prepare`
   std::string out;                     // JSON file
   double inlier_px = 4.0;
-  int bins = 16;                       // over [0, max_ratio]
+  int bins = 16;  // over [0, max_ratio]
 
   void Check() const;
 };

@@ -159,15 +159,13 @@ std::vector<PeerSolver> OpenGvPeers() {
       {"m-p3P", "opengv-gp3p",
        [](const MinimalSample& s, std::vector<Sim3d>* out) {
          const Noncentral n = FromRig(s);
-         NoncentralAbsoluteAdapter adapter(n.bearings, n.cameras, n.points, n.offsets,
-                                           n.rotations);
+         NoncentralAbsoluteAdapter adapter(n.bearings, n.cameras, n.points, n.offsets, n.rotations);
          AddAll(opengv::absolute_pose::gp3p(adapter), out);
        }},
       {"m-P3L+l+s", "opengv-gp3p (roles reversed)",
        [](const MinimalSample& s, std::vector<Sim3d>* out) {
          const Noncentral n = FromLines(s);
-         NoncentralAbsoluteAdapter adapter(n.bearings, n.cameras, n.points, n.offsets,
-                                           n.rotations);
+         NoncentralAbsoluteAdapter adapter(n.bearings, n.cameras, n.points, n.offsets, n.rotations);
          AddAll(opengv::absolute_pose::gp3p(adapter), out);
          for (Sim3d& p : *out) p = p.Inverse();
        }},
@@ -176,11 +174,9 @@ std::vector<PeerSolver> OpenGvPeers() {
       {"m-p6L", "opengv-sixpt (+ linear t)",
        [](const MinimalSample& s, std::vector<Sim3d>* out) { SixPoint(s, true, out); }},
       {"p6L", "opengv-seventeenpt (17 corr.)",
-       [](const MinimalSample& s, std::vector<Sim3d>* out) { SeventeenPoint(s, false, out); },
-       17},
+       [](const MinimalSample& s, std::vector<Sim3d>* out) { SeventeenPoint(s, false, out); }, 17},
       {"m-p6L", "opengv-seventeenpt (17 corr.)",
-       [](const MinimalSample& s, std::vector<Sim3d>* out) { SeventeenPoint(s, true, out); },
-       17},
+       [](const MinimalSample& s, std::vector<Sim3d>* out) { SeventeenPoint(s, true, out); }, 17},
       {"m-P3P+l+s", "opengv-threept_arun",
        [](const MinimalSample& s, std::vector<Sim3d>* out) {
          const opengv::points_t local(s.points_local.begin(), s.points_local.end());
@@ -188,8 +184,7 @@ std::vector<PeerSolver> OpenGvPeers() {
          opengv::point_cloud::PointCloudAdapter adapter(local, world);
          const opengv::transformation_t t = opengv::point_cloud::threept_arun(adapter);
          out->clear();
-         out->emplace_back(1.0, Eigen::Quaterniond(Eigen::Matrix3d(t.leftCols<3>())),
-                           t.col(3));
+         out->emplace_back(1.0, Eigen::Quaterniond(Eigen::Matrix3d(t.leftCols<3>())), t.col(3));
        }},
   };
 }

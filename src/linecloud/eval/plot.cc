@@ -94,7 +94,8 @@ void WriteLinePlot(const std::string& path, const PlotOptions& o,
     return top + ph - (std::clamp(v, y0, y1) - y0) / (y1 - y0) * ph;
   };
   cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
-  auto text = [&](double x, double y, const std::string& s, double size, double align_x, double align_y) {
+  auto text = [&](double x, double y, const std::string& s, double size, double align_x,
+                  double align_y) {
     cairo_set_font_size(cr, size);
     cairo_text_extents_t e;
     cairo_text_extents(cr, s.c_str(), &e);
@@ -151,8 +152,10 @@ void WriteLinePlot(const std::string& path, const PlotOptions& o,
         pen = false;
         continue;
       }
-      if (pen) cairo_line_to(cr, px(s.x[i]), py(s.y[i]));
-      else cairo_move_to(cr, px(s.x[i]), py(s.y[i]));
+      if (pen)
+        cairo_line_to(cr, px(s.x[i]), py(s.y[i]));
+      else
+        cairo_move_to(cr, px(s.x[i]), py(s.y[i]));
       pen = true;
     }
     cairo_stroke(cr);
@@ -187,7 +190,8 @@ void WriteLinePlot(const std::string& path, const PlotOptions& o,
   cairo_destroy(cr);
   const cairo_status_t status = cairo_surface_write_to_png(surface, path.c_str());
   cairo_surface_destroy(surface);
-  if (status != CAIRO_STATUS_SUCCESS) Fail("{}: cannot write PNG ({})", path, cairo_status_to_string(status));
+  if (status != CAIRO_STATUS_SUCCESS)
+    Fail("{}: cannot write PNG ({})", path, cairo_status_to_string(status));
 }
 
 }  // namespace linecloud

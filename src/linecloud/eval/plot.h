@@ -10,9 +10,9 @@ namespace linecloud {
 struct PlotSeries {
   std::string name;
   std::vector<double> x, y;
-  int color = 0;        // index into a fixed palette
-  bool dashed = false;  // e.g. the privacy-preserving (line) twin of a method
-  bool markers = false;  // a dot at each point
+  int color = 0;                    // index into a fixed palette
+  bool dashed = false;              // e.g. the privacy-preserving (line) twin of a method
+  bool markers = false;             // a dot at each point
   std::vector<std::string> labels;  // optional: a label beside each point
 };
 

@@ -21,8 +21,10 @@ using ojson = nlohmann::ordered_json;
 std::string Slug(const std::string& name) {
   std::string s;
   for (const char c : name) {
-    if (std::isalnum(static_cast<unsigned char>(c)) || c == '.') s += c;
-    else if (!s.empty() && s.back() != '_') s += '_';
+    if (std::isalnum(static_cast<unsigned char>(c)) || c == '.')
+      s += c;
+    else if (!s.empty() && s.back() != '_')
+      s += '_';
   }
   while (!s.empty() && s.back() == '_') s.pop_back();
   return s;
@@ -101,10 +103,12 @@ std::string Cell(const ojson& l, const char* protocol, const std::string& method
 std::string TradeoffMarkdown(const std::string& dataset, const ojson& rows,
                              const std::vector<std::string>& methods) {
   std::string md = fmt::format("# Privacy against accuracy — {}\n\n", dataset);
-  md += "Attack: the density attack (Chelani et al., CVPR 2021) on every group map as `lift` "
-        "writes it, pooled; recovered = within 1 % of the map's diagonal (and 5 cm). "
-        "Localization: `eval run` on the same maps (localized / queries, median rotation / "
-        "translation error).\n\n| lifting | lines per map | recovered within 1 % (share / points per map) | within 5 cm |";
+  md +=
+      "Attack: the density attack (Chelani et al., CVPR 2021) on every group map as `lift` "
+      "writes it, pooled; recovered = within 1 % of the map's diagonal (and 5 cm). "
+      "Localization: `eval run` on the same maps (localized / queries, median rotation / "
+      "translation error).\n\n| lifting | lines per map | recovered within 1 % (share / points per "
+      "map) | within 5 cm |";
   for (const std::string& m : methods) md += fmt::format(" {} (paper protocol) |", m);
   md += " p6L (direct matching) |\n|---|---|---|---|";
   for (size_t i = 0; i < methods.size() + 1; ++i) md += "---|";
@@ -114,8 +118,11 @@ std::string TradeoffMarkdown(const std::string& dataset, const ojson& rows,
     md += fmt::format("| {} | {:.0f} | {:.1f} % / {:.0f} | {} |", r["lifting"].get<std::string>(),
                       a["lines_per_map"].get<double>(), 100 * a["within_1_percent"].get<double>(),
                       a["within_1_percent"].get<double>() * a["lines_per_map"].get<double>(),
-                      a["within_5cm"].is_null() ? "–" : fmt::format("{:.1f} %", 100 * a["within_5cm"].get<double>()));
-    for (const std::string& m : methods) md += fmt::format(" {} |", Cell(r["localization"], "paper_protocol", m));
+                      a["within_5cm"].is_null()
+                          ? "–"
+                          : fmt::format("{:.1f} %", 100 * a["within_5cm"].get<double>()));
+    for (const std::string& m : methods)
+      md += fmt::format(" {} |", Cell(r["localization"], "paper_protocol", m));
     md += fmt::format(" {} |\n", Cell(r["localization"], "direct_matching", "p6L"));
   }
   // The target of [privacy]: recovery cut >= 3x, p6L error <= 1.5x, >= 90 % localized —
@@ -123,9 +130,10 @@ std::string TradeoffMarkdown(const std::string& dataset, const ojson& rows,
   const ojson& plain = rows.front();
   const double r0 = plain["attack"]["within_1_percent"].get<double>(), e0 = P6lRotation(plain);
   const double n0 = r0 * plain["attack"]["lines_per_map"].get<double>();
-  md += fmt::format("\nAgainst the plain lifting ({:.1f} % = {:.0f} points per map recovered, p6L "
-                    "{:.4f}°), liftings with p6L's error within 1.5× and ≥ 90 % localized that cut ",
-                    100 * r0, n0, e0);
+  md += fmt::format(
+      "\nAgainst the plain lifting ({:.1f} % = {:.0f} points per map recovered, p6L "
+      "{:.4f}°), liftings with p6L's error within 1.5× and ≥ 90 % localized that cut ",
+      100 * r0, n0, e0);
   std::vector<std::string> by_share, by_count;
   for (const ojson& r : rows) {
     const double rec = r["attack"]["within_1_percent"].get<double>(), err = P6lRotation(r);
@@ -141,11 +149,12 @@ std::string TradeoffMarkdown(const std::string& dataset, const ojson& rows,
   auto list = [](const std::vector<std::string>& v) {
     return v.empty() ? std::string("none") : fmt::format("{}", fmt::join(v, ", "));
   };
-  md += fmt::format("the recovered share by ≥ 3×: {}; the number of recovered points by ≥ 3×: {} "
-                    "(p6L: {}).\n",
-                    list(by_share), list(by_count),
-                    rows.front()["localization"].contains("direct_matching") ? "direct matching"
-                                                                             : "paper protocol");
+  md += fmt::format(
+      "the recovered share by ≥ 3×: {}; the number of recovered points by ≥ 3×: {} "
+      "(p6L: {}).\n",
+      list(by_share), list(by_count),
+      rows.front()["localization"].contains("direct_matching") ? "direct matching"
+                                                               : "paper protocol");
   return md;
 }
 
@@ -225,8 +234,10 @@ ojson RunPrivacyTradeoff(const PrivacyTradeoffOptions& o) {
   o.Check();
   const EvalWork work = ReadPreparedWork(o.work_dir);
   const LiftingKey key = EvalLiftingKey(o.work_dir);
-  const std::vector<MapLifting> liftings = o.liftings.empty() ? DefaultTradeoffLiftings() : o.liftings;
-  if (liftings.front().Name() != "plain") Fail("eval privacy: the first lifting must be the plain one");
+  const std::vector<MapLifting> liftings =
+      o.liftings.empty() ? DefaultTradeoffLiftings() : o.liftings;
+  if (liftings.front().Name() != "plain")
+    Fail("eval privacy: the first lifting must be the plain one");
   CreateDirectories(o.out_dir);
   ojson rows = ojson::array();
   for (const MapLifting& lifting : liftings) {
@@ -245,8 +256,8 @@ ojson RunPrivacyTradeoff(const PrivacyTradeoffOptions& o) {
     row["localization"] = Localization(RunEvaluation(run), o.methods);
     rows.push_back(row);
   }
-  const ojson report = {{"dataset", work.dataset}, {"units", work.units}, {"methods", o.methods},
-                        {"liftings", rows}};
+  const ojson report = {
+      {"dataset", work.dataset}, {"units", work.units}, {"methods", o.methods}, {"liftings", rows}};
   WriteFileAtomically(JoinPaths(o.out_dir, "tradeoff.json"),
                       [&](std::ostream& out) { out << report.dump(2) << "\n"; });
   RenderPrivacyTradeoff(o.out_dir);
@@ -260,9 +271,9 @@ void RenderPrivacyTradeoff(const std::string& out_dir) {
     Fail("{}: not a tradeoff.json of eval privacy", path);
   }
   const std::string dataset = report.value("dataset", "");
-  const std::vector<std::string> methods =
-      report.contains("methods") ? report["methods"].get<std::vector<std::string>>()
-                                 : std::vector<std::string>{"p6L", "p4L+u"};
+  const std::vector<std::string> methods = report.contains("methods")
+                                               ? report["methods"].get<std::vector<std::string>>()
+                                               : std::vector<std::string>{"p6L", "p4L+u"};
   WriteFileAtomically(JoinPaths(out_dir, "tradeoff.md"), [&](std::ostream& out) {
     out << TradeoffMarkdown(dataset, report["liftings"], methods);
   });

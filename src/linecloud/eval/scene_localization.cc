@@ -14,8 +14,7 @@ void SceneQueryOptions::Check() const {
   if (!(local_scale > 0)) Fail("local scale must be > 0");
 }
 
-std::vector<SceneQuery> SceneQueriesForMethod(const SyntheticScene& scene,
-                                              const MethodInfo& method,
+std::vector<SceneQuery> SceneQueriesForMethod(const SyntheticScene& scene, const MethodInfo& method,
                                               const SceneQueryOptions& options) {
   options.Check();
   std::mt19937_64 rng(options.seed);
@@ -54,8 +53,8 @@ std::vector<SceneQuery> SceneQueriesForMethod(const SyntheticScene& scene,
           // Depth-like noise on the true point seen at this pixel.
           const Eigen::Vector3d x = scene.model.points3D.at(o.point3D_id).xyz;
           const double depth = (qc.cam_from_world * x).z();
-          query.points_local.push_back(
-              sq.truth * x + s * options.local_noise * depth * Eigen::Vector3d(g(rng), g(rng), g(rng)));
+          query.points_local.push_back(sq.truth * x + s * options.local_noise * depth *
+                                                          Eigen::Vector3d(g(rng), g(rng), g(rng)));
         }
       }
     }

@@ -17,10 +17,10 @@
 namespace linecloud {
 
 struct SceneQueryOptions {
-  double outlier_ratio = 0.3;   // share of observations matched to a wrong map id
-  double local_noise = 0.005;   // +l point noise, relative to depth
-  int rig_size = 3;             // images per m- query
-  double local_scale = 0.37;    // scale of the +l frame when the scale is unknown
+  double outlier_ratio = 0.3;  // share of observations matched to a wrong map id
+  double local_noise = 0.005;  // +l point noise, relative to depth
+  int rig_size = 3;            // images per m- query
+  double local_scale = 0.37;   // scale of the +l frame when the scale is unknown
   uint64_t seed = 1;
 
   void Check() const;
@@ -32,8 +32,7 @@ struct SceneQuery {
   Sim3d truth;  // query_from_world
 };
 
-std::vector<SceneQuery> SceneQueriesForMethod(const SyntheticScene& scene,
-                                              const MethodInfo& method,
+std::vector<SceneQuery> SceneQueriesForMethod(const SyntheticScene& scene, const MethodInfo& method,
                                               const SceneQueryOptions& options);
 
 struct MethodSummary : LocalizationSummary {

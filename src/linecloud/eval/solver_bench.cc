@@ -81,9 +81,8 @@ SolverBenchRow Measure(const std::string& method_name, const std::string& solver
   row.mean_solutions = static_cast<double>(total) / instances.size();
   row.found_percent = 100.0 * found / instances.size();
   row.median_log10_rotation_error = Median(std::move(log_errors));
-  row.us_per_call = MicrosecondsPerCall(instances.size(), min_seconds, [&](size_t i) {
-    solve(instances[i].sample, &solutions);
-  });
+  row.us_per_call = MicrosecondsPerCall(instances.size(), min_seconds,
+                                        [&](size_t i) { solve(instances[i].sample, &solutions); });
   return row;
 }
 
@@ -102,23 +101,20 @@ std::vector<PeerSolver> AvailablePeers() {
 }
 
 std::vector<SolverBenchRow> RunSolverBench(
-    const SolverBenchOptions& options,
-    const std::function<void(const std::string&)>& progress) {
+    const SolverBenchOptions& options, const std::function<void(const std::string&)>& progress) {
   options.Check();
   const std::vector<PeerSolver> peers = AvailablePeers();
   std::vector<SolverBenchRow> rows;
   for (const MethodInfo& method : AllMethods()) {
-    if (!options.methods.empty() &&
-        std::find(options.methods.begin(), options.methods.end(), method.name) ==
-            options.methods.end()) {
+    if (!options.methods.empty() && std::find(options.methods.begin(), options.methods.end(),
+                                              method.name) == options.methods.end()) {
       continue;
     }
     if (!method.implemented) continue;
     // p6L / m-p6L are also characterised on near-degenerate families.
     std::vector<InstanceFamily> families = {InstanceFamily::kGeneric};
     if (method.lines && !method.local_points && method.sample_size == 6) {
-      families.insert(families.end(), {InstanceFamily::kNarrowFov,
-                                       InstanceFamily::kLinesAlongRays,
+      families.insert(families.end(), {InstanceFamily::kNarrowFov, InstanceFamily::kLinesAlongRays,
                                        InstanceFamily::kLinesThroughPoint});
     }
     const auto make_instances = [&](InstanceFamily family, int correspondences) {
@@ -139,10 +135,9 @@ std::vector<SolverBenchRow> RunSolverBench(
               ? std::string(method.name)
               : std::string(method.name) + " [" + std::string(FamilyName(family)) + "]";
       progress(name);
-      SolverBenchRow row = Measure(name, "linecloud", instances, options.min_seconds,
-                                   [&](const MinimalSample& s, std::vector<Sim3d>* out) {
-                                     SolveMinimal(method, s, out);
-                                   });
+      SolverBenchRow row = Measure(
+          name, "linecloud", instances, options.min_seconds,
+          [&](const MinimalSample& s, std::vector<Sim3d>* out) { SolveMinimal(method, s, out); });
       // The solver alone, on inputs prepared before timing (as PoseLib's
       // benchmark times its solvers); the call through SolveMinimal above,
       // which RANSAC makes, is kept as the API time.
@@ -158,11 +153,10 @@ std::vector<SolverBenchRow> RunSolverBench(
       for (const PeerSolver& peer : peers) {
         if (peer.method != method.name) continue;
         progress(name + " / " + peer.name);
-        rows.push_back(Measure(name, peer.name,
-                               peer.correspondences > 0
-                                   ? make_instances(family, peer.correspondences)
-                                   : instances,
-                               options.min_seconds, peer.solve));
+        rows.push_back(Measure(
+            name, peer.name,
+            peer.correspondences > 0 ? make_instances(family, peer.correspondences) : instances,
+            options.min_seconds, peer.solve));
       }
     }
   }

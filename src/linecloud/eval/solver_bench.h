@@ -13,8 +13,8 @@ namespace linecloud {
 
 struct SolverBenchOptions {
   uint64_t seed = 2019;
-  int instances = 2000;        // distinct instances per method
-  double min_seconds = 1.0;    // timing per solver
+  int instances = 2000;              // distinct instances per method
+  double min_seconds = 1.0;          // timing per solver
   std::vector<std::string> methods;  // empty: all implemented
   void Check() const;
 };
@@ -25,7 +25,7 @@ struct SolverBenchRow {
   double us_per_call = 0;      // ours: the solver on prepared inputs
   double api_us_per_call = 0;  // ours: through SolveMinimal (0 for peers)
   double mean_solutions = 0;
-  double found_percent = 0;    // true pose among the solutions
+  double found_percent = 0;                // true pose among the solutions
   double median_log10_rotation_error = 0;  // best solution per instance
   int instances = 0;
 };

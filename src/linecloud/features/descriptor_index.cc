@@ -49,8 +49,8 @@ struct DescriptorIndex::Impl {
 
 void DescriptorIndexOptions::Check() const {
   if (trees < 1 || checks < 2 || threads < 1) {
-    Fail("descriptor index: trees {}, checks {} and threads {} must be at least 1, 2 and 1",
-         trees, checks, threads);
+    Fail("descriptor index: trees {}, checks {} and threads {} must be at least 1, 2 and 1", trees,
+         checks, threads);
   }
 }
 
@@ -62,7 +62,8 @@ DescriptorIndex::DescriptorIndex(std::span<const uint8_t> descriptors,
   impl_->descriptors = descriptors;
   impl_->options = options;
   impl_->data.resize(descriptors.size());
-  for (size_t i = 0; i < descriptors.size(); i += kDim) ToFloat(descriptors.data() + i, &impl_->data[i]);
+  for (size_t i = 0; i < descriptors.size(); i += kDim)
+    ToFloat(descriptors.data() + i, &impl_->data[i]);
   if (impl_->data.empty()) return;
   // FLANN's randomised kd-trees draw their split dimensions with rand():
   // seeded, so that an index (and its matches) is the same on every run.
@@ -113,10 +114,11 @@ std::unique_ptr<DescriptorIndex> DescriptorIndex::Load(const std::string& path,
   impl.descriptors = descriptors;
   impl.options = options;
   impl.data.resize(descriptors.size());
-  for (size_t i = 0; i < descriptors.size(); i += kDim) ToFloat(descriptors.data() + i, &impl.data[i]);
+  for (size_t i = 0; i < descriptors.size(); i += kDim)
+    ToFloat(descriptors.data() + i, &impl.data[i]);
   try {
     impl.index = std::make_unique<flann::Index<flann::L2<float>>>(impl.Matrix(),
-                                                                   flann::SavedIndexParams(raw));
+                                                                  flann::SavedIndexParams(raw));
   } catch (const std::exception&) {
     std::remove(raw.c_str());
     return nullptr;

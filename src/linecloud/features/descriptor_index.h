@@ -19,9 +19,9 @@
 namespace linecloud {
 
 struct DescriptorIndexOptions {
-  int trees = 4;      // randomised kd-trees
-  int checks = 64;    // leaves visited per query (more: higher recall, slower)
-  int threads = 1;    // reserved (FLANN builds on one thread)
+  int trees = 4;    // randomised kd-trees
+  int checks = 64;  // leaves visited per query (more: higher recall, slower)
+  int threads = 1;  // reserved (FLANN builds on one thread)
 
   void Check() const;
 };

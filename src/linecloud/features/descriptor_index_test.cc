@@ -20,7 +20,9 @@ void MakeData(size_t n, size_t nq, std::vector<uint8_t>* map, std::vector<uint8_
   const auto put = [&](std::vector<double> v, uint8_t* out) {
     double norm = 0;
     for (double& x : v) norm += x * x;
-    for (int i = 0; i < 128; ++i) out[i] = static_cast<uint8_t>(std::clamp(std::round(v[i] * 512 / std::sqrt(norm)), 0.0, 255.0));
+    for (int i = 0; i < 128; ++i)
+      out[i] =
+          static_cast<uint8_t>(std::clamp(std::round(v[i] * 512 / std::sqrt(norm)), 0.0, 255.0));
   };
   map->resize(n * 128);
   query->resize(nq * 128);
@@ -50,7 +52,8 @@ TEST(DescriptorIndex, FindsTheExactRatioTestMatchesAndSurvivesASaveAndLoad) {
   size_t hits = 0;
   for (const auto& m : exact) hits += found.count({m.query, m.map});
   EXPECT_GE(hits, 0.95 * exact.size());
-  EXPECT_LE(approx.size(), exact.size() + 5);  // the same tests decide: no extra matches to speak of
+  EXPECT_LE(approx.size(),
+            exact.size() + 5);  // the same tests decide: no extra matches to speak of
 
   testing::TempDir tmp;
   index.Save(tmp.Path("map.flann"));

@@ -58,8 +58,8 @@ GreyImage ReadGreyImage(const std::string& path) {
   if (FreeImage_GetImageType(bitmap.get()) != FIT_BITMAP) {
     Fail("{}: unsupported pixel type (only 8-bit grey and colour images)", path);
   }
-  const bool grey = FreeImage_GetBPP(bitmap.get()) == 8 &&
-                    FreeImage_GetColorType(bitmap.get()) == FIC_MINISBLACK;
+  const bool grey =
+      FreeImage_GetBPP(bitmap.get()) == 8 && FreeImage_GetColorType(bitmap.get()) == FIC_MINISBLACK;
   if (grey) return FromBitmap(bitmap.get());
   // As COLMAP's Bitmap::Read: 32-bit images go through 24 bits first, then
   // FreeImage's greyscale conversion.

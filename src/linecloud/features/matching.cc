@@ -40,7 +40,8 @@ std::optional<DescriptorMatch> TestMatch(int query, int map, float best_dot, flo
 }
 
 void DescriptorMatchOptions::Check() const {
-  if (!(max_ratio > 0 && max_ratio <= 1)) Fail("matching: max_ratio must be in (0, 1], got {}", max_ratio);
+  if (!(max_ratio > 0 && max_ratio <= 1))
+    Fail("matching: max_ratio must be in (0, 1], got {}", max_ratio);
   if (!(max_distance > 0)) Fail("matching: max_distance must be positive, got {}", max_distance);
   if (dim <= 0) Fail("matching: descriptor dimension must be positive, got {}", dim);
 }

@@ -26,9 +26,9 @@ struct DescriptorMatchOptions {
 };
 
 struct DescriptorMatch {
-  int query = 0;      // row of the query descriptors
-  int map = 0;        // row of the map descriptors
-  float ratio = 0;    // best / second-best angle: lower is more distinctive (a match score)
+  int query = 0;    // row of the query descriptors
+  int map = 0;      // row of the map descriptors
+  float ratio = 0;  // best / second-best angle: lower is more distinctive (a match score)
 };
 
 // The angle between two descriptors of 512-normalised bytes from their dot

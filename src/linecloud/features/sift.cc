@@ -43,7 +43,8 @@ struct LevelFeatures {
 
 void SiftOptions::Check() const {
   if (max_image_size <= 0) Fail("SIFT max_image_size must be positive, got {}", max_image_size);
-  if (max_num_features <= 0) Fail("SIFT max_num_features must be positive, got {}", max_num_features);
+  if (max_num_features <= 0)
+    Fail("SIFT max_num_features must be positive, got {}", max_num_features);
   if (num_octaves <= 0 || octave_resolution <= 0) {
     Fail("SIFT octaves ({}) and octave resolution ({}) must be positive", num_octaves,
          octave_resolution);

@@ -21,11 +21,11 @@
 namespace linecloud {
 
 struct SiftOptions {
-  int max_image_size = 3200;      // larger images are downscaled first
+  int max_image_size = 3200;  // larger images are downscaled first
   int max_num_features = 8192;
   int first_octave = -1;
   int num_octaves = 4;
-  int octave_resolution = 3;      // DoG levels per octave
+  int octave_resolution = 3;  // DoG levels per octave
   double peak_threshold = 0.02 / 3;
   double edge_threshold = 10.0;
   int max_num_orientations = 2;
@@ -34,8 +34,8 @@ struct SiftOptions {
 };
 
 struct SiftKeypoint {
-  float x = 0, y = 0;   // pixels, COLMAP convention (top-left pixel centre at 0.5, 0.5)
-  float scale = 0;      // sigma, pixels
+  float x = 0, y = 0;     // pixels, COLMAP convention (top-left pixel centre at 0.5, 0.5)
+  float scale = 0;        // sigma, pixels
   float orientation = 0;  // radians
 };
 

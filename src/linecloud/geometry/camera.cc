@@ -42,9 +42,7 @@ const ModelInfo& ModelOrThrow(CameraModelId id) {
 }
 
 // Index of the first distortion parameter.
-int DistortionOffset(CameraModelId id) {
-  return ModelOrThrow(id).single_focal ? 3 : 4;
-}
+int DistortionOffset(CameraModelId id) { return ModelOrThrow(id).single_focal ? 3 : 4; }
 
 }  // namespace
 
@@ -73,14 +71,15 @@ int CameraModelNumParams(CameraModelId model_id) {
 void Camera::Check(std::string_view source) const {
   const ModelInfo* m = FindModel(model_id);
   if (m == nullptr) {
-    Fail("{}: camera {}: unsupported camera model (id {}); supported: "
-         "SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, "
-         "OPENCV_FISHEYE, FULL_OPENCV",
-         source, camera_id, static_cast<int>(model_id));
+    Fail(
+        "{}: camera {}: unsupported camera model (id {}); supported: "
+        "SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, "
+        "OPENCV_FISHEYE, FULL_OPENCV",
+        source, camera_id, static_cast<int>(model_id));
   }
   if (static_cast<int>(params.size()) != m->num_params) {
-    Fail("{}: camera {}: model {} takes {} parameters, got {}", source,
-         camera_id, m->name, m->num_params, params.size());
+    Fail("{}: camera {}: model {} takes {} parameters, got {}", source, camera_id, m->name,
+         m->num_params, params.size());
   }
   for (size_t i = 0; i < params.size(); ++i) {
     if (!std::isfinite(params[i])) {
@@ -91,8 +90,7 @@ void Camera::Check(std::string_view source) const {
     Fail("{}: camera {}: focal length must be positive", source, camera_id);
   }
   if (width == 0 || height == 0) {
-    Fail("{}: camera {}: width and height must be positive", source,
-         camera_id);
+    Fail("{}: camera {}: width and height must be positive", source, camera_id);
   }
   CheckDistortion(source);
 }
@@ -109,7 +107,7 @@ void Camera::CheckDistortion(std::string_view source) const {
   constexpr double kMaxRadiusFactor = 5;
   const Eigen::Vector2d c = PrincipalPoint();
   const double w = static_cast<double>(width), h = static_cast<double>(height);
-  const Eigen::Vector2d ends[] = {{0, 0}, {w, 0}, {0, h}, {w, h},
+  const Eigen::Vector2d ends[] = {{0, 0},     {w, 0},     {0, h},     {w, h},
                                   {w / 2, 0}, {w / 2, h}, {0, h / 2}, {w, h / 2}};
   const Eigen::Vector2d f(FocalLengthX(), FocalLengthY());
   for (const Eigen::Vector2d& end : ends) {
@@ -122,23 +120,26 @@ void Camera::CheckDistortion(std::string_view source) const {
       const Eigen::Vector2d back =
           DistortNormalized(model_id, params, undistorted).cwiseProduct(f) + c;
       if (!undistorted.allFinite() || !((back - xy).norm() < 0.01)) {
-        Fail("{}: camera {}: the {} distortion cannot be undone at pixel ({:.1f}, {:.1f}) "
-             "(parameters implausible for a {}x{} image)",
-             source, camera_id, CameraModelName(model_id), xy.x(), xy.y(), width, height);
+        Fail(
+            "{}: camera {}: the {} distortion cannot be undone at pixel ({:.1f}, {:.1f}) "
+            "(parameters implausible for a {}x{} image)",
+            source, camera_id, CameraModelName(model_id), xy.x(), xy.y(), width, height);
       }
       const double radius = undistorted.norm();
       if (!(radius > last_radius)) {
-        Fail("{}: camera {}: the {} distortion folds the image over itself near pixel "
-             "({:.1f}, {:.1f}) (two pixels would see one ray)",
-             source, camera_id, CameraModelName(model_id), xy.x(), xy.y());
+        Fail(
+            "{}: camera {}: the {} distortion folds the image over itself near pixel "
+            "({:.1f}, {:.1f}) (two pixels would see one ray)",
+            source, camera_id, CameraModelName(model_id), xy.x(), xy.y());
       }
       last_radius = radius;
       const double factor = radius / distorted.norm();
       if (s == kSteps && model_id != CameraModelId::kOpenCVFisheye &&
           !(factor < kMaxRadiusFactor && factor > 1 / kMaxRadiusFactor)) {
-        Fail("{}: camera {}: the {} distortion scales the image border's radius by {:.3g} "
-             "(physically implausible; at most {} either way)",
-             source, camera_id, CameraModelName(model_id), factor, kMaxRadiusFactor);
+        Fail(
+            "{}: camera {}: the {} distortion scales the image border's radius by {:.3g} "
+            "(physically implausible; at most {} either way)",
+            source, camera_id, CameraModelName(model_id), factor, kMaxRadiusFactor);
       }
     }
   }
@@ -158,8 +159,7 @@ Eigen::Vector2d Camera::PrincipalPoint() const {
   return Eigen::Vector2d(params.at(i), params.at(i + 1));
 }
 
-Eigen::Vector2d DistortNormalized(CameraModelId model_id,
-                                  const std::vector<double>& params,
+Eigen::Vector2d DistortNormalized(CameraModelId model_id, const std::vector<double>& params,
                                   const Eigen::Vector2d& p) {
   const double* k = params.data() + DistortionOffset(model_id);
   const double u = p.x(), v = p.y();
@@ -182,14 +182,13 @@ Eigen::Vector2d DistortNormalized(CameraModelId model_id,
       if (r < 1e-12) return p;
       const double theta = std::atan(r);
       const double t2 = theta * theta;
-      const double theta_d =
-          theta * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))));
+      const double theta_d = theta * (1.0 + t2 * (k[0] + t2 * (k[1] + t2 * (k[2] + t2 * k[3]))));
       return p * (theta_d / r);
     }
     case CameraModelId::kFullOpenCV: {
       const double r4 = r2 * r2, r6 = r4 * r2;
-      const double radial = (1.0 + k[0] * r2 + k[1] * r4 + k[4] * r6) /
-                            (1.0 + k[5] * r2 + k[6] * r4 + k[7] * r6);
+      const double radial =
+          (1.0 + k[0] * r2 + k[1] * r4 + k[4] * r6) / (1.0 + k[5] * r2 + k[6] * r4 + k[7] * r6);
       return {u * radial + 2.0 * k[2] * uv + k[3] * (r2 + 2.0 * u2),
               v * radial + 2.0 * k[3] * uv + k[2] * (r2 + 2.0 * v2)};
     }
@@ -201,11 +200,9 @@ Eigen::Vector2d DistortNormalized(CameraModelId model_id,
 
 // Newton's method on D(x) = x_d with a central-difference Jacobian. Converges
 // in a few iterations for the mild-to-strong distortions found in practice.
-Eigen::Vector2d UndistortNormalized(CameraModelId model_id,
-                                    const std::vector<double>& params,
+Eigen::Vector2d UndistortNormalized(CameraModelId model_id, const std::vector<double>& params,
                                     const Eigen::Vector2d& distorted) {
-  if (model_id == CameraModelId::kSimplePinhole ||
-      model_id == CameraModelId::kPinhole) {
+  if (model_id == CameraModelId::kSimplePinhole || model_id == CameraModelId::kPinhole) {
     return distorted;
   }
   constexpr int kMaxIterations = 100;
@@ -221,13 +218,11 @@ Eigen::Vector2d UndistortNormalized(CameraModelId model_id,
                          DistortNormalized(model_id, params, x - dx)) /
                         (2.0 * h);
     }
-    const Eigen::Vector2d residual =
-        DistortNormalized(model_id, params, x) - distorted;
+    const Eigen::Vector2d residual = DistortNormalized(model_id, params, x) - distorted;
     const Eigen::Vector2d step = jacobian.partialPivLu().solve(residual);
     if (!step.allFinite()) break;
     x -= step;
-    if (step.squaredNorm() <
-        kStepTolerance * kStepTolerance * std::max(1.0, x.squaredNorm())) {
+    if (step.squaredNorm() < kStepTolerance * kStepTolerance * std::max(1.0, x.squaredNorm())) {
       break;
     }
   }
@@ -243,8 +238,7 @@ Eigen::Vector2d Camera::ImgFromCam(const Eigen::Vector3d& point_in_cam) const {
 
 Eigen::Vector3d Camera::CamFromImg(const Eigen::Vector2d& xy) const {
   const Eigen::Vector2d c = PrincipalPoint();
-  const Eigen::Vector2d d((xy.x() - c.x()) / FocalLengthX(),
-                          (xy.y() - c.y()) / FocalLengthY());
+  const Eigen::Vector2d d((xy.x() - c.x()) / FocalLengthX(), (xy.y() - c.y()) / FocalLengthY());
   return UndistortNormalized(model_id, params, d).homogeneous();
 }
 

@@ -78,11 +78,9 @@ struct Camera {
 
 // Distortion on normalised coordinates (exposed for tests): maps an ideal
 // normalised point to its distorted position, for the model's extra params.
-Eigen::Vector2d DistortNormalized(CameraModelId model_id,
-                                  const std::vector<double>& params,
+Eigen::Vector2d DistortNormalized(CameraModelId model_id, const std::vector<double>& params,
                                   const Eigen::Vector2d& undistorted);
-Eigen::Vector2d UndistortNormalized(CameraModelId model_id,
-                                    const std::vector<double>& params,
+Eigen::Vector2d UndistortNormalized(CameraModelId model_id, const std::vector<double>& params,
                                     const Eigen::Vector2d& distorted);
 
 }  // namespace linecloud

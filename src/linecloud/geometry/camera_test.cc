@@ -109,7 +109,8 @@ TEST(Camera, CheckRejectsBadCameras) {
 // [harden] 5: SIMPLE_RADIAL k = 1e12 used to be undistorted into a 0.01°
 // field of view and localized with "success": true.
 TEST(Camera, CheckRejectsImplausibleDistortion) {
-  for (const Camera& c : RealisticCameras()) EXPECT_NO_THROW(c.Check("cams.txt")) << CameraModelName(c.model_id);
+  for (const Camera& c : RealisticCameras())
+    EXPECT_NO_THROW(c.Check("cams.txt")) << CameraModelName(c.model_id);
   Camera c = RealisticCameras()[2];  // SIMPLE_RADIAL
   c.params[3] = 1e12;
   EXPECT_NE(testing::ErrorOf([&] { c.Check("cams.txt"); }).find("physically implausible"),

@@ -12,14 +12,13 @@ bool PluckerLine::IsValid(double tolerance) const {
 
 PluckerLine Transform(const Rigid3d& b_from_a, const PluckerLine& line) {
   const Eigen::Vector3d rv = b_from_a.rotation * line.v;
-  return PluckerLine(rv, b_from_a.rotation * line.w +
-                             b_from_a.translation.cross(rv));
+  return PluckerLine(rv, b_from_a.rotation * line.w + b_from_a.translation.cross(rv));
 }
 
 PluckerLine Transform(const Sim3d& b_from_a, const PluckerLine& line) {
   const Eigen::Vector3d rv = b_from_a.rotation * line.v;
-  return PluckerLine(rv, b_from_a.scale * (b_from_a.rotation * line.w) +
-                             b_from_a.translation.cross(rv));
+  return PluckerLine(
+      rv, b_from_a.scale * (b_from_a.rotation * line.w) + b_from_a.translation.cross(rv));
 }
 
 double LineLineDistance(const PluckerLine& a, const PluckerLine& b) {
@@ -32,8 +31,8 @@ double LineLineDistance(const PluckerLine& a, const PluckerLine& b) {
   return b.DistanceTo(a.Anchor());
 }
 
-bool ClosestPoints(const PluckerLine& a, const PluckerLine& b,
-                   Eigen::Vector3d* point_on_a, Eigen::Vector3d* point_on_b) {
+bool ClosestPoints(const PluckerLine& a, const PluckerLine& b, Eigen::Vector3d* point_on_a,
+                   Eigen::Vector3d* point_on_b) {
   const Eigen::Vector3d pa = a.Anchor();
   const Eigen::Vector3d pb = b.Anchor();
   // Minimise |pa + s va − pb − t vb|² over (s, t).

@@ -30,9 +30,7 @@ struct PluckerLine {
   Eigen::Vector3d PointAt(double alpha) const { return Anchor() + alpha * v; }
 
   // Euclidean distance from x to the line: |x × v − w|.
-  double DistanceTo(const Eigen::Vector3d& x) const {
-    return (x.cross(v) - w).norm();
-  }
+  double DistanceTo(const Eigen::Vector3d& x) const { return (x.cross(v) - w).norm(); }
 
   // The point of the line closest to x.
   Eigen::Vector3d ClosestPointTo(const Eigen::Vector3d& x) const {
@@ -57,7 +55,7 @@ double LineLineDistance(const PluckerLine& a, const PluckerLine& b);
 // The pair of mutually closest points (on a, on b). For parallel lines one
 // valid pair is returned (the one through a's anchor). Returns false when the
 // lines are parallel.
-bool ClosestPoints(const PluckerLine& a, const PluckerLine& b,
-                   Eigen::Vector3d* point_on_a, Eigen::Vector3d* point_on_b);
+bool ClosestPoints(const PluckerLine& a, const PluckerLine& b, Eigen::Vector3d* point_on_a,
+                   Eigen::Vector3d* point_on_b);
 
 }  // namespace linecloud

@@ -26,11 +26,11 @@ TEST(PluckerLine, PassesThroughItsPointAndIsValid) {
 }
 
 TEST(PluckerLine, DistanceAndClosestPoint) {
-  const PluckerLine z_axis = PluckerLine::FromPointAndDirection(
-      Eigen::Vector3d(0, 0, 5), Eigen::Vector3d::UnitZ());
+  const PluckerLine z_axis =
+      PluckerLine::FromPointAndDirection(Eigen::Vector3d(0, 0, 5), Eigen::Vector3d::UnitZ());
   EXPECT_NEAR(z_axis.DistanceTo(Eigen::Vector3d(3, 4, -7)), 5.0, 1e-15);
-  EXPECT_LT((z_axis.ClosestPointTo(Eigen::Vector3d(3, 4, -7)) -
-             Eigen::Vector3d(0, 0, -7)).norm(), 1e-15);
+  EXPECT_LT((z_axis.ClosestPointTo(Eigen::Vector3d(3, 4, -7)) - Eigen::Vector3d(0, 0, -7)).norm(),
+            1e-15);
 }
 
 TEST(PluckerLine, OrientationDoesNotMatter) {
@@ -65,10 +65,10 @@ TEST(PluckerLine, RigidAndSimilarityTransformsMoveTheLine) {
 TEST(PluckerLine, LineLineDistanceMatchesClosestPoints) {
   std::mt19937_64 rng(6);
   for (int i = 0; i < 500; ++i) {
-    const PluckerLine a = PluckerLine::FromPointAndDirection(RandomVector(rng, 5.0),
-                                                             RandomVector(rng));
-    const PluckerLine b = PluckerLine::FromPointAndDirection(RandomVector(rng, 5.0),
-                                                             RandomVector(rng));
+    const PluckerLine a =
+        PluckerLine::FromPointAndDirection(RandomVector(rng, 5.0), RandomVector(rng));
+    const PluckerLine b =
+        PluckerLine::FromPointAndDirection(RandomVector(rng, 5.0), RandomVector(rng));
     Eigen::Vector3d pa, pb;
     ASSERT_TRUE(ClosestPoints(a, b, &pa, &pb));
     EXPECT_LT(a.DistanceTo(pa), 1e-10);
@@ -83,8 +83,9 @@ TEST(PluckerLine, LineLineDistanceMatchesClosestPoints) {
   EXPECT_NEAR(LineLineDistance(PluckerLine::FromPointAndDirection(x, {1, 0, 0}),
                                PluckerLine::FromPointAndDirection(x, {0, 1, 1})),
               0.0, 1e-14);
-  EXPECT_NEAR(LineLineDistance(PluckerLine::FromPointAndDirection(x, {1, 0, 0}),
-                               PluckerLine::FromPointAndDirection(x + Eigen::Vector3d(0, 3, 4), {-1, 0, 0})),
+  EXPECT_NEAR(LineLineDistance(
+                  PluckerLine::FromPointAndDirection(x, {1, 0, 0}),
+                  PluckerLine::FromPointAndDirection(x + Eigen::Vector3d(0, 3, 4), {-1, 0, 0})),
               5.0, 1e-14);
 }
 

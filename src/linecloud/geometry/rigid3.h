@@ -12,8 +12,7 @@ struct Rigid3d {
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
 
   Rigid3d() = default;
-  Rigid3d(const Eigen::Quaterniond& q, const Eigen::Vector3d& t)
-      : rotation(q), translation(t) {}
+  Rigid3d(const Eigen::Quaterniond& q, const Eigen::Vector3d& t) : rotation(q), translation(t) {}
 
   Eigen::Matrix<double, 3, 4> ToMatrix() const {
     Eigen::Matrix<double, 3, 4> m;
@@ -39,8 +38,7 @@ inline Eigen::Vector3d operator*(const Rigid3d& t, const Eigen::Vector3d& x) {
 // c_from_a = c_from_b * b_from_a.
 inline Rigid3d operator*(const Rigid3d& c_from_b, const Rigid3d& b_from_a) {
   return Rigid3d((c_from_b.rotation * b_from_a.rotation).normalized(),
-                 c_from_b.rotation * b_from_a.translation +
-                     c_from_b.translation);
+                 c_from_b.rotation * b_from_a.translation + c_from_b.translation);
 }
 
 // x_target = s R x_source + t, s > 0.
@@ -66,13 +64,11 @@ inline Eigen::Vector3d operator*(const Sim3d& t, const Eigen::Vector3d& x) {
 inline Sim3d operator*(const Sim3d& c_from_b, const Sim3d& b_from_a) {
   return Sim3d(c_from_b.scale * b_from_a.scale,
                (c_from_b.rotation * b_from_a.rotation).normalized(),
-               c_from_b.scale * (c_from_b.rotation * b_from_a.translation) +
-                   c_from_b.translation);
+               c_from_b.scale * (c_from_b.rotation * b_from_a.translation) + c_from_b.translation);
 }
 
 // Angle of the rotation between two orientations, in radians.
-inline double RotationDistance(const Eigen::Quaterniond& a,
-                               const Eigen::Quaterniond& b) {
+inline double RotationDistance(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
   return a.angularDistance(b);
 }
 

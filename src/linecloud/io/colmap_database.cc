@@ -20,8 +20,7 @@ constexpr uint64_t kMaxNumImages = 2147483647;
 // RAII wrapper over a prepared statement; every failure names the database.
 class Statement {
  public:
-  Statement(sqlite3* db, const std::string& path, const char* sql)
-      : db_(db), path_(path) {
+  Statement(sqlite3* db, const std::string& path, const char* sql) : db_(db), path_(path) {
     if (sqlite3_prepare_v2(db, sql, -1, &stmt_, nullptr) != SQLITE_OK) {
       Fail("{}: cannot query COLMAP database ({})", path_, sqlite3_errmsg(db));
     }
@@ -30,9 +29,7 @@ class Statement {
   Statement(const Statement&) = delete;
   Statement& operator=(const Statement&) = delete;
 
-  void BindInt64(int index, int64_t value) {
-    sqlite3_bind_int64(stmt_, index, value);
-  }
+  void BindInt64(int index, int64_t value) { sqlite3_bind_int64(stmt_, index, value); }
   void BindText(int index, const char* text) {
     sqlite3_bind_text(stmt_, index, text, -1, SQLITE_TRANSIENT);
   }
@@ -42,8 +39,7 @@ class Statement {
     const int rc = sqlite3_step(stmt_);
     if (rc == SQLITE_ROW) return true;
     if (rc == SQLITE_DONE) return false;
-    Fail("{}: corrupt or unreadable COLMAP database ({})", path_,
-         sqlite3_errmsg(db_));
+    Fail("{}: corrupt or unreadable COLMAP database ({})", path_, sqlite3_errmsg(db_));
   }
 
   int64_t Int64(int col) const { return sqlite3_column_int64(stmt_, col); }
@@ -51,9 +47,7 @@ class Statement {
     const unsigned char* text = sqlite3_column_text(stmt_, col);
     return text ? reinterpret_cast<const char*>(text) : "";
   }
-  bool IsNull(int col) const {
-    return sqlite3_column_type(stmt_, col) == SQLITE_NULL;
-  }
+  bool IsNull(int col) const { return sqlite3_column_type(stmt_, col) == SQLITE_NULL; }
   const void* Blob(int col, size_t* bytes) const {
     const void* data = sqlite3_column_blob(stmt_, col);
     *bytes = static_cast<size_t>(sqlite3_column_bytes(stmt_, col));
@@ -67,23 +61,21 @@ class Statement {
 };
 
 template <typename Matrix>
-Matrix ReadBlobMatrix(const Statement& stmt, int rows_col, int cols_col,
-                      int data_col, const std::string& path,
-                      const std::string& what) {
+Matrix ReadBlobMatrix(const Statement& stmt, int rows_col, int cols_col, int data_col,
+                      const std::string& path, const std::string& what) {
   using Scalar = typename Matrix::Scalar;
   const int64_t rows = stmt.Int64(rows_col);
   const int64_t cols = stmt.Int64(cols_col);
-  if (rows < 0 || cols < 0 || (Matrix::ColsAtCompileTime != Eigen::Dynamic &&
-                               cols != Matrix::ColsAtCompileTime)) {
+  if (rows < 0 || cols < 0 ||
+      (Matrix::ColsAtCompileTime != Eigen::Dynamic && cols != Matrix::ColsAtCompileTime)) {
     Fail("{}: {}: invalid shape {}x{}", path, what, rows, cols);
   }
   size_t bytes = 0;
   const void* data = stmt.Blob(data_col, &bytes);
-  const size_t expected = static_cast<size_t>(rows) * static_cast<size_t>(cols) *
-                          sizeof(Scalar);
+  const size_t expected = static_cast<size_t>(rows) * static_cast<size_t>(cols) * sizeof(Scalar);
   if (bytes != expected) {
-    Fail("{}: {}: blob has {} bytes, expected {} for {}x{} values", path, what,
-         bytes, expected, rows, cols);
+    Fail("{}: {}: blob has {} bytes, expected {} for {}x{} values", path, what, bytes, expected,
+         rows, cols);
   }
   Matrix m(rows, cols);
   if (expected > 0) std::memcpy(m.data(), data, expected);
@@ -108,8 +100,7 @@ uint64_t ImagePairToPairId(uint32_t image_id1, uint32_t image_id2) {
 
 std::pair<uint32_t, uint32_t> PairIdToImagePair(uint64_t pair_id) {
   const uint32_t image_id2 = static_cast<uint32_t>(pair_id % kMaxNumImages);
-  const uint32_t image_id1 =
-      static_cast<uint32_t>((pair_id - image_id2) / kMaxNumImages);
+  const uint32_t image_id1 = static_cast<uint32_t>((pair_id - image_id2) / kMaxNumImages);
   return {image_id1, image_id2};
 }
 
@@ -139,15 +130,14 @@ ColmapDatabase::ColmapDatabase(const std::string& path) : path_(path) {
     Fail("{}: cannot open database ({})", path, message);
   }
   try {
-    for (const char* table : {"cameras", "images", "keypoints", "descriptors",
-                              "matches", "two_view_geometries"}) {
+    for (const char* table :
+         {"cameras", "images", "keypoints", "descriptors", "matches", "two_view_geometries"}) {
       Statement stmt(db_, path_,
                      "SELECT count(*) FROM sqlite_master WHERE type='table' "
                      "AND name=?");
       stmt.BindText(1, table);
       if (!stmt.Step() || stmt.Int64(0) == 0) {
-        Fail("{}: not a COLMAP database (table '{}' is missing)", path,
-             table);
+        Fail("{}: not a COLMAP database (table '{}' is missing)", path, table);
       }
     }
   } catch (...) {
@@ -174,14 +164,12 @@ std::vector<Camera> ColmapDatabase::ReadCameras() const {
     size_t bytes = 0;
     const void* data = stmt.Blob(4, &bytes);
     if (bytes % sizeof(double) != 0) {
-      Fail("{}: cameras: camera {} params blob has {} bytes", path_,
-           camera.camera_id, bytes);
+      Fail("{}: cameras: camera {} params blob has {} bytes", path_, camera.camera_id, bytes);
     }
     camera.params.resize(bytes / sizeof(double));
     if (bytes > 0) std::memcpy(camera.params.data(), data, bytes);
     if (camera.model_id == CameraModelId::kInvalid) {
-      Fail("{}: cameras: camera {} has unsupported model id {}", path_,
-           camera.camera_id, model);
+      Fail("{}: cameras: camera {} has unsupported model id {}", path_, camera.camera_id, model);
     }
     camera.Check(path_ + ": cameras");
     cameras.push_back(std::move(camera));
@@ -205,38 +193,32 @@ std::vector<DatabaseImage> ColmapDatabase::ReadImages() const {
 }
 
 FeatureKeypoints ColmapDatabase::ReadKeypoints(uint32_t image_id) const {
-  Statement stmt(db_, path_,
-                 "SELECT rows, cols, data FROM keypoints WHERE image_id=?");
+  Statement stmt(db_, path_, "SELECT rows, cols, data FROM keypoints WHERE image_id=?");
   stmt.BindInt64(1, image_id);
   if (!stmt.Step()) return FeatureKeypoints();
   FeatureKeypoints kp = ReadBlobMatrix<FeatureKeypoints>(
       stmt, 0, 1, 2, path_, "keypoints of image " + std::to_string(image_id));
   if (kp.rows() > 0 && kp.cols() != 2 && kp.cols() != 4 && kp.cols() != 6) {
-    Fail("{}: keypoints of image {}: expected 2, 4 or 6 columns, got {}",
-         path_, image_id, kp.cols());
+    Fail("{}: keypoints of image {}: expected 2, 4 or 6 columns, got {}", path_, image_id,
+         kp.cols());
   }
   return kp;
 }
 
 FeatureDescriptors ColmapDatabase::ReadDescriptors(uint32_t image_id) const {
-  Statement stmt(db_, path_,
-                 "SELECT rows, cols, data FROM descriptors WHERE image_id=?");
+  Statement stmt(db_, path_, "SELECT rows, cols, data FROM descriptors WHERE image_id=?");
   stmt.BindInt64(1, image_id);
   if (!stmt.Step()) return FeatureDescriptors();
-  return ReadBlobMatrix<FeatureDescriptors>(
-      stmt, 0, 1, 2, path_,
-      "descriptors of image " + std::to_string(image_id));
+  return ReadBlobMatrix<FeatureDescriptors>(stmt, 0, 1, 2, path_,
+                                            "descriptors of image " + std::to_string(image_id));
 }
 
-FeatureMatches ColmapDatabase::ReadMatches(uint32_t image_id1,
-                                           uint32_t image_id2) const {
-  Statement stmt(db_, path_,
-                 "SELECT rows, cols, data FROM matches WHERE pair_id=?");
+FeatureMatches ColmapDatabase::ReadMatches(uint32_t image_id1, uint32_t image_id2) const {
+  Statement stmt(db_, path_, "SELECT rows, cols, data FROM matches WHERE pair_id=?");
   stmt.BindInt64(1, static_cast<int64_t>(ImagePairToPairId(image_id1, image_id2)));
   if (!stmt.Step()) return FeatureMatches();
   FeatureMatches m = ReadBlobMatrix<FeatureMatches>(
-      stmt, 0, 1, 2, path_,
-      fmt::format("matches of images {}-{}", image_id1, image_id2));
+      stmt, 0, 1, 2, path_, fmt::format("matches of images {}-{}", image_id1, image_id2));
   if (image_id1 > image_id2) m.col(0).swap(m.col(1));
   return m;
 }
@@ -265,12 +247,10 @@ std::vector<TwoViewGeometry> ColmapDatabase::ReadTwoViewGeometries() const {
                  "two_view_geometries ORDER BY pair_id");
   while (stmt.Step()) {
     TwoViewGeometry g;
-    std::tie(g.image_id1, g.image_id2) =
-        PairIdToImagePair(static_cast<uint64_t>(stmt.Int64(0)));
+    std::tie(g.image_id1, g.image_id2) = PairIdToImagePair(static_cast<uint64_t>(stmt.Int64(0)));
     g.inlier_matches = ReadBlobMatrix<FeatureMatches>(
         stmt, 1, 2, 3, path_,
-        fmt::format("two-view geometry of images {}-{}", g.image_id1,
-                    g.image_id2));
+        fmt::format("two-view geometry of images {}-{}", g.image_id1, g.image_id2));
     g.config = static_cast<int>(stmt.Int64(4));
     g.F = ReadMatrix3d(stmt, 5);
     g.E = ReadMatrix3d(stmt, 6);

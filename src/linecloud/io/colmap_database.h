@@ -17,10 +17,8 @@ struct sqlite3;
 
 namespace linecloud {
 
-using FeatureKeypoints =
-    Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-using FeatureDescriptors =
-    Eigen::Matrix<uint8_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using FeatureKeypoints = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using FeatureDescriptors = Eigen::Matrix<uint8_t, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 using FeatureMatches = Eigen::Matrix<uint32_t, Eigen::Dynamic, 2, Eigen::RowMajor>;
 
 struct DatabaseImage {

@@ -13,8 +13,8 @@
 namespace linecloud {
 namespace {
 
-using testing::SharedDataPath;
 using testing::ErrorOf;
+using testing::SharedDataPath;
 using testing::TempDir;
 
 TEST(ColmapDatabase, PairIds) {
@@ -90,13 +90,11 @@ TEST(ColmapDatabase, ReadingLeavesNoFileBehind) {
 TEST(ColmapDatabase, DescriptorsPerPointFromTracks) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
   const ColmapDatabase db(SharedDataPath("colmap-maupertuis/colmap.db"));
-  const Reconstruction rec =
-      ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
+  const Reconstruction rec = ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
   const std::vector<uint64_t> ids = rec.SortedPoint3DIds();
   const PointDescriptors medoid =
       ComputePointDescriptors(rec, ids, db, DescriptorAggregation::kMedoid);
-  const PointDescriptors mean =
-      ComputePointDescriptors(rec, ids, db, DescriptorAggregation::kMean);
+  const PointDescriptors mean = ComputePointDescriptors(rec, ids, db, DescriptorAggregation::kMean);
   ASSERT_EQ(medoid.dim, 128);
   ASSERT_EQ(medoid.data.size(), ids.size() * 128);
   // The medoid is one of the track's observed descriptors; the mean lies
@@ -106,8 +104,7 @@ TEST(ColmapDatabase, DescriptorsPerPointFromTracks) {
     bool found = false;
     for (const TrackElement& el : p.track) {
       const FeatureDescriptors d = db.ReadDescriptors(el.image_id);
-      found |= std::equal(medoid.data.begin() + k * 128,
-                          medoid.data.begin() + (k + 1) * 128,
+      found |= std::equal(medoid.data.begin() + k * 128, medoid.data.begin() + (k + 1) * 128,
                           d.row(el.point2D_idx).data());
       if (k % 97 == 0) {
         // Spot check: mean is between min and max of the track.

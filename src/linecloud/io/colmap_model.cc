@@ -53,8 +53,7 @@ void WriteSensorId(std::ostream& out, const SensorId& s) {
 
 void ExpectEnd(const ByteReader& r) {
   if (!r.AtEnd()) {
-    Fail("{}: corrupt: {} unexpected trailing bytes", r.Source(),
-         r.Remaining());
+    Fail("{}: corrupt: {} unexpected trailing bytes", r.Source(), r.Remaining());
   }
 }
 
@@ -67,12 +66,11 @@ std::vector<typename Map::key_type> SortedKeys(const Map& map) {
   return keys;
 }
 
-Eigen::Quaterniond ParseQuaternion(const std::vector<std::string_view>& tok,
-                                   size_t i, const TextLines& lines) {
-  Eigen::Quaterniond q(ParseNumber<double>(tok[i], lines, "QW"),
-                       ParseNumber<double>(tok[i + 1], lines, "QX"),
-                       ParseNumber<double>(tok[i + 2], lines, "QY"),
-                       ParseNumber<double>(tok[i + 3], lines, "QZ"));
+Eigen::Quaterniond ParseQuaternion(const std::vector<std::string_view>& tok, size_t i,
+                                   const TextLines& lines) {
+  Eigen::Quaterniond q(
+      ParseNumber<double>(tok[i], lines, "QW"), ParseNumber<double>(tok[i + 1], lines, "QX"),
+      ParseNumber<double>(tok[i + 2], lines, "QY"), ParseNumber<double>(tok[i + 3], lines, "QZ"));
   const double norm = q.norm();
   if (!(norm > 1e-6)) lines.FailHere("zero quaternion");
   // Normalise only when needed, so that bin <-> txt round trips are exact.
@@ -90,9 +88,7 @@ std::vector<Eigen::Vector3d> PointCoordinates(const Reconstruction& model,
   return xyz;
 }
 
-std::vector<uint64_t> Reconstruction::SortedPoint3DIds() const {
-  return SortedKeys(points3D);
-}
+std::vector<uint64_t> Reconstruction::SortedPoint3DIds() const { return SortedKeys(points3D); }
 
 double Reconstruction::MeanTrackLength() const {
   if (points3D.empty()) return 0.0;
@@ -105,15 +101,16 @@ void Reconstruction::Check(std::string_view source) const {
   for (const auto& [id, camera] : cameras) camera.Check(source);
   for (const auto& [id, image] : images) {
     if (!cameras.count(image.camera_id)) {
-      Fail("{}: image {} ('{}') refers to camera {} which is not in the model",
-           source, id, image.name, image.camera_id);
+      Fail("{}: image {} ('{}') refers to camera {} which is not in the model", source, id,
+           image.name, image.camera_id);
     }
     for (size_t i = 0; i < image.points2D.size(); ++i) {
       const Point2D& p = image.points2D[i];
       if (p.point3D_id != kInvalidPoint3DId && !points3D.count(p.point3D_id)) {
-        Fail("{}: image {} point2D {} refers to point3D {} which is not in "
-             "the model",
-             source, id, i, p.point3D_id);
+        Fail(
+            "{}: image {} point2D {} refers to point3D {} which is not in "
+            "the model",
+            source, id, i, p.point3D_id);
       }
     }
   }
@@ -124,15 +121,16 @@ void Reconstruction::Check(std::string_view source) const {
     for (const TrackElement& el : point.track) {
       const auto it = images.find(el.image_id);
       if (it == images.end()) {
-        Fail("{}: point3D {} track refers to image {} which is not in the "
-             "model",
-             source, id, el.image_id);
+        Fail(
+            "{}: point3D {} track refers to image {} which is not in the "
+            "model",
+            source, id, el.image_id);
       }
       if (el.point2D_idx >= it->second.points2D.size()) {
-        Fail("{}: point3D {} track refers to point2D {} of image {} which "
-             "has only {}",
-             source, id, el.point2D_idx, el.image_id,
-             it->second.points2D.size());
+        Fail(
+            "{}: point3D {} track refers to point2D {} of image {} which "
+            "has only {}",
+            source, id, el.point2D_idx, el.image_id, it->second.points2D.size());
       }
     }
   }
@@ -140,8 +138,7 @@ void Reconstruction::Check(std::string_view source) const {
 
 // ---------------------------------------------------------------- binary ---
 
-void ParseCamerasBinary(std::string_view data, const std::string& source,
-                        Reconstruction* rec) {
+void ParseCamerasBinary(std::string_view data, const std::string& source, Reconstruction* rec) {
   ByteReader r(data, source);
   const uint64_t n = r.ReadCount("num_cameras", 4 + 4 + 8 + 8);
   for (uint64_t i = 0; i < n; ++i) {
@@ -150,8 +147,7 @@ void ParseCamerasBinary(std::string_view data, const std::string& source,
     const int model = r.Read<int32_t>("model_id");
     camera.model_id = CameraModelFromInt(model);
     if (camera.model_id == CameraModelId::kInvalid) {
-      Fail("{}: camera {}: unsupported camera model id {}", source,
-           camera.camera_id, model);
+      Fail("{}: camera {}: unsupported camera model id {}", source, camera.camera_id, model);
     }
     camera.width = r.Read<uint64_t>("width");
     camera.height = r.Read<uint64_t>("height");
@@ -165,8 +161,7 @@ void ParseCamerasBinary(std::string_view data, const std::string& source,
   ExpectEnd(r);
 }
 
-void ParseImagesBinary(std::string_view data, const std::string& source,
-                       Reconstruction* rec) {
+void ParseImagesBinary(std::string_view data, const std::string& source, Reconstruction* rec) {
   ByteReader r(data, source);
   const uint64_t n = r.ReadCount("num_images", 4 + kPoseBytes + 4 + 1 + 8);
   for (uint64_t i = 0; i < n; ++i) {
@@ -190,8 +185,7 @@ void ParseImagesBinary(std::string_view data, const std::string& source,
   ExpectEnd(r);
 }
 
-void ParsePoints3DBinary(std::string_view data, const std::string& source,
-                         Reconstruction* rec) {
+void ParsePoints3DBinary(std::string_view data, const std::string& source, Reconstruction* rec) {
   ByteReader r(data, source);
   const uint64_t n = r.ReadCount("num_points3D", 8 + 24 + 3 + 8 + 8);
   rec->points3D.reserve(rec->points3D.size() + n);
@@ -219,8 +213,7 @@ void ParsePoints3DBinary(std::string_view data, const std::string& source,
   ExpectEnd(r);
 }
 
-void ParseRigsBinary(std::string_view data, const std::string& source,
-                     Reconstruction* rec) {
+void ParseRigsBinary(std::string_view data, const std::string& source, Reconstruction* rec) {
   ByteReader r(data, source);
   const uint64_t n = r.ReadCount("num_rigs", 8);
   for (uint64_t i = 0; i < n; ++i) {
@@ -228,8 +221,7 @@ void ParseRigsBinary(std::string_view data, const std::string& source,
     rig.rig_id = r.Read<uint32_t>("rig_id");
     const uint32_t num_sensors = r.Read<uint32_t>("num_sensors");
     if (num_sensors > r.Remaining() / 8 + 1) {
-      Fail("{}: corrupt or truncated: rig {} claims {} sensors", source,
-           rig.rig_id, num_sensors);
+      Fail("{}: corrupt or truncated: rig {} claims {} sensors", source, rig.rig_id, num_sensors);
     }
     if (num_sensors > 0) rig.ref_sensor = ReadSensorId(r);
     for (uint32_t j = 1; j < num_sensors; ++j) {
@@ -247,8 +239,7 @@ void ParseRigsBinary(std::string_view data, const std::string& source,
   ExpectEnd(r);
 }
 
-void ParseFramesBinary(std::string_view data, const std::string& source,
-                       Reconstruction* rec) {
+void ParseFramesBinary(std::string_view data, const std::string& source, Reconstruction* rec) {
   ByteReader r(data, source);
   const uint64_t n = r.ReadCount("num_frames", 4 + 4 + kPoseBytes + 4);
   for (uint64_t i = 0; i < n; ++i) {
@@ -258,8 +249,8 @@ void ParseFramesBinary(std::string_view data, const std::string& source,
     frame.rig_from_world = ReadPose(r, "rig_from_world");
     const uint32_t num_data = r.Read<uint32_t>("num_data_ids");
     if (num_data > r.Remaining() / 16) {
-      Fail("{}: corrupt or truncated: frame {} claims {} data ids", source,
-           frame.frame_id, num_data);
+      Fail("{}: corrupt or truncated: frame {} claims {} data ids", source, frame.frame_id,
+           num_data);
     }
     frame.data.resize(num_data);
     for (FrameData& d : frame.data) {
@@ -322,8 +313,7 @@ void WriteRigsBinary(const Reconstruction& rec, std::ostream& out) {
   WriteLE<uint64_t>(out, rec.rigs.size());
   for (const auto& [id, rig] : rec.rigs) {
     WriteLE<uint32_t>(out, id);
-    const uint32_t num_sensors =
-        rig.ref_sensor ? static_cast<uint32_t>(rig.sensors.size() + 1) : 0;
+    const uint32_t num_sensors = rig.ref_sensor ? static_cast<uint32_t>(rig.sensors.size() + 1) : 0;
     WriteLE<uint32_t>(out, num_sensors);
     if (!rig.ref_sensor) continue;
     WriteSensorId(out, *rig.ref_sensor);
@@ -356,8 +346,7 @@ void WriteCamerasText(const Reconstruction& rec, std::ostream& out) {
          "#   CAMERA_ID, MODEL, WIDTH, HEIGHT, PARAMS[]\n"
       << "# Number of cameras: " << rec.cameras.size() << "\n";
   for (const auto& [id, c] : rec.cameras) {
-    out << fmt::format("{} {} {} {}", id, CameraModelName(c.model_id), c.width,
-                       c.height);
+    out << fmt::format("{} {} {} {}", id, CameraModelName(c.model_id), c.width, c.height);
     for (double p : c.params) out << fmt::format(" {}", p);
     out << "\n";
   }
@@ -371,15 +360,13 @@ void WriteImagesText(const Reconstruction& rec, std::ostream& out) {
   for (const auto& [id, im] : rec.images) {
     const auto& q = im.cam_from_world.rotation;
     const auto& t = im.cam_from_world.translation;
-    out << fmt::format("{} {} {} {} {} {} {} {} {} {}\n", id, q.w(), q.x(),
-                       q.y(), q.z(), t.x(), t.y(), t.z(), im.camera_id,
-                       im.name);
+    out << fmt::format("{} {} {} {} {} {} {} {} {} {}\n", id, q.w(), q.x(), q.y(), q.z(), t.x(),
+                       t.y(), t.z(), im.camera_id, im.name);
     std::string line;
     for (const Point2D& p : im.points2D) {
       if (!line.empty()) line += ' ';
-      const long long pid = p.point3D_id == kInvalidPoint3DId
-                                ? -1
-                                : static_cast<long long>(p.point3D_id);
+      const long long pid =
+          p.point3D_id == kInvalidPoint3DId ? -1 : static_cast<long long>(p.point3D_id);
       line += fmt::format("{} {} {}", p.xy.x(), p.xy.y(), pid);
     }
     out << line << "\n";
@@ -394,8 +381,8 @@ void WritePoints3DText(const Reconstruction& rec, std::ostream& out) {
       << fmt::format(", mean track length: {}\n", rec.MeanTrackLength());
   for (const uint64_t id : rec.SortedPoint3DIds()) {
     const Point3D& p = rec.points3D.at(id);
-    out << fmt::format("{} {} {} {} {} {} {} {}", id, p.xyz.x(), p.xyz.y(),
-                       p.xyz.z(), p.color[0], p.color[1], p.color[2], p.error);
+    out << fmt::format("{} {} {} {} {} {} {} {}", id, p.xyz.x(), p.xyz.y(), p.xyz.z(), p.color[0],
+                       p.color[1], p.color[2], p.error);
     for (const TrackElement& el : p.track) {
       out << fmt::format(" {} {}", el.image_id, el.point2D_idx);
     }
@@ -405,8 +392,7 @@ void WritePoints3DText(const Reconstruction& rec, std::ostream& out) {
 
 }  // namespace
 
-void ParseCamerasText(std::string_view data, const std::string& source,
-                      Reconstruction* rec) {
+void ParseCamerasText(std::string_view data, const std::string& source, Reconstruction* rec) {
   TextLines lines(data, source);
   std::string_view line;
   while (lines.Next(&line)) {
@@ -416,8 +402,8 @@ void ParseCamerasText(std::string_view data, const std::string& source,
     camera.camera_id = ParseNumber<uint32_t>(tok[0], lines, "CAMERA_ID");
     camera.model_id = CameraModelFromName(tok[1]);
     if (camera.model_id == CameraModelId::kInvalid) {
-      lines.FailHere(fmt::format("camera {}: unsupported camera model '{}'",
-                                 camera.camera_id, tok[1]));
+      lines.FailHere(
+          fmt::format("camera {}: unsupported camera model '{}'", camera.camera_id, tok[1]));
     }
     camera.width = ParseNumber<uint64_t>(tok[2], lines, "WIDTH");
     camera.height = ParseNumber<uint64_t>(tok[3], lines, "HEIGHT");
@@ -431,23 +417,20 @@ void ParseCamerasText(std::string_view data, const std::string& source,
   }
 }
 
-void ParseImagesText(std::string_view data, const std::string& source,
-                     Reconstruction* rec) {
+void ParseImagesText(std::string_view data, const std::string& source, Reconstruction* rec) {
   TextLines lines(data, source);
   std::string_view line;
   while (lines.Next(&line)) {
     const auto tok = SplitWhitespace(line);
     if (tok.size() < 10) {
-      lines.FailHere(
-          "expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME");
+      lines.FailHere("expected IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME");
     }
     Image image;
     image.image_id = ParseNumber<uint32_t>(tok[0], lines, "IMAGE_ID");
     image.cam_from_world.rotation = ParseQuaternion(tok, 1, lines);
-    image.cam_from_world.translation =
-        Eigen::Vector3d(ParseNumber<double>(tok[5], lines, "TX"),
-                        ParseNumber<double>(tok[6], lines, "TY"),
-                        ParseNumber<double>(tok[7], lines, "TZ"));
+    image.cam_from_world.translation = Eigen::Vector3d(ParseNumber<double>(tok[5], lines, "TX"),
+                                                       ParseNumber<double>(tok[6], lines, "TY"),
+                                                       ParseNumber<double>(tok[7], lines, "TZ"));
     image.camera_id = ParseNumber<uint32_t>(tok[8], lines, "CAMERA_ID");
     // Names may contain spaces: the rest of the line after CAMERA_ID.
     const size_t name_pos = tok[9].data() - line.data();
@@ -457,22 +440,20 @@ void ParseImagesText(std::string_view data, const std::string& source,
     }
     std::string_view points_line;
     if (!lines.NextRaw(&points_line)) {
-      lines.FailHere(fmt::format("image {}: missing POINTS2D line (truncated?)",
-                                 image.image_id));
+      lines.FailHere(fmt::format("image {}: missing POINTS2D line (truncated?)", image.image_id));
     }
     const auto pts = SplitWhitespace(points_line);
     if (pts.size() % 3 != 0) {
-      lines.FailHere(fmt::format(
-          "image {}: POINTS2D must be triples (X, Y, POINT3D_ID), got {} values",
-          image.image_id, pts.size()));
+      lines.FailHere(
+          fmt::format("image {}: POINTS2D must be triples (X, Y, POINT3D_ID), got {} values",
+                      image.image_id, pts.size()));
     }
     image.points2D.resize(pts.size() / 3);
     for (size_t i = 0; i < image.points2D.size(); ++i) {
       Point2D& p = image.points2D[i];
       p.xy.x() = ParseNumber<double>(pts[3 * i], lines, "POINTS2D.X");
       p.xy.y() = ParseNumber<double>(pts[3 * i + 1], lines, "POINTS2D.Y");
-      const int64_t pid =
-          ParseNumber<int64_t>(pts[3 * i + 2], lines, "POINTS2D.POINT3D_ID");
+      const int64_t pid = ParseNumber<int64_t>(pts[3 * i + 2], lines, "POINTS2D.POINT3D_ID");
       p.point3D_id = pid < 0 ? kInvalidPoint3DId : static_cast<uint64_t>(pid);
     }
     const uint32_t id = image.image_id;
@@ -482,8 +463,7 @@ void ParseImagesText(std::string_view data, const std::string& source,
   }
 }
 
-void ParsePoints3DText(std::string_view data, const std::string& source,
-                       Reconstruction* rec) {
+void ParsePoints3DText(std::string_view data, const std::string& source, Reconstruction* rec) {
   TextLines lines(data, source);
   std::string_view line;
   while (lines.Next(&line)) {
@@ -506,10 +486,8 @@ void ParsePoints3DText(std::string_view data, const std::string& source,
     p.error = ParseNumber<double>(tok[7], lines, "ERROR");
     p.track.resize((tok.size() - 8) / 2);
     for (size_t i = 0; i < p.track.size(); ++i) {
-      p.track[i].image_id =
-          ParseNumber<uint32_t>(tok[8 + 2 * i], lines, "TRACK.IMAGE_ID");
-      p.track[i].point2D_idx =
-          ParseNumber<uint32_t>(tok[9 + 2 * i], lines, "TRACK.POINT2D_IDX");
+      p.track[i].image_id = ParseNumber<uint32_t>(tok[8 + 2 * i], lines, "TRACK.IMAGE_ID");
+      p.track[i].point2D_idx = ParseNumber<uint32_t>(tok[9 + 2 * i], lines, "TRACK.POINT2D_IDX");
     }
     if (!rec->points3D.emplace(id, std::move(p)).second) {
       lines.FailHere(fmt::format("duplicate point3D id {}", id));
@@ -523,46 +501,36 @@ Reconstruction ReadColmapModel(const std::string& dir) {
   }
   Reconstruction rec;
   const auto path = [&](const char* name) { return JoinPaths(dir, name); };
-  const bool binary = FileExists(path("cameras.bin")) ||
-                      FileExists(path("images.bin")) ||
+  const bool binary = FileExists(path("cameras.bin")) || FileExists(path("images.bin")) ||
                       FileExists(path("points3D.bin"));
-  const bool text = FileExists(path("cameras.txt")) ||
-                    FileExists(path("images.txt")) ||
+  const bool text = FileExists(path("cameras.txt")) || FileExists(path("images.txt")) ||
                     FileExists(path("points3D.txt"));
   if (!binary && !text) {
-    Fail("{}: no COLMAP model found (expected cameras, images, points3D as "
-         ".bin or .txt)",
-         dir);
+    Fail(
+        "{}: no COLMAP model found (expected cameras, images, points3D as "
+        ".bin or .txt)",
+        dir);
   }
   if (binary) {
     if (FileExists(path("rigs.bin"))) {
-      ParseRigsBinary(ReadFileToString(path("rigs.bin")), path("rigs.bin"),
-                      &rec);
+      ParseRigsBinary(ReadFileToString(path("rigs.bin")), path("rigs.bin"), &rec);
     }
-    ParseCamerasBinary(ReadFileToString(path("cameras.bin")),
-                       path("cameras.bin"), &rec);
+    ParseCamerasBinary(ReadFileToString(path("cameras.bin")), path("cameras.bin"), &rec);
     if (FileExists(path("frames.bin"))) {
-      ParseFramesBinary(ReadFileToString(path("frames.bin")),
-                        path("frames.bin"), &rec);
+      ParseFramesBinary(ReadFileToString(path("frames.bin")), path("frames.bin"), &rec);
     }
-    ParseImagesBinary(ReadFileToString(path("images.bin")), path("images.bin"),
-                      &rec);
-    ParsePoints3DBinary(ReadFileToString(path("points3D.bin")),
-                        path("points3D.bin"), &rec);
+    ParseImagesBinary(ReadFileToString(path("images.bin")), path("images.bin"), &rec);
+    ParsePoints3DBinary(ReadFileToString(path("points3D.bin")), path("points3D.bin"), &rec);
   } else {
-    ParseCamerasText(ReadFileToString(path("cameras.txt")),
-                     path("cameras.txt"), &rec);
-    ParseImagesText(ReadFileToString(path("images.txt")), path("images.txt"),
-                    &rec);
-    ParsePoints3DText(ReadFileToString(path("points3D.txt")),
-                      path("points3D.txt"), &rec);
+    ParseCamerasText(ReadFileToString(path("cameras.txt")), path("cameras.txt"), &rec);
+    ParseImagesText(ReadFileToString(path("images.txt")), path("images.txt"), &rec);
+    ParsePoints3DText(ReadFileToString(path("points3D.txt")), path("points3D.txt"), &rec);
   }
   rec.Check(dir);
   return rec;
 }
 
-void WriteColmapModel(const Reconstruction& rec, const std::string& dir,
-                      ModelFormat format) {
+void WriteColmapModel(const Reconstruction& rec, const std::string& dir, ModelFormat format) {
   CreateDirectories(dir);
   if (format == ModelFormat::kBinary) {
     WriteFileAtomically(JoinPaths(dir, "cameras.bin"),

@@ -95,8 +95,8 @@ enum class ModelFormat { kBinary, kText };
 // Reads a model folder; binary files win when both forms are present.
 Reconstruction ReadColmapModel(const std::string& dir);
 // Writes cameras, images, points3D (and rigs/frames when present and binary).
-void WriteColmapModel(const Reconstruction& reconstruction,
-                      const std::string& dir, ModelFormat format);
+void WriteColmapModel(const Reconstruction& reconstruction, const std::string& dir,
+                      ModelFormat format);
 
 // Parsers over in-memory file contents; `source` names the file in errors.
 // Exposed for tests and fuzzers.

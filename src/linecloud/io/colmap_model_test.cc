@@ -13,8 +13,8 @@
 namespace linecloud {
 namespace {
 
-using testing::SharedDataPath;
 using testing::ErrorOf;
+using testing::SharedDataPath;
 using testing::TempDir;
 
 void ExpectSameModel(const Reconstruction& a, const Reconstruction& b) {
@@ -55,8 +55,7 @@ void ExpectSameModel(const Reconstruction& a, const Reconstruction& b) {
 
 TEST(ColmapModel, ReadsMaupertuisText) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/reconstruction");
-  const Reconstruction rec =
-      ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
+  const Reconstruction rec = ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
   ASSERT_EQ(rec.cameras.size(), 1u);
   const Camera& camera = rec.cameras.at(1);
   EXPECT_EQ(camera.model_id, CameraModelId::kSimplePinhole);
@@ -81,8 +80,7 @@ TEST(ColmapModel, ReadsMaupertuisText) {
 
 TEST(ColmapModel, TextBinaryRoundTripOnRealModel) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/reconstruction");
-  const Reconstruction rec =
-      ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
+  const Reconstruction rec = ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
   TempDir tmp;
   WriteColmapModel(rec, tmp.Path("bin"), ModelFormat::kBinary);
   const Reconstruction from_bin = ReadColmapModel(tmp.Path("bin"));
@@ -107,8 +105,8 @@ TEST(ColmapModel, SyntheticRoundTripWithRigsAndFrames) {
   Rig rig;
   rig.rig_id = 1;
   rig.ref_sensor = SensorId{0, 1};
-  rig.sensors.push_back({SensorId{0, 2}, Rigid3d(Eigen::Quaterniond::Identity(),
-                                                 Eigen::Vector3d(0.11, 0, 0))});
+  rig.sensors.push_back(
+      {SensorId{0, 2}, Rigid3d(Eigen::Quaterniond::Identity(), Eigen::Vector3d(0.11, 0, 0))});
   rig.sensors.push_back({SensorId{1, 1}, std::nullopt});
   rec.rigs[1] = rig;
   Frame frame;
@@ -143,8 +141,8 @@ TEST(ColmapModel, TruncatedBinaryFilesGiveErrorsNamingTheFile) {
     for (const size_t keep : {size_t{0}, size_t{5}, full.size() / 2, full.size() - 1}) {
       std::ofstream(path, std::ios::binary | std::ios::trunc).write(full.data(), keep);
       const std::string message = ErrorOf([&] { ReadColmapModel(tmp.Path()); });
-      EXPECT_NE(message.find(name), std::string::npos) << name << " cut at " << keep
-                                                       << ": '" << message << "'";
+      EXPECT_NE(message.find(name), std::string::npos)
+          << name << " cut at " << keep << ": '" << message << "'";
     }
     std::ofstream(path, std::ios::binary | std::ios::trunc).write(full.data(), full.size());
   }
@@ -158,9 +156,7 @@ TEST(ColmapModel, TruncatedBinaryFilesGiveErrorsNamingTheFile) {
             std::string::npos);
 }
 
-void WriteText(const std::string& path, const std::string& text) {
-  std::ofstream(path) << text;
-}
+void WriteText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
 
 TEST(ColmapModel, BadTextModelsGiveClearErrors) {
   TempDir tmp;
@@ -168,8 +164,7 @@ TEST(ColmapModel, BadTextModelsGiveClearErrors) {
   const std::string images =
       "1 1 0 0 0 0 0 0 1 a.png\n10 20 1 30 40 -1\n2 1 0 0 0 1 0 0 1 b.png\n11 21 1\n";
   const std::string points = "1 0.5 0.25 4 255 0 0 0.3 1 0 2 0\n";
-  const auto write_model = [&](const std::string& c, const std::string& i,
-                               const std::string& p) {
+  const auto write_model = [&](const std::string& c, const std::string& i, const std::string& p) {
     WriteText(tmp.Path("cameras.txt"), c);
     WriteText(tmp.Path("images.txt"), i);
     WriteText(tmp.Path("points3D.txt"), p);

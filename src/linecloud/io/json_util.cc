@@ -28,9 +28,10 @@ nlohmann::json ReadJsonFile(const std::string& path) {
   const auto starts_with = [&](std::string_view magic) { return text.rfind(magic, 0) == 0; };
   if (starts_with("\xFF\xD8\xFF") || starts_with("\x89PNG") || starts_with("GIF8") ||
       starts_with("II*") || starts_with("MM\x00*") || starts_with("BM")) {
-    Fail("{}: this is an image, not a JSON file (localize --query takes a QUERY.json of "
-         "correspondences; see the README for the format)",
-         path);
+    Fail(
+        "{}: this is an image, not a JSON file (localize --query takes a QUERY.json of "
+        "correspondences; see the README for the format)",
+        path);
   }
   try {
     return nlohmann::json::parse(text);
@@ -47,8 +48,7 @@ Eigen::Vector3d JsonVector3(const nlohmann::json& j, const std::string& where) {
   return {v[0], v[1], v[2]};
 }
 
-std::vector<Eigen::Vector3d> JsonVector3List(const nlohmann::json& j,
-                                             const std::string& where) {
+std::vector<Eigen::Vector3d> JsonVector3List(const nlohmann::json& j, const std::string& where) {
   if (!j.is_array()) Fail("{}: expected an array of [x, y, z]", where);
   std::vector<Eigen::Vector3d> out;
   for (size_t i = 0; i < j.size(); ++i) {

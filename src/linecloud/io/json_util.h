@@ -18,8 +18,7 @@ nlohmann::json ReadJsonFile(const std::string& path);
 // Field accessors: `where` names the file and field path in errors
 // ("problem.json: bearings[2]").
 Eigen::Vector3d JsonVector3(const nlohmann::json& j, const std::string& where);
-std::vector<Eigen::Vector3d> JsonVector3List(const nlohmann::json& j,
-                                             const std::string& where);
+std::vector<Eigen::Vector3d> JsonVector3List(const nlohmann::json& j, const std::string& where);
 std::vector<PluckerLine> JsonLineList(const nlohmann::json& j, const std::string& where);
 // {"q": [w, x, y, z], "t": [x, y, z]}; the quaternion is normalised.
 Rigid3d JsonPose(const nlohmann::json& j, const std::string& where);

@@ -24,8 +24,7 @@ constexpr size_t kMaxHeaderBytes = 1 << 20;
 size_t Align8(size_t x) { return (x + 7) & ~size_t{7}; }
 
 size_t RecordBytes(LineEncoding encoding) {
-  return encoding == LineEncoding::kPlucker ? kPluckerRecordBytes
-                                            : kCompactRecordBytes;
+  return encoding == LineEncoding::kPlucker ? kPluckerRecordBytes : kCompactRecordBytes;
 }
 
 struct Section {
@@ -38,8 +37,7 @@ struct Layout {
   size_t checksum_offset = 0;
 };
 
-Layout ComputeLayout(size_t body_start, size_t n, LineEncoding encoding,
-                     size_t descriptor_dim) {
+Layout ComputeLayout(size_t body_start, size_t n, LineEncoding encoding, size_t descriptor_dim) {
   Layout l;
   l.ids = {Align8(body_start), n * 8};
   l.lines = {Align8(l.ids.offset + l.ids.bytes), n * RecordBytes(encoding)};
@@ -48,15 +46,12 @@ Layout ComputeLayout(size_t body_start, size_t n, LineEncoding encoding,
   return l;
 }
 
-nlohmann::json SectionJson(const Section& s) {
-  return {{"offset", s.offset}, {"bytes", s.bytes}};
-}
+nlohmann::json SectionJson(const Section& s) { return {{"offset", s.offset}, {"bytes", s.bytes}}; }
 
 // BLAKE2b-256 of `data`, as 32 raw bytes.
 std::string Checksum(std::string_view data) {
   unsigned char hash[kChecksumBytes];
-  crypto_generichash(hash, sizeof(hash),
-                     reinterpret_cast<const unsigned char*>(data.data()),
+  crypto_generichash(hash, sizeof(hash), reinterpret_cast<const unsigned char*>(data.data()),
                      data.size(), nullptr, 0);
   return std::string(reinterpret_cast<char*>(hash), sizeof(hash));
 }
@@ -67,8 +62,7 @@ std::string BuildHeader(const LineCloud& cloud, Layout* layout) {
   std::string header;
   size_t header_size = 0;
   for (int round = 0; round < 4; ++round) {
-    *layout = ComputeLayout(16 + header_size, cloud.size(), cloud.encoding,
-                            cloud.descriptor_dim);
+    *layout = ComputeLayout(16 + header_size, cloud.size(), cloud.encoding, cloud.descriptor_dim);
     nlohmann::json j;
     j["format"] = "linecloud-map";
     j["version"] = cloud.keyed_line_ids ? kLcmVersion : 1;
@@ -76,11 +70,10 @@ std::string BuildHeader(const LineCloud& cloud, Layout* layout) {
     j["num_lines"] = cloud.size();
     j["encoding"] = std::string(LineEncodingName(cloud.encoding));
     j["line_record_bytes"] = RecordBytes(cloud.encoding);
-    j["line_record_layout"] =
-        cloud.encoding == LineEncoding::kPlucker
-            ? "vx vy vz wx wy wz (float64); w = X x v, |v| = 1"
-            : "direction index (uint8, fibonacci-hemisphere-256-v1), "
-              "position in the plane orthogonal to it (2 x float32)";
+    j["line_record_layout"] = cloud.encoding == LineEncoding::kPlucker
+                                  ? "vx vy vz wx wy wz (float64); w = X x v, |v| = 1"
+                                  : "direction index (uint8, fibonacci-hemisphere-256-v1), "
+                                    "position in the plane orthogonal to it (2 x float32)";
     j["key_fingerprint"] = ToHex(cloud.key_fingerprint);
     if (cloud.gravity) j["gravity"] = {cloud.gravity->x(), cloud.gravity->y(), cloud.gravity->z()};
     j["line_ids"] = cloud.keyed_line_ids
@@ -124,13 +117,13 @@ std::string SerializeLineCloud(const LineCloud& cloud) {
   std::memcpy(out.data() + 12, &header_size, 4);
   std::memcpy(out.data() + 16, header.data(), header.size());
   // memcpy from a null pointer is undefined even for 0 bytes (an empty map).
-  if (layout.ids.bytes > 0) std::memcpy(out.data() + layout.ids.offset, cloud.ids.data(), layout.ids.bytes);
+  if (layout.ids.bytes > 0)
+    std::memcpy(out.data() + layout.ids.offset, cloud.ids.data(), layout.ids.bytes);
   char* lines = out.data() + layout.lines.offset;
   for (size_t i = 0; i < cloud.size(); ++i) {
     if (cloud.encoding == LineEncoding::kPlucker) {
       const PluckerLine& l = cloud.lines[i];
-      const double values[6] = {l.v.x(), l.v.y(), l.v.z(),
-                                l.w.x(), l.w.y(), l.w.z()};
+      const double values[6] = {l.v.x(), l.v.y(), l.v.z(), l.w.x(), l.w.y(), l.w.z()};
       std::memcpy(lines + i * kPluckerRecordBytes, values, sizeof(values));
     } else {
       const CompactLine& c = cloud.compact[i];
@@ -143,8 +136,7 @@ std::string SerializeLineCloud(const LineCloud& cloud) {
     std::memcpy(out.data() + layout.descriptors.offset, cloud.descriptors.data(),
                 cloud.descriptors.size());
   }
-  const std::string hash =
-      Checksum(std::string_view(out.data(), layout.checksum_offset));
+  const std::string hash = Checksum(std::string_view(out.data(), layout.checksum_offset));
   std::memcpy(out.data() + layout.checksum_offset, hash.data(), kChecksumBytes);
   return out;
 }
@@ -173,8 +165,8 @@ ParsedHeader ParseHeader(std::string_view data, const std::string& source) {
   }
   const uint32_t version = r.Read<uint32_t>("version");
   if (version < kLcmOldestVersion || version > kLcmVersion) {
-    Fail("{}: unsupported .lcm format version {} (this build reads versions {} to {})",
-         source, version, kLcmOldestVersion, kLcmVersion);
+    Fail("{}: unsupported .lcm format version {} (this build reads versions {} to {})", source,
+         version, kLcmOldestVersion, kLcmVersion);
   }
   const uint32_t header_size = r.Read<uint32_t>("header_size");
   if (header_size > kMaxHeaderBytes) {
@@ -243,7 +235,8 @@ LineCloud ParseLineCloud(std::string_view data, const std::string& source) {
   if (j.contains("descriptors") && !j["descriptors"].is_null()) {
     const auto& d = j["descriptors"];
     dim = Field<size_t>(d, "dim", source);
-    if (dim == 0 || dim > kLcmMaxDescriptorDim) Fail("{}: descriptor dim {} is invalid", source, dim);
+    if (dim == 0 || dim > kLcmMaxDescriptorDim)
+      Fail("{}: descriptor dim {} is invalid", source, dim);
     if (Field<std::string>(d, "dtype", source) != "uint8") {
       Fail("{}: unsupported descriptor dtype", source);
     }
@@ -252,9 +245,10 @@ LineCloud ParseLineCloud(std::string_view data, const std::string& source) {
   }
   const Layout layout = ComputeLayout(header.body_start, n, cloud.encoding, dim);
   if (layout.checksum_offset != body_end) {
-    Fail("{}: file size does not match its header ({} lines need {} bytes "
-         "before the checksum, found {})",
-         source, n, layout.checksum_offset, body_end);
+    Fail(
+        "{}: file size does not match its header ({} lines need {} bytes "
+        "before the checksum, found {})",
+        source, n, layout.checksum_offset, body_end);
   }
   const auto& sections = Field<nlohmann::json>(j, "sections", source);
   for (const auto& [name, expected] :
@@ -263,8 +257,8 @@ LineCloud ParseLineCloud(std::string_view data, const std::string& source) {
     const auto s = Field<nlohmann::json>(sections, name, source);
     if (Field<size_t>(s, "offset", source) != expected.offset ||
         Field<size_t>(s, "bytes", source) != expected.bytes) {
-      Fail("{}: section '{}' does not match the layout of version {}", source,
-           name, header.version);
+      Fail("{}: section '{}' does not match the layout of version {}", source, name,
+           header.version);
     }
   }
   if (j.contains("gravity")) {
@@ -277,8 +271,7 @@ LineCloud ParseLineCloud(std::string_view data, const std::string& source) {
     cloud.gravity = v;
   }
   const std::string fingerprint = Field<std::string>(j, "key_fingerprint", source);
-  if (!ParseHex(fingerprint, cloud.key_fingerprint.data(),
-                cloud.key_fingerprint.size())) {
+  if (!ParseHex(fingerprint, cloud.key_fingerprint.data(), cloud.key_fingerprint.size())) {
     Fail("{}: header field 'key_fingerprint' is malformed", source);
   }
 
@@ -307,8 +300,7 @@ LineCloud ParseLineCloud(std::string_view data, const std::string& source) {
   }
   cloud.descriptor_dim = static_cast<int>(dim);
   cloud.descriptors.assign(data.data() + layout.descriptors.offset,
-                           data.data() + layout.descriptors.offset +
-                               layout.descriptors.bytes);
+                           data.data() + layout.descriptors.offset + layout.descriptors.bytes);
   cloud.Check(source);
   return cloud;
 }

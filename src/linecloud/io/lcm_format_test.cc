@@ -51,8 +51,8 @@ TEST(LcmFormat, RoundTripsEveryEncoding) {
       // Writing what was read reproduces the bytes exactly.
       EXPECT_EQ(SerializeLineCloud(back), bytes);
       // Sizes: 48 (or 9) bytes per line + 8 per id + descriptors + header.
-      const size_t per_line = (encoding == LineEncoding::kPlucker ? 48 : 9) + 8 +
-                              (descriptors ? 128 : 0);
+      const size_t per_line =
+          (encoding == LineEncoding::kPlucker ? 48 : 9) + 8 + (descriptors ? 128 : 0);
       EXPECT_GE(bytes.size(), per_line * cloud.size());
       EXPECT_LT(bytes.size(), per_line * cloud.size() + 2048);
     }

@@ -43,10 +43,11 @@ ResolvedKey ResolveKey(const LiftModelOptions& o, const std::vector<uint64_t>& e
   const LiftingKey key = ReadKeyFile(o.key_file, o.allow_shared_key);
   if (known && known->key.Fingerprint() != key.Fingerprint() && !o.force) {
     if (create) std::remove(o.key_file.c_str());
-    Fail("{}: this model was lifted before with the key {} (fingerprint {}); lifting it with {} "
-         "too would reveal every point the two maps share (their lines intersect there). Use "
-         "that key, or pass --force if nothing lifted with it was ever shared",
-         o.model_dir, known->key_path, ToHex(known->key.Fingerprint()), o.key_file);
+    Fail(
+        "{}: this model was lifted before with the key {} (fingerprint {}); lifting it with {} "
+        "too would reveal every point the two maps share (their lines intersect there). Use "
+        "that key, or pass --force if nothing lifted with it was ever shared",
+        o.model_dir, known->key_path, ToHex(known->key.Fingerprint()), o.key_file);
   }
   store.Register(key, o.key_file, elements);
   return {key, o.key_file, create ? "new key file" : "key file"};
@@ -63,10 +64,11 @@ void CheckExistingOutput(const LiftModelOptions& o, const LineCloud& cloud, cons
     Fail("{}: exists and is not a readable line cloud; remove it or pass --force", o.out_path);
   }
   if (existing.key_fingerprint != cloud.key_fingerprint) {
-    Fail("{}: was lifted with another key (fingerprint {}); lifting one model with two keys "
-         "reveals its points by intersecting the lines. Lift with that map's key, or pass "
-         "--force if the old file was never shared",
-         o.out_path, ToHex(existing.key_fingerprint));
+    Fail(
+        "{}: was lifted with another key (fingerprint {}); lifting one model with two keys "
+        "reveals its points by intersecting the lines. Lift with that map's key, or pass "
+        "--force if the old file was never shared",
+        o.out_path, ToHex(existing.key_fingerprint));
   }
   // The new cloud's ids are sorted: binary search. Version-1 files carry point ids.
   const std::vector<uint64_t> existing_ids =
@@ -75,10 +77,11 @@ void CheckExistingOutput(const LiftModelOptions& o, const LineCloud& cloud, cons
     const auto it = std::lower_bound(cloud.ids.begin(), cloud.ids.end(), existing_ids[i]);
     if (it == cloud.ids.end() || *it != existing_ids[i]) continue;
     if (existing.lines[i].v.cross(cloud.lines[it - cloud.ids.begin()].v).norm() > 1e-9) {
-      Fail("{}: holds other lines through the same points (an older {} lifting under this key); "
-           "writing these too would reveal the points where the two lines cross. Keep the old "
-           "file's encoding, or pass --force if it was never shared",
-           o.out_path, LineEncodingName(existing.encoding));
+      Fail(
+          "{}: holds other lines through the same points (an older {} lifting under this key); "
+          "writing these too would reveal the points where the two lines cross. Keep the old "
+          "file's encoding, or pass --force if it was never shared",
+          o.out_path, LineEncodingName(existing.encoding));
     }
   }
 }
@@ -109,9 +112,10 @@ LiftingKey ModelKey(const Reconstruction& model, const std::string& model_name,
   const KeyStore store(key_store.empty() ? KeyStore::DefaultDirectory() : key_store);
   const std::optional<KeyStoreMatch> known = store.Find(ModelSketchElements(model));
   if (!known) {
-    Fail("{}: the key store {} has no key for this model; lift it first (linecloud lift), or "
-         "pass --key-file",
-         model_name, store.dir());
+    Fail(
+        "{}: the key store {} has no key for this model; lift it first (linecloud lift), or "
+        "pass --key-file",
+        model_name, store.dir());
   }
   return known->key;
 }
@@ -179,8 +183,7 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
   result.num_points = ids.size();
   result.key_path = key.path;
   result.key_source = key.source;
-  result.seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }
 

@@ -26,15 +26,15 @@ namespace linecloud {
 struct LiftModelOptions {
   std::string model_dir;
   std::string out_path;
-  std::string key_file;    // empty: the key store's key of the model
-  std::string key_store;   // empty: KeyStore::DefaultDirectory()
-  std::string database;    // empty: no descriptors
+  std::string key_file;   // empty: the key store's key of the model
+  std::string key_store;  // empty: KeyStore::DefaultDirectory()
+  std::string database;   // empty: no descriptors
   DescriptorAggregation aggregation = DescriptorAggregation::kMedoid;
   bool compact = false;
-  bool force = false;             // replace an output lifted with another key
-  bool allow_shared_key = false;  // accept a key file others can read
+  bool force = false;                      // replace an output lifted with another key
+  bool allow_shared_key = false;           // accept a key file others can read
   std::optional<Eigen::Vector3d> gravity;  // the model frame's gravity direction
-  double sparsify = 0;                      // share of the points dropped (sparsify.h)
+  double sparsify = 0;                     // share of the points dropped (sparsify.h)
   SparsifyMode sparsify_mode = SparsifyMode::kUniform;
   // Optional further selection after sparsifying (e.g. privacy/resist.h):
   // indices into (ids, points) of the points to keep.

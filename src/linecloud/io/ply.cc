@@ -11,8 +11,7 @@
 
 namespace linecloud {
 
-void AnchorBoundingBox(const LineCloud& cloud, Eigen::Vector3d* min,
-                       Eigen::Vector3d* max) {
+void AnchorBoundingBox(const LineCloud& cloud, Eigen::Vector3d* min, Eigen::Vector3d* max) {
   *min = Eigen::Vector3d::Zero();
   *max = Eigen::Vector3d::Zero();
   for (size_t i = 0; i < cloud.size(); ++i) {
@@ -26,8 +25,7 @@ void AnchorBoundingBox(const LineCloud& cloud, Eigen::Vector3d* min,
   }
 }
 
-void WriteLineCloudPly(const LineCloud& cloud, const std::string& path,
-                       double segment_length) {
+void WriteLineCloudPly(const LineCloud& cloud, const std::string& path, double segment_length) {
   if (!std::isfinite(segment_length)) Fail("--segment-length must be finite");
   if (segment_length <= 0) {
     Eigen::Vector3d min, max;
@@ -130,9 +128,8 @@ void WriteLocalizationPly(const std::string& path, const LineCloud* cloud,
     const double d = depth / c.world_from_cam.scale;
     vertices.push_back({c.world_from_cam * Eigen::Vector3d::Zero(), {230, 30, 30}});
     const double w = static_cast<double>(c.camera.width), h = static_cast<double>(c.camera.height);
-    for (const Eigen::Vector2d& corner :
-         {Eigen::Vector2d(0, 0), Eigen::Vector2d(w, 0), Eigen::Vector2d(w, h),
-          Eigen::Vector2d(0, h)}) {
+    for (const Eigen::Vector2d& corner : {Eigen::Vector2d(0, 0), Eigen::Vector2d(w, 0),
+                                          Eigen::Vector2d(w, h), Eigen::Vector2d(0, h)}) {
       vertices.push_back({c.world_from_cam * (d * c.camera.CamFromImg(corner)), {230, 30, 30}});
     }
     for (int k = 0; k < 4; ++k) {

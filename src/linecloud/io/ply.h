@@ -16,8 +16,7 @@ namespace linecloud {
 // of the line closest to the origin — the only point a line cloud knows):
 // two vertices per line and one `edge` element joining them.
 // segment_length <= 0 picks 5% of the anchors' bounding-box diagonal.
-void WriteLineCloudPly(const LineCloud& cloud, const std::string& path,
-                       double segment_length);
+void WriteLineCloudPly(const LineCloud& cloud, const std::string& path, double segment_length);
 
 // The model's 3D points with their colours.
 void WriteModelPly(const Reconstruction& reconstruction, const std::string& path);
@@ -42,7 +41,6 @@ void WriteLocalizationPly(const std::string& path, const LineCloud* cloud,
                           double depth);
 
 // Axis-aligned bounding box of the line anchors (min, max).
-void AnchorBoundingBox(const LineCloud& cloud, Eigen::Vector3d* min,
-                       Eigen::Vector3d* max);
+void AnchorBoundingBox(const LineCloud& cloud, Eigen::Vector3d* min, Eigen::Vector3d* max);
 
 }  // namespace linecloud

@@ -36,14 +36,13 @@ PointDescriptors ComputePointDescriptors(const Reconstruction& rec,
   for (const auto& [image_id, image] : rec.images) {
     const auto it = db_id_by_name.find(image.name);
     if (it == db_id_by_name.end()) {
-      Fail("{}: image '{}' of the model is not in the database", db.path(),
-           image.name);
+      Fail("{}: image '{}' of the model is not in the database", db.path(), image.name);
     }
     FeatureDescriptors d = db.ReadDescriptors(it->second);
     if (d.rows() > 0) {
       if (dim >= 0 && d.cols() != dim) {
-        Fail("{}: descriptors of image '{}' have {} dimensions, others {}",
-             db.path(), image.name, d.cols(), dim);
+        Fail("{}: descriptors of image '{}' have {} dimensions, others {}", db.path(), image.name,
+             d.cols(), dim);
       }
       dim = static_cast<int>(d.cols());
     }
@@ -62,17 +61,16 @@ PointDescriptors ComputePointDescriptors(const Reconstruction& rec,
     for (const TrackElement& el : point.track) {
       const FeatureDescriptors& d = descriptors.at(el.image_id);
       if (el.point2D_idx >= d.rows()) {
-        Fail("{}: image '{}' has {} descriptors but point3D {} observes "
-             "keypoint {}; is this the database the model was built from?",
-             db.path(), rec.images.at(el.image_id).name, d.rows(),
-             point_ids[k], el.point2D_idx);
+        Fail(
+            "{}: image '{}' has {} descriptors but point3D {} observes "
+            "keypoint {}; is this the database the model was built from?",
+            db.path(), rec.images.at(el.image_id).name, d.rows(), point_ids[k], el.point2D_idx);
       }
       track.push_back(d.row(el.point2D_idx).data());
     }
     uint8_t* dst = out.data.data() + k * dim;
     if (track.empty()) {
-      Fail("point3D {} has an empty track: no descriptor can be attached",
-           point_ids[k]);
+      Fail("point3D {} has an empty track: no descriptor can be attached", point_ids[k]);
     }
     if (aggregation == DescriptorAggregation::kMean) {
       for (int c = 0; c < dim; ++c) {
@@ -87,7 +85,8 @@ PointDescriptors ComputePointDescriptors(const Reconstruction& rec,
     // kMaxMedoidTrack of its observations, evenly spaced along it.
     if (track.size() > kMaxMedoidTrack) {
       std::vector<const uint8_t*> sample;
-      for (size_t m = 0; m < kMaxMedoidTrack; ++m) sample.push_back(track[m * track.size() / kMaxMedoidTrack]);
+      for (size_t m = 0; m < kMaxMedoidTrack; ++m)
+        sample.push_back(track[m * track.size() / kMaxMedoidTrack]);
       track.swap(sample);
     }
     sum_dist.assign(track.size(), 0.0);

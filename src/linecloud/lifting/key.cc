@@ -45,8 +45,7 @@ LiftingKey::Id LiftingKey::Fingerprint() const {
                                         ? "linecloud/key-fingerprint/v1"
                                         : "linecloud/key-fingerprint/compact256/v1";
   Id id;
-  crypto_generichash(id.data(), id.size(),
-                     reinterpret_cast<const unsigned char*>(kContext.data()),
+  crypto_generichash(id.data(), id.size(), reinterpret_cast<const unsigned char*>(kContext.data()),
                      kContext.size(), bytes_.data(), bytes_.size());
   return id;
 }
@@ -55,8 +54,8 @@ LiftingKey::Bytes LiftingKey::DeriveSubkey(const std::string& purpose) const {
   EnsureSodiumInitialized();
   Bytes subkey;
   crypto_generichash(subkey.data(), subkey.size(),
-                     reinterpret_cast<const unsigned char*>(purpose.data()),
-                     purpose.size(), bytes_.data(), bytes_.size());
+                     reinterpret_cast<const unsigned char*>(purpose.data()), purpose.size(),
+                     bytes_.data(), bytes_.size());
   return subkey;
 }
 
@@ -64,8 +63,9 @@ LiftingKey DemoLiftingKey() {
   EnsureSodiumInitialized();
   static constexpr std::string_view kSeed = "linecloud/demo-key/public/never-for-real-maps/v1";
   LiftingKey::Bytes bytes;
-  crypto_generichash(bytes.data(), bytes.size(), reinterpret_cast<const unsigned char*>(kSeed.data()),
-                     kSeed.size(), nullptr, 0);
+  crypto_generichash(bytes.data(), bytes.size(),
+                     reinterpret_cast<const unsigned char*>(kSeed.data()), kSeed.size(), nullptr,
+                     0);
   return LiftingKey(bytes, DirectionSet::kCompact256);
 }
 
@@ -100,12 +100,12 @@ LiftingKey ReadKeyFile(const std::string& path, bool allow_shared) {
   struct stat st;
   if (::stat(path.c_str(), &st) == 0 && (st.st_mode & 077) != 0) {
     if (!allow_shared) {
-      Fail("{}: key file is readable by other users (mode {:o}); run chmod 600 on it, or "
-           "pass --allow-shared-key",
-           path, st.st_mode & 0777);
+      Fail(
+          "{}: key file is readable by other users (mode {:o}); run chmod 600 on it, or "
+          "pass --allow-shared-key",
+          path, st.st_mode & 0777);
     }
-    std::cerr << "warning: " << path
-              << " is readable by other users; run chmod 600 on it\n";
+    std::cerr << "warning: " << path << " is readable by other users; run chmod 600 on it\n";
   }
   const std::string text = ReadFileToString(path);
   TextLines lines(text, path);
@@ -137,8 +137,7 @@ void WriteKeyFile(const std::string& path, const LiftingKey& key) {
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW, 0600);
   if (fd < 0) {
     if (errno == EEXIST) {
-      Fail("{}: key file already exists; pass it with --key-file to reuse it",
-           path);
+      Fail("{}: key file already exists; pass it with --key-file to reuse it", path);
     }
     Fail("{}: cannot create key file ({})", path, std::strerror(errno));
   }

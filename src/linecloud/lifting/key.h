@@ -32,8 +32,7 @@ class LiftingKey {
   using Bytes = std::array<uint8_t, kBytes>;
   using Id = std::array<uint8_t, 16>;
 
-  explicit LiftingKey(const Bytes& bytes,
-                      DirectionSet directions = DirectionSet::kSphere)
+  explicit LiftingKey(const Bytes& bytes, DirectionSet directions = DirectionSet::kSphere)
       : bytes_(bytes), directions_(directions) {}
 
   // A fresh key from the operating system's randomness (libsodium's

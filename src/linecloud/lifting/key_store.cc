@@ -24,7 +24,7 @@ constexpr double kMinSharedFraction = 0.05;
 struct Sketch {
   std::string key_path;
   uint64_t max_element = std::numeric_limits<uint64_t>::max();  // bottom-k cut
-  std::vector<uint64_t> elements;                                 // sorted, unique
+  std::vector<uint64_t> elements;                               // sorted, unique
 };
 
 std::vector<uint64_t> SortedUnique(std::span<const uint64_t> elements) {
@@ -156,9 +156,10 @@ std::optional<KeyStoreMatch> KeyStore::Find(std::span<const uint64_t> elements,
   if (ec) Fail("{}: cannot list the key store ({})", dir_, ec.message());
   if (!best) return std::nullopt;
   if (!FileExists(best->key_path)) {
-    Fail("this model was lifted before with the key {}, which no longer exists; restore it (or "
-         "pass it with --key-file). A new key would reveal the model's points",
-         best->key_path);
+    Fail(
+        "this model was lifted before with the key {}, which no longer exists; restore it (or "
+        "pass it with --key-file). A new key would reveal the model's points",
+        best->key_path);
   }
   match.key_path = best->key_path;
   match.key = ReadKeyFile(best->key_path, allow_shared_key);
@@ -180,8 +181,8 @@ void KeyStore::Register(const LiftingKey& key, const std::string& key_path,
   if (FileExists(path)) {
     const Sketch old = ReadSketch(path);
     std::vector<uint64_t> merged;
-    std::set_union(old.elements.begin(), old.elements.end(), s.elements.begin(),
-                   s.elements.end(), std::back_inserter(merged));
+    std::set_union(old.elements.begin(), old.elements.end(), s.elements.begin(), s.elements.end(),
+                   std::back_inserter(merged));
     s.max_element = std::min(old.max_element, s.max_element);
     merged.erase(std::upper_bound(merged.begin(), merged.end(), s.max_element), merged.end());
     if (merged.size() > kMaxSketchElements) {
@@ -191,7 +192,8 @@ void KeyStore::Register(const LiftingKey& key, const std::string& key_path,
     s.elements = std::move(merged);
   }
   const std::string text = SketchText(s);
-  WriteFileAtomically(path, [&](std::ostream& os) { os << text; }, 0600);
+  WriteFileAtomically(
+      path, [&](std::ostream& os) { os << text; }, 0600);
 }
 
 KeyStoreMatch KeyStore::CreateKey(DirectionSet directions,

@@ -17,8 +17,8 @@ namespace {
 constexpr char kDirectionPurpose[] = "linecloud/lift/direction/v1";
 constexpr char kLineIdPurpose[] = "linecloud/lift/line-id/v1";
 // ChaCha20's 8-byte nonce; the 64-bit block counter carries the point id.
-constexpr unsigned char kNonce[crypto_stream_chacha20_NONCEBYTES] = {
-    'l', 'c', 'd', 'i', 'r', 'v', '0', '1'};
+constexpr unsigned char kNonce[crypto_stream_chacha20_NONCEBYTES] = {'l', 'c', 'd', 'i',
+                                                                     'r', 'v', '0', '1'};
 constexpr size_t kBlockBytes = 64;
 constexpr size_t kMaxRun = 64;  // blocks generated per libsodium call
 
@@ -105,8 +105,7 @@ uint64_t Speck64Encrypt(const std::array<uint32_t, 4>& key, uint64_t block) {
   return SpeckEncrypt(SpeckKeySchedule(key), block);
 }
 
-std::vector<uint64_t> LineIdsOfPoints(const LiftingKey& key,
-                                      std::span<const uint64_t> point_ids) {
+std::vector<uint64_t> LineIdsOfPoints(const LiftingKey& key, std::span<const uint64_t> point_ids) {
   const RoundKeys k = LineIdKey(key);
   std::vector<uint64_t> out(point_ids.size());
   for (size_t i = 0; i < point_ids.size(); ++i) out[i] = SpeckEncrypt(k, point_ids[i]);
@@ -116,18 +115,16 @@ std::vector<uint64_t> LineIdsOfPoints(const LiftingKey& key,
 void KeyedDirections(const LiftingKey& key, std::span<const uint64_t> ids,
                      Eigen::Vector3d* directions, uint8_t* compact_indices) {
   const LiftingKey::Bytes subkey = key.DeriveSubkey(kDirectionPurpose);
-  static const std::array<unsigned char, kMaxRun * kBlockBytes> kZeros = {};
+  static const std::array<unsigned char, kMaxRun* kBlockBytes> kZeros = {};
   std::array<unsigned char, kMaxRun * kBlockBytes> stream;
   size_t k = 0;
   while (k < ids.size()) {
     // Consecutive ids share one keystream call (counter increments per block).
     size_t run = 1;
-    while (k + run < ids.size() && run < kMaxRun &&
-           ids[k + run] == ids[k] + run) {
+    while (k + run < ids.size() && run < kMaxRun && ids[k + run] == ids[k] + run) {
       ++run;
     }
-    crypto_stream_chacha20_xor_ic(stream.data(), kZeros.data(),
-                                  run * kBlockBytes, kNonce, ids[k],
+    crypto_stream_chacha20_xor_ic(stream.data(), kZeros.data(), run * kBlockBytes, kNonce, ids[k],
                                   subkey.data());
     for (size_t j = 0; j < run; ++j) {
       const unsigned char* block = stream.data() + j * kBlockBytes;
@@ -139,8 +136,7 @@ void KeyedDirections(const LiftingKey& key, std::span<const uint64_t> ids,
   sodium_memzero(stream.data(), stream.size());
 }
 
-LineCloud LiftPoints(std::span<const uint64_t> ids,
-                     std::span<const Eigen::Vector3d> points,
+LineCloud LiftPoints(std::span<const uint64_t> ids, std::span<const Eigen::Vector3d> points,
                      const LiftingKey& key, const LiftingOptions& options) {
   EnsureSodiumInitialized();
   if (ids.size() != points.size()) {
@@ -153,10 +149,11 @@ LineCloud LiftPoints(std::span<const uint64_t> ids,
   }
   const bool compact_key = key.directions() == DirectionSet::kCompact256;
   if (options.encoding == LineEncoding::kCompact && !compact_key) {
-    Fail("lifting: this model's key draws its directions on the whole sphere, and the compact "
-         "encoding's 256 directions would put a second line through every point. Lift it with "
-         "the full encoding (no --compact); only a model whose key was created with --compact "
-         "can be stored compactly");
+    Fail(
+        "lifting: this model's key draws its directions on the whole sphere, and the compact "
+        "encoding's 256 directions would put a second line through every point. Lift it with "
+        "the full encoding (no --compact); only a model whose key was created with --compact "
+        "can be stored compactly");
   }
   std::vector<Eigen::Vector3d> directions(ids.size());
   std::vector<uint8_t> indices(compact_key ? ids.size() : 0);

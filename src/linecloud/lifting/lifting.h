@@ -15,10 +15,10 @@
 // a compact256 key both encodings store the same float32-rounded line.
 //
 // Line ids: a line carries not its point's id but a keyed permutation of it
-// (the 64-bit block cipher Speck64/128 under a subkey of the map key), and a cloud is stored sorted by line id, so
-// neither ids nor order say anything about which points are neighbours
-// (COLMAP numbers points in triangulation order). The key's owner maps point
-// ids to line ids and back (LineIdsOfPoints, PointIdOfLine).
+// (the 64-bit block cipher Speck64/128 under a subkey of the map key), and a cloud is stored sorted
+// by line id, so neither ids nor order say anything about which points are neighbours (COLMAP
+// numbers points in triangulation order). The key's owner maps point ids to line ids and back
+// (LineIdsOfPoints, PointIdOfLine).
 #pragma once
 
 #include <array>
@@ -46,8 +46,7 @@ void KeyedDirections(const LiftingKey& key, std::span<const uint64_t> ids,
 uint64_t LineIdOfPoint(const LiftingKey& key, uint64_t point_id);
 uint64_t PointIdOfLine(const LiftingKey& key, uint64_t line_id);
 // Many at once: the key's subkey and round keys are derived once.
-std::vector<uint64_t> LineIdsOfPoints(const LiftingKey& key,
-                                      std::span<const uint64_t> point_ids);
+std::vector<uint64_t> LineIdsOfPoints(const LiftingKey& key, std::span<const uint64_t> point_ids);
 std::vector<uint64_t> PointIdsOfLines(const LiftingKey& key, std::span<const uint64_t> line_ids);
 // The block cipher itself (exposed for its published test vector).
 uint64_t Speck64Encrypt(const std::array<uint32_t, 4>& key, uint64_t block);
@@ -55,8 +54,7 @@ uint64_t Speck64Encrypt(const std::array<uint32_t, 4>& key, uint64_t block);
 // Lifts points (ids[k], points[k]) to a line cloud whose ids are the line ids
 // of `ids`, in increasing line-id order. Throws Error on non-finite points,
 // repeated ids, mismatched sizes, or the compact encoding under a sphere key.
-LineCloud LiftPoints(std::span<const uint64_t> ids,
-                     std::span<const Eigen::Vector3d> points,
+LineCloud LiftPoints(std::span<const uint64_t> ids, std::span<const Eigen::Vector3d> points,
                      const LiftingKey& key, const LiftingOptions& options);
 
 }  // namespace linecloud

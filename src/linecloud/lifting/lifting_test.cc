@@ -62,8 +62,7 @@ TEST(Lifting, LinesPassThroughTheirPoints) {
   for (size_t i = 0; i < ids.size(); ++i) {
     const double scale = points[i].norm();
     worst_full = std::max(worst_full, full_lines.at(ids[i]).DistanceTo(points[i]) / scale);
-    worst_compact =
-        std::max(worst_compact, compact_lines.at(ids[i]).DistanceTo(points[i]) / scale);
+    worst_compact = std::max(worst_compact, compact_lines.at(ids[i]).DistanceTo(points[i]) / scale);
     EXPECT_TRUE(full.lines[i].IsValid(1e-12));
     // Compact directions are one of the 256 fixed ones.
     EXPECT_EQ(compact.lines[i].v, CompactDirections()[compact.compact[i].direction_index]);
@@ -99,9 +98,9 @@ TEST(Lifting, EveryEncodingOfAKeyStoresTheSameLine) {
 // Speck64/128's test vector from its authors' paper (key words k0, l0, l1,
 // l2 = 03020100, 0b0a0908, 13121110, 1b1a1918; plaintext 3b726574 7475432d).
 TEST(Lifting, Speck64MatchesItsPublishedTestVector) {
-  EXPECT_EQ(Speck64Encrypt({0x03020100u, 0x0b0a0908u, 0x13121110u, 0x1b1a1918u},
-                           0x3b7265747475432dULL),
-            0x8c6fa548454e028bULL);
+  EXPECT_EQ(
+      Speck64Encrypt({0x03020100u, 0x0b0a0908u, 0x13121110u, 0x1b1a1918u}, 0x3b7265747475432dULL),
+      0x8c6fa548454e028bULL);
 }
 
 TEST(Lifting, LineIdsAreAKeyedPermutationStoredInOrder) {
@@ -246,8 +245,8 @@ TEST(LiftingKey, FileRoundTripPermissionsAndErrors) {
   EXPECT_THROW(WriteKeyFile(tmp.Path("k"), key), Error);  // never overwritten
   EXPECT_EQ(key.Fingerprint(), ReadKeyFile(tmp.Path("k")).Fingerprint());
   EXPECT_NE(key.Fingerprint(), KeyFromSeed(1).Fingerprint());
-  const std::vector<std::string> bad_keys = {
-      "", "abc\n", std::string(64, 'g') + "\n", std::string(64, 'a') + "\nextra\n"};
+  const std::vector<std::string> bad_keys = {"", "abc\n", std::string(64, 'g') + "\n",
+                                             std::string(64, 'a') + "\nextra\n"};
   for (const std::string& bad : bad_keys) {
     std::ofstream(tmp.Path("bad")) << bad;
     ::chmod(tmp.Path("bad").c_str(), 0600);
@@ -287,11 +286,11 @@ TEST(Lifting, NoPointCoordinateInTheFile) {
   std::vector<Eigen::Vector3d> points;
   RandomPoints(2000, 8, &ids, &points);
   const LiftingKey key = KeyFromSeed(8, DirectionSet::kCompact256);
-  testing::ExpectNoCoordinates(
-      SerializeLineCloud(LiftPoints(ids, points, KeyFromSeed(8), {})), points);
+  testing::ExpectNoCoordinates(SerializeLineCloud(LiftPoints(ids, points, KeyFromSeed(8), {})),
+                               points);
   for (const LineEncoding encoding : {LineEncoding::kPlucker, LineEncoding::kCompact}) {
-    testing::ExpectNoCoordinates(
-        SerializeLineCloud(LiftPoints(ids, points, key, {encoding})), points);
+    testing::ExpectNoCoordinates(SerializeLineCloud(LiftPoints(ids, points, key, {encoding})),
+                                 points);
   }
 }
 

@@ -51,9 +51,7 @@ const CompactTable& Table() {
 
 }  // namespace
 
-const std::array<Eigen::Vector3d, 256>& CompactDirections() {
-  return Table().directions;
-}
+const std::array<Eigen::Vector3d, 256>& CompactDirections() { return Table().directions; }
 
 void CompactBasis(uint8_t i, Eigen::Vector3d* e1, Eigen::Vector3d* e2) {
   *e1 = Table().e1[i];
@@ -63,10 +61,8 @@ void CompactBasis(uint8_t i, Eigen::Vector3d* e1, Eigen::Vector3d* e2) {
 PluckerLine DecodeCompactLine(const CompactLine& c) {
   const CompactTable& t = Table();
   const Eigen::Vector3d& d = t.directions[c.direction_index];
-  const Eigen::Vector3d anchor = static_cast<double>(c.position[0]) *
-                                     t.e1[c.direction_index] +
-                                 static_cast<double>(c.position[1]) *
-                                     t.e2[c.direction_index];
+  const Eigen::Vector3d anchor = static_cast<double>(c.position[0]) * t.e1[c.direction_index] +
+                                 static_cast<double>(c.position[1]) * t.e2[c.direction_index];
   return PluckerLine(d, anchor.cross(d));
 }
 
@@ -79,8 +75,8 @@ void LineCloud::Check(std::string_view source) const {
   }
   if (descriptor_dim < 0 ||
       descriptors.size() != ids.size() * static_cast<size_t>(descriptor_dim)) {
-    Fail("{}: descriptor block has {} bytes, expected {} x {}", source,
-         descriptors.size(), ids.size(), descriptor_dim);
+    Fail("{}: descriptor block has {} bytes, expected {} x {}", source, descriptors.size(),
+         ids.size(), descriptor_dim);
   }
   // Repeated ids: a linear scan when sorted (the usual case), else a sort.
   if (!std::is_sorted(ids.begin(), ids.end())) {
@@ -94,9 +90,10 @@ void LineCloud::Check(std::string_view source) const {
   }
   for (size_t i = 0; i < ids.size(); ++i) {
     if (!lines[i].IsValid(1e-6)) {
-      Fail("{}: line {} (id {}) is not a valid Plücker line (non-finite, "
-           "non-unit direction, or moment not orthogonal to it)",
-           source, i, ids[i]);
+      Fail(
+          "{}: line {} (id {}) is not a valid Plücker line (non-finite, "
+          "non-unit direction, or moment not orthogonal to it)",
+          source, i, ids[i]);
     }
   }
 }

@@ -37,8 +37,7 @@ struct CompactLine {
 // the upper hemisphere (lines are unoriented, so a hemisphere covers all).
 const std::array<Eigen::Vector3d, 256>& CompactDirections();
 // Orthonormal basis (e1, e2) of the plane orthogonal to direction i.
-void CompactBasis(uint8_t direction_index, Eigen::Vector3d* e1,
-                  Eigen::Vector3d* e2);
+void CompactBasis(uint8_t direction_index, Eigen::Vector3d* e1, Eigen::Vector3d* e2);
 PluckerLine DecodeCompactLine(const CompactLine& compact);
 
 struct LineCloud {
@@ -48,12 +47,12 @@ struct LineCloud {
   // whose ids are the point ids themselves).
   std::vector<uint64_t> ids;
   bool keyed_line_ids = true;
-  std::vector<PluckerLine> lines;     // always present (decoded if compact)
-  std::vector<CompactLine> compact;   // the stored form when kCompact
-  int descriptor_dim = 0;             // 0: no descriptors
-  std::vector<uint8_t> descriptors;   // size() * descriptor_dim, row-major
-  std::string descriptor_type;        // e.g. "sift-uint8"
-  std::string descriptor_aggregation; // e.g. "medoid"
+  std::vector<PluckerLine> lines;      // always present (decoded if compact)
+  std::vector<CompactLine> compact;    // the stored form when kCompact
+  int descriptor_dim = 0;              // 0: no descriptors
+  std::vector<uint8_t> descriptors;    // size() * descriptor_dim, row-major
+  std::string descriptor_type;         // e.g. "sift-uint8"
+  std::string descriptor_aggregation;  // e.g. "medoid"
   std::array<uint8_t, 16> key_fingerprint = {};
   // The map frame's gravity direction (unit), when known (lift --gravity):
   // what the +u methods align a query's gravity with. A direction, no point.
@@ -62,8 +61,7 @@ struct LineCloud {
   size_t size() const { return ids.size(); }
   bool has_descriptors() const { return descriptor_dim > 0; }
   std::span<const uint8_t> descriptor(size_t i) const {
-    return {descriptors.data() + i * descriptor_dim,
-            static_cast<size_t>(descriptor_dim)};
+    return {descriptors.data() + i * descriptor_dim, static_cast<size_t>(descriptor_dim)};
   }
 
   // Throws Error naming `source` when sizes disagree, ids repeat, or a line

@@ -34,13 +34,15 @@ struct CellEqual {
 };
 
 // One point per cell of size `cell` (the smallest u), cells offset by `offset`.
-std::vector<size_t> OnePerCell(std::span<const Eigen::Vector3d> points, const std::vector<double>& u,
-                               double cell, const Eigen::Vector3d& offset) {
+std::vector<size_t> OnePerCell(std::span<const Eigen::Vector3d> points,
+                               const std::vector<double>& u, double cell,
+                               const Eigen::Vector3d& offset) {
   std::unordered_map<Eigen::Vector3i, size_t, CellHash, CellEqual> best;
   best.reserve(points.size());
   for (size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector3d c = ((points[i] - offset) / cell).array().floor();
-    const Eigen::Vector3i key(static_cast<int>(c.x()), static_cast<int>(c.y()), static_cast<int>(c.z()));
+    const Eigen::Vector3i key(static_cast<int>(c.x()), static_cast<int>(c.y()),
+                              static_cast<int>(c.z()));
     const auto [it, inserted] = best.emplace(key, i);
     if (!inserted && u[i] < u[it->second]) it->second = i;
   }
@@ -67,7 +69,8 @@ std::vector<size_t> SparsifyPoints(const LiftingKey& key, std::span<const uint64
                                    std::span<const Eigen::Vector3d> points, double drop,
                                    SparsifyMode mode) {
   if (!(drop >= 0 && drop < 1)) Fail("--sparsify: {} is not a share in [0, 1)", drop);
-  if (ids.size() != points.size()) Fail("sparsify: {} ids but {} points", ids.size(), points.size());
+  if (ids.size() != points.size())
+    Fail("sparsify: {} ids but {} points", ids.size(), points.size());
   std::vector<size_t> all(ids.size());
   for (size_t i = 0; i < all.size(); ++i) all[i] = i;
   if (drop == 0 || ids.empty()) return all;

@@ -25,9 +25,10 @@ double MsSince(Clock::time_point start) {
 
 MapDescriptors MapDescriptorsFromCloud(const LineCloud& cloud, const std::string& source) {
   if (!cloud.has_descriptors()) {
-    Fail("{}: the map has no descriptors to match a photo to; lift it with --database "
-         "colmap.db",
-         source);
+    Fail(
+        "{}: the map has no descriptors to match a photo to; lift it with --database "
+        "colmap.db",
+        source);
   }
   if (cloud.descriptor_dim != 128 || cloud.descriptor_type != "colmap-sift-uint8") {
     Fail("{}: descriptors are {}-D '{}', but photos give 128-D colmap-sift-uint8", source,
@@ -56,9 +57,10 @@ Camera ParseCameraString(const std::string& text) {
   Camera camera;
   camera.model_id = CameraModelFromName(tokens[0]);
   if (camera.model_id == CameraModelId::kInvalid) {
-    Fail("--camera: unknown camera model '{}' (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, "
-         "OPENCV, OPENCV_FISHEYE, FULL_OPENCV)",
-         tokens[0]);
+    Fail(
+        "--camera: unknown camera model '{}' (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, "
+        "OPENCV, OPENCV_FISHEYE, FULL_OPENCV)",
+        tokens[0]);
   }
   const auto number = [&](size_t i) {
     double v = 0;
@@ -122,11 +124,12 @@ ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
   start = Clock::now();
   out.features = ExtractSift(image, options.sift);
   out.times.extract_ms = MsSince(start);
-  say(fmt::format("{} features in {:.0f} ms; matching to {} map descriptors",
-                  out.features.size(), out.times.extract_ms, map.ids.size()));
+  say(fmt::format("{} features in {:.0f} ms; matching to {} map descriptors", out.features.size(),
+                  out.times.extract_ms, map.ids.size()));
   start = Clock::now();
-  out.matches = index ? index->Match(out.features.descriptors, options.matching)
-                      : MatchDescriptors(out.features.descriptors, map.descriptors, options.matching);
+  out.matches = index
+                    ? index->Match(out.features.descriptors, options.matching)
+                    : MatchDescriptors(out.features.descriptors, map.descriptors, options.matching);
   out.times.match_ms = MsSince(start);
   say(fmt::format("{} matches in {:.0f} ms", out.matches.size(), out.times.match_ms));
   out.query.cameras.push_back(camera);
@@ -171,7 +174,8 @@ PhotoQuery QueryFromPhotos(const std::vector<std::string>& images,
     Fail("{} photos but {} --camera strings (give one for all, or one per photo)", n,
          cameras.size());
   }
-  if (n > 1 && rig_json.empty()) Fail("{} photos need --rig RIG.json (their cam_from_rig poses)", n);
+  if (n > 1 && rig_json.empty())
+    Fail("{} photos need --rig RIG.json (their cam_from_rig poses)", n);
   if (n > 1 && !method.multi) {
     Fail("{} photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not {}", n,
          method.name);
@@ -179,7 +183,8 @@ PhotoQuery QueryFromPhotos(const std::vector<std::string>& images,
   std::vector<Rigid3d> rig;
   if (n > 1) rig = ReadRigJson(rig_json);  // before the long work
   std::vector<Camera> parsed;
-  for (size_t k = 0; k < n; ++k) parsed.push_back(ParseCameraString(cameras[cameras.size() == 1 ? 0 : k]));
+  for (size_t k = 0; k < n; ++k)
+    parsed.push_back(ParseCameraString(cameras[cameras.size() == 1 ? 0 : k]));
   // Large maps: the approximate index, built once and cached beside the map.
   std::unique_ptr<DescriptorIndex> index;
   if (options.approximate_from > 0 && map.ids.size() >= options.approximate_from &&
@@ -189,8 +194,8 @@ PhotoQuery QueryFromPhotos(const std::vector<std::string>& images,
     }
     if (!index) {
       if (options.progress) {
-        options.progress(fmt::format("building the descriptor index of {} map descriptors",
-                                     map.ids.size()));
+        options.progress(
+            fmt::format("building the descriptor index of {} map descriptors", map.ids.size()));
       }
       index = std::make_unique<DescriptorIndex>(map.descriptors, DescriptorIndexOptions{});
       if (!options.index_cache.empty()) {

@@ -58,8 +58,8 @@ struct ImageQueryTimes {
 };
 
 struct ImageQuery {
-  GreyImage image;             // the decoded photo (for drawing on it)
-  Query query;                 // one camera, one observation per match
+  GreyImage image;  // the decoded photo (for drawing on it)
+  Query query;      // one camera, one observation per match
   SiftFeatures features;
   std::vector<DescriptorMatch> matches;  // query = keypoint index, map = MapDescriptors row
   ImageQueryTimes times;

@@ -43,9 +43,10 @@ void CheckQuery(const MethodInfo& method, const Query& q, std::string_view sourc
     }
   }
   if (!method.multi && q.cameras.size() != 1) {
-    Fail("{}: method {} localizes one image, but the query has {} cameras (use the m- "
-         "method)",
-         source, method.name, q.cameras.size());
+    Fail(
+        "{}: method {} localizes one image, but the query has {} cameras (use the m- "
+        "method)",
+        source, method.name, q.cameras.size());
   }
   if (q.observations.size() < static_cast<size_t>(method.sample_size)) {
     Fail("{}: method {} needs at least {} observations, got {}", source, method.name,
@@ -65,8 +66,8 @@ void CheckQuery(const MethodInfo& method, const Query& q, std::string_view sourc
   }
   if (method.local_points) {
     if (q.points_local.size() != q.observations.size()) {
-      Fail("{}: method {} needs 'points_local' with one point per observation ({}), got {}",
-           source, method.name, q.observations.size(), q.points_local.size());
+      Fail("{}: method {} needs 'points_local' with one point per observation ({}), got {}", source,
+           method.name, q.observations.size(), q.points_local.size());
     }
     for (size_t i = 0; i < q.points_local.size(); ++i) {
       if (!q.points_local[i].allFinite()) {
@@ -75,8 +76,8 @@ void CheckQuery(const MethodInfo& method, const Query& q, std::string_view sourc
     }
   }
   if (method.gravity) {
-    for (const auto& [g, name] : {std::pair{&q.gravity_query, "gravity_query"},
-                                  std::pair{&q.gravity_map, "gravity_map"}}) {
+    for (const auto& [g, name] :
+         {std::pair{&q.gravity_query, "gravity_query"}, std::pair{&q.gravity_map, "gravity_map"}}) {
       if (!g->has_value()) Fail("{}: method {} needs '{}'", source, method.name, name);
       if (!(*g)->allFinite() || !((*g)->norm() > 0)) {
         Fail("{}: '{}' must be a finite non-zero vector", source, name);
@@ -169,8 +170,8 @@ std::vector<int> MatchRanking(const std::vector<QueryObservation>& observations)
   return ranking;
 }
 
-PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query,
-                           const LocalizationMap& map, std::string_view source) {
+PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query, const LocalizationMap& map,
+                           std::string_view source) {
   if (!method.implemented) Fail("method {} has no minimal solver in this build yet", method.name);
   const bool line_map = std::holds_alternative<LineMap>(map);
   if (method.lines != line_map) {
@@ -197,8 +198,8 @@ PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query,
     Rigid3d cam_from_rig;
     if (method.multi && !query.cam_from_rig.empty()) cam_from_rig = query.cam_from_rig[c];
     // cam_from_aligned = cam_from_rig ∘ rig_from_aligned.
-    data.cam_from_rig.push_back(cam_from_rig * Rigid3d(align_query_q.inverse(),
-                                                       Eigen::Vector3d::Zero()));
+    data.cam_from_rig.push_back(cam_from_rig *
+                                Rigid3d(align_query_q.inverse(), Eigen::Vector3d::Zero()));
   }
   for (size_t i = 0; i < query.observations.size(); ++i) {
     const QueryObservation& o = query.observations[i];
@@ -225,7 +226,8 @@ PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query,
     } else {
       const auto& points = std::get<PointMap>(map).points;
       const auto it = points.find(o.id);
-      if (it == points.end()) Fail("{}: observations[{}].id = {} is not in the map", source, i, o.id);
+      if (it == points.end())
+        Fail("{}: observations[{}].id = {} is not in the map", source, i, o.id);
       data.points.push_back(align_map * it->second);
     }
   }
@@ -245,9 +247,8 @@ std::string SupportFailure(const MethodInfo& method, const LocalizeResult& r,
                            const SuccessCriteria& c) {
   const int min_inliers = method.lines ? c.min_inliers_lines : c.min_inliers_points;
   const int inliers = static_cast<int>(r.inliers.size());
-  const double ratio = r.num_correspondences > 0
-                           ? static_cast<double>(inliers) / r.num_correspondences
-                           : 0.0;
+  const double ratio =
+      r.num_correspondences > 0 ? static_cast<double>(inliers) / r.num_correspondences : 0.0;
   if (inliers < min_inliers) {
     return fmt::format("{} inliers, fewer than the {} a {} map needs (--min-inliers)", inliers,
                        min_inliers, method.lines ? "line" : "point");
@@ -343,8 +344,7 @@ bool Undistortable(const Camera& camera, const Eigen::Vector2d& xy) {
   if (!ray.allFinite() || !(ray.z() > 0)) return false;
   if (!((camera.ImgFromCam(ray) - xy).norm() < 0.01)) return false;
   const Eigen::Vector2d undistorted = ray.head<2>() / ray.z();
-  const Eigen::Vector2d distorted =
-      DistortNormalized(camera.model_id, camera.params, undistorted);
+  const Eigen::Vector2d distorted = DistortNormalized(camera.model_id, camera.params, undistorted);
   if (distorted.dot(undistorted) < 0) return false;
   const double h = 1e-6 * std::max(1.0, undistorted.norm());
   Eigen::Matrix2d jacobian;
@@ -404,8 +404,8 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
     // prior focal length are a subset of those the refined one explains.
     Query scaled = query;
     for (int round = 0; round < 3; ++round) {
-      const double k = RefineFocalFactor(method, scaled, map, ransac_inliers, pose, options,
-                                         &result.refine_ms);
+      const double k =
+          RefineFocalFactor(method, scaled, map, ransac_inliers, pose, options, &result.refine_ms);
       scaled.cameras[0].ScaleFocalLength(k);
       prepared = PrepareQuery(method, scaled, map, source);
       RefineStage(method, prepared.data, ransac_inliers, options, &pose, &result.refine_ms,
@@ -422,8 +422,8 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
     // The calibration check: the focal length the inliers fit best.
     double unused_ms = 0;
     result.best_fit_focal =
-        result.given_focal * RefineFocalFactor(method, query, map, ransac_inliers, pose, options,
-                                               &unused_ms);
+        result.given_focal *
+        RefineFocalFactor(method, query, map, ransac_inliers, pose, options, &unused_ms);
   }
   result.refine_iterations = RefineStage(method, prepared.data, ransac_inliers, options, &pose,
                                          &result.refine_ms, nullptr);
@@ -452,9 +452,8 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
 
 }  // namespace
 
-LocalizeResult Localize(const MethodInfo& method, const Query& query,
-                        const LocalizationMap& map, const LocalizeOptions& options,
-                        std::string_view source) {
+LocalizeResult Localize(const MethodInfo& method, const Query& query, const LocalizationMap& map,
+                        const LocalizeOptions& options, std::string_view source) {
   options.Check();
   CheckQuery(method, query, source);
   std::vector<int> kept;

@@ -44,11 +44,11 @@ struct QueryObservation {
 
 struct Query {
   std::vector<Camera> cameras;
-  std::vector<Rigid3d> cam_from_rig;              // one per camera; empty: identity
+  std::vector<Rigid3d> cam_from_rig;  // one per camera; empty: identity
   std::vector<QueryObservation> observations;
-  std::vector<Eigen::Vector3d> points_local;      // +l: one per observation, rig frame
-  std::optional<Eigen::Vector3d> gravity_query;   // +u: gravity direction, rig frame
-  std::optional<Eigen::Vector3d> gravity_map;     // +u: gravity direction, map frame
+  std::vector<Eigen::Vector3d> points_local;     // +l: one per observation, rig frame
+  std::optional<Eigen::Vector3d> gravity_query;  // +u: gravity direction, rig frame
+  std::optional<Eigen::Vector3d> gravity_map;    // +u: gravity direction, map frame
 };
 
 // A traditional map: point coordinates by id.
@@ -101,9 +101,9 @@ struct SuccessCriteria {
 };
 
 struct LocalizeOptions {
-  RansacOptions ransac;        // max_error in px
+  RansacOptions ransac;  // max_error in px
   bool refine = true;
-  RefineOptions refinement;    // final LM; `similarity` follows the method
+  RefineOptions refinement;                             // final LM; `similarity` follows the method
   RefineOptions local_refinement{.max_iterations = 3};  // RANSAC's local optimisation
   SuccessCriteria success;
   // Single-camera queries: the focal length is a prior (e.g. from EXIF) and
@@ -127,10 +127,10 @@ struct LocalizeResult {
   std::optional<double> refined_focal;  // with LocalizeOptions::refine_focal
   // The focal length the inliers fit best, from the calibration check.
   std::optional<double> best_fit_focal;
-  double given_focal = 0;  // the query camera's (first camera's) mean focal length
-  Sim3d query_from_world;     // cam_from_world (one image) / rig_from_world / local_from_world
-  Sim3d initial;              // RANSAC's estimate before the final refinement
-  std::vector<int> inliers;   // observation indices
+  double given_focal = 0;    // the query camera's (first camera's) mean focal length
+  Sim3d query_from_world;    // cam_from_world (one image) / rig_from_world / local_from_world
+  Sim3d initial;             // RANSAC's estimate before the final refinement
+  std::vector<int> inliers;  // observation indices
   RansacStats stats;
   double refine_ms = 0;
   int refine_iterations = 0;
@@ -155,17 +155,16 @@ struct PreparedQuery {
 std::vector<int> MatchRanking(const std::vector<QueryObservation>& observations);
 
 // Throws Error like Localize.
-PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query,
-                           const LocalizationMap& map, std::string_view source = "query");
+PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query, const LocalizationMap& map,
+                           std::string_view source = "query");
 
 // Throws Error (naming `source`) for input the method cannot use: wrong map
 // kind, too few observations, unknown ids, bad camera indices, non-finite
 // values, missing local points or gravity. Observations whose pixel the camera
 // cannot undistort are left out and counted (rejected_observations); result
 // indices refer to the query as given.
-LocalizeResult Localize(const MethodInfo& method, const Query& query,
-                        const LocalizationMap& map, const LocalizeOptions& options,
-                        std::string_view source = "query");
+LocalizeResult Localize(const MethodInfo& method, const Query& query, const LocalizationMap& map,
+                        const LocalizeOptions& options, std::string_view source = "query");
 
 // The query's cameras where the result put them (world_from_cam, with the
 // scale of +s methods), for drawing (WriteLocalizationPly).

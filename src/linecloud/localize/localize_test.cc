@@ -38,8 +38,8 @@ TEST_P(LocalizeTest, LocalizesNoisyQueriesWithHalfOutliers) {
   for (int k = 0; k < kQueries; ++k) {
     const LocalizationInstance inst = RandomLocalizationInstance(method, instance_options, rng);
     options.ransac.seed = k;
-    const LocalizationMap map = method.lines ? LocalizationMap(inst.line_map)
-                                             : LocalizationMap(inst.point_map);
+    const LocalizationMap map =
+        method.lines ? LocalizationMap(inst.line_map) : LocalizationMap(inst.point_map);
     const LocalizeResult r = Localize(method, inst.query, map, options);
     if (!r.success) continue;
     const LocalizationError e = CompareLocalization(r.query_from_world, inst.truth);
@@ -51,8 +51,7 @@ TEST_P(LocalizeTest, LocalizesNoisyQueriesWithHalfOutliers) {
     EXPECT_GE(true_inliers, 0.9 * static_cast<double>(r.inliers.size())) << method.name;
   }
   std::cout << "[ " << method.name << " ] localized " << localized << " / " << kQueries
-            << ", mean reprojection px initial " << initial_px << " refined " << refined_px
-            << "\n";
+            << ", mean reprojection px initial " << initial_px << " refined " << refined_px << "\n";
   EXPECT_GE(localized, kQueries - 1) << method.name;
   EXPECT_LE(refined_px, initial_px * 1.001) << method.name;
 }
@@ -154,7 +153,8 @@ TEST(Localize, RealImageAgainstItsModelAndLineCloud) {
   Query query;
   query.cameras.push_back(model.cameras.at(image->camera_id));
   for (const Point2D& p : image->points2D) {
-    if (p.point3D_id != kInvalidPoint3DId) query.observations.push_back({0, p.xy, p.point3D_id, std::nullopt, std::nullopt});
+    if (p.point3D_id != kInvalidPoint3DId)
+      query.observations.push_back({0, p.xy, p.point3D_id, std::nullopt, std::nullopt});
   }
   ASSERT_GT(query.observations.size(), 500u);
   std::vector<uint64_t> ids = model.SortedPoint3DIds();
@@ -209,8 +209,7 @@ TEST(Localize, BadInputGetsAClearError) {
   EXPECT_NE(error(p3p, q, points).find("observations[1].xy is not finite"), std::string::npos);
   q = inst.query;
   q.gravity_query.reset();
-  EXPECT_NE(error(FindMethod("p2P+u"), q, points).find("needs 'gravity_query'"),
-            std::string::npos);
+  EXPECT_NE(error(FindMethod("p2P+u"), q, points).find("needs 'gravity_query'"), std::string::npos);
   EXPECT_NE(error(FindMethod("m-P3P+l"), inst.query, points).find("points_local"),
             std::string::npos);
 }
@@ -257,7 +256,8 @@ TEST(LocalizeSuccess, OnlyPosesTheDataSupport) {
   const double true_focal = f.scene.queries[0].camera.MeanFocalLength();
   for (const char* name : {"p3P", "p6L", "p4L+u"}) {
     const MethodInfo& method = FindMethod(name);
-    const LocalizationMap& map = method.lines ? LocalizationMap(f.lines) : LocalizationMap(f.points);
+    const LocalizationMap& map =
+        method.lines ? LocalizationMap(f.lines) : LocalizationMap(f.points);
     LocalizeOptions options;
     options.ransac.max_iterations = 300;  // bounded: 15 % inliers would need ~10⁴ p6L samples
     options.ransac.seed = 3;

@@ -9,8 +9,7 @@
 namespace linecloud {
 namespace {
 
-const nlohmann::json& Array(const nlohmann::json& j, const char* name,
-                            const std::string& source) {
+const nlohmann::json& Array(const nlohmann::json& j, const char* name, const std::string& source) {
   if (!j.contains(name)) Fail("{}: field '{}' is missing", source, name);
   if (!j[name].is_array()) Fail("{}: '{}' must be an array", source, name);
   return j[name];
@@ -26,9 +25,10 @@ Camera ParseCamera(const nlohmann::json& j, const std::string& where) {
   const std::string model = j["model"].get<std::string>();
   camera.model_id = CameraModelFromName(model);
   if (camera.model_id == CameraModelId::kInvalid) {
-    Fail("{}.model: unknown camera model '{}' (COLMAP models 0-6: SIMPLE_PINHOLE, PINHOLE, "
-         "SIMPLE_RADIAL, RADIAL, OPENCV, OPENCV_FISHEYE, FULL_OPENCV)",
-         where, model);
+    Fail(
+        "{}.model: unknown camera model '{}' (COLMAP models 0-6: SIMPLE_PINHOLE, PINHOLE, "
+        "SIMPLE_RADIAL, RADIAL, OPENCV, OPENCV_FISHEYE, FULL_OPENCV)",
+        where, model);
   }
   for (const char* key : {"width", "height"}) {
     if (!j[key].is_number_unsigned()) Fail("{}.{}: expected a positive integer", where, key);
@@ -197,16 +197,18 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
                 {"mean_solutions", r.stats.mean_solutions},
                 {"solver_us", r.stats.solver_us},
                 {"ransac_ms", r.stats.ransac_ms},
-                {"ransac_time_ms", {{"solver", r.stats.solver_ms},
-                                    {"scoring", r.stats.scoring_ms},
-                                    {"local_optimization", r.stats.lo_ms}}},
+                {"ransac_time_ms",
+                 {{"solver", r.stats.solver_ms},
+                  {"scoring", r.stats.scoring_ms},
+                  {"local_optimization", r.stats.lo_ms}}},
                 {"refine_ms", r.refine_ms},
                 {"refine_iterations", r.refine_iterations},
                 {"reprojection_px",
                  {{"initial", r.reprojection_initial_px}, {"refined", r.reprojection_refined_px}}}};
   if (r.refined_focal) j["refined_focal"] = *r.refined_focal;
-  if (r.best_fit_focal) j["calibration_check"] = {{"given_focal", r.given_focal},
-                                                   {"best_fit_focal", *r.best_fit_focal}};
+  if (r.best_fit_focal)
+    j["calibration_check"] = {{"given_focal", r.given_focal},
+                              {"best_fit_focal", *r.best_fit_focal}};
   if (with_inliers) j["inliers"] = r.inliers;
   return j;
 }

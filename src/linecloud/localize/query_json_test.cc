@@ -43,39 +43,53 @@ TEST(QueryJson, ErrorsNameTheField) {
   };
   EXPECT_NE(error([](auto& j) { j.erase("cameras"); }).find("q.json: field 'cameras' is missing"),
             std::string::npos);
-  EXPECT_NE(error([](auto& j) { j["cameras"][1]["model"] = "FISHEYE_42"; })
-                .find("q.json: cameras[1].model"),
+  EXPECT_NE(error([](auto& j) {
+              j["cameras"][1]["model"] = "FISHEYE_42";
+            }).find("q.json: cameras[1].model"),
             std::string::npos);
-  EXPECT_NE(error([](auto& j) { j["cameras"][0]["params"] = {500, 320}; }).find("cameras[0]"),
+  EXPECT_NE(error([](auto& j) {
+              j["cameras"][0]["params"] = {500, 320};
+            }).find("cameras[0]"),
             std::string::npos);
   EXPECT_NE(error([](auto& j) { j["observations"][1].erase("xy"); }).find("observations[1]"),
             std::string::npos);
-  EXPECT_NE(error([](auto& j) { j["observations"][0]["id"] = -3; })
-                .find("observations[0].id: expected a non-negative integer"),
+  EXPECT_NE(error([](auto& j) {
+              j["observations"][0]["id"] = -3;
+            }).find("observations[0].id: expected a non-negative integer"),
             std::string::npos);
-  EXPECT_NE(error([](auto& j) { j["observations"][0]["xy"] = {1}; })
-                .find("observations[0].xy: expected [u, v]"),
+  EXPECT_NE(error([](auto& j) {
+              j["observations"][0]["xy"] = {1};
+            }).find("observations[0].xy: expected [u, v]"),
             std::string::npos);
-  EXPECT_NE(error([](auto& j) { j["points_local"][1] = {1, "a", 3}; }).find("points_local[1]"),
+  EXPECT_NE(error([](auto& j) {
+              j["points_local"][1] = {1, "a", 3};
+            }).find("points_local[1]"),
             std::string::npos);
-  EXPECT_NE(error([](auto& j) { j["cam_from_rig"][0]["q"] = {0, 0, 0, 0}; })
-                .find("cam_from_rig[0].q: zero quaternion"),
+  EXPECT_NE(error([](auto& j) {
+              j["cam_from_rig"][0]["q"] = {0, 0, 0, 0};
+            }).find("cam_from_rig[0].q: zero quaternion"),
             std::string::npos);
-  EXPECT_NE(error([](auto& j) { j["gravity_map"] = {0, 1}; }).find("gravity_map"),
+  EXPECT_NE(error([](auto& j) {
+              j["gravity_map"] = {0, 1};
+            }).find("gravity_map"),
             std::string::npos);
   EXPECT_NE(error([](auto& j) { j = nlohmann::json::array(); }).find("expected a JSON object"),
             std::string::npos);
   // [harden] 5: 4294967296 used to wrap to camera 0.
-  EXPECT_NE(error([](auto& j) { j["observations"][0]["camera"] = 4294967296ll; })
-                .find("observations[0].camera: expected a camera index"),
+  EXPECT_NE(error([](auto& j) {
+              j["observations"][0]["camera"] = 4294967296ll;
+            }).find("observations[0].camera: expected a camera index"),
             std::string::npos);
-  EXPECT_NE(error([](auto& j) { j["observations"][0]["camera"] = -1; }).find("observations[0].camera"),
+  EXPECT_NE(
+      error([](auto& j) { j["observations"][0]["camera"] = -1; }).find("observations[0].camera"),
+      std::string::npos);
+  EXPECT_NE(error([](auto& j) {
+              j["observations"][1]["ratio"] = -0.5;
+            }).find("observations[1].ratio: expected a match's Lowe ratio"),
             std::string::npos);
-  EXPECT_NE(error([](auto& j) { j["observations"][1]["ratio"] = -0.5; })
-                .find("observations[1].ratio: expected a match's Lowe ratio"),
-            std::string::npos);
-  EXPECT_NE(error([](auto& j) { j["observations"][1]["ratio"] = "good"; }).find("observations[1].ratio"),
-            std::string::npos);
+  EXPECT_NE(
+      error([](auto& j) { j["observations"][1]["ratio"] = "good"; }).find("observations[1].ratio"),
+      std::string::npos);
 }
 
 }  // namespace

@@ -43,8 +43,9 @@ ojson DensityAttackJson(const DensityAttackResult& r, const DensityAttackOptions
              {"seconds", r.seconds}};
   j["recovery"] = RecoveryJson(score);
   if (r.lines_without_votes == r.points.size()) {
-    j["why_nothing"] = "no two lines of the map cross at an angle (all parallel): no line has a "
-                       "vote, and every estimate is the line's anchor";
+    j["why_nothing"] =
+        "no two lines of the map cross at an angle (all parallel): no line has a "
+        "vote, and every estimate is the line's anchor";
   }
   return j;
 }
@@ -64,8 +65,9 @@ ojson TwoKeyJson(const TwoLiftingsAttack& attack, const std::vector<Eigen::Vecto
              {"share_recovered_exactly", lines ? static_cast<double>(exact) / lines : 0.0},
              {"exact_means", "within 1e-6 of the scene diagonal"}};
   if (exact == 0) {
-    j["why_nothing"] = "no line of the other map crosses a line of this map in one of its points: "
-                       "the maps hold no common point (another scene, or a disjoint part of it)";
+    j["why_nothing"] =
+        "no line of the other map crosses a line of this map in one of its points: "
+        "the maps hold no common point (another scene, or a disjoint part of it)";
   }
   return j;
 }
@@ -76,7 +78,8 @@ std::string Percent(double share) { return fmt::format("{:.1f} %", 100 * share);
 
 void AuditOptions::Check() const {
   if (map_path.empty()) Fail("audit: --map is required");
-  if (model_dir.empty()) Fail("audit: --model (the secret model the map was lifted from) is required");
+  if (model_dir.empty())
+    Fail("audit: --model (the secret model the map was lifted from) is required");
   if (!(metric_scale >= 0) || !std::isfinite(metric_scale)) {
     Fail("--metric-scale: {} is not a finite non-negative number", metric_scale);
   }
@@ -87,13 +90,13 @@ void AuditOptions::Check() const {
 }
 
 std::vector<Eigen::Vector3d> SecretPointsOfLines(const LineCloud& cloud,
-                                                 const Reconstruction& model,
-                                                 const LiftingKey& key,
+                                                 const Reconstruction& model, const LiftingKey& key,
                                                  const std::string& map_name) {
   if (cloud.key_fingerprint != key.Fingerprint()) {
-    Fail("{}: lifted with another key than the model's (fingerprint {} vs {}): the map and the "
-         "model do not belong together",
-         map_name, ToHex(cloud.key_fingerprint), ToHex(key.Fingerprint()));
+    Fail(
+        "{}: lifted with another key than the model's (fingerprint {} vs {}): the map and the "
+        "model do not belong together",
+        map_name, ToHex(cloud.key_fingerprint), ToHex(key.Fingerprint()));
   }
   const std::vector<uint64_t> point_ids =
       cloud.keyed_line_ids ? PointIdsOfLines(key, cloud.ids) : cloud.ids;
@@ -109,18 +112,20 @@ std::vector<Eigen::Vector3d> SecretPointsOfLines(const LineCloud& cloud,
     secret.push_back(it->second.xyz);
   }
   if (missing > 0) {
-    Fail("{}: {} of its {} lines name no point of the model: the map was lifted from another "
-         "model (or another version of it)",
-         map_name, missing, point_ids.size());
+    Fail(
+        "{}: {} of its {} lines name no point of the model: the map was lifted from another "
+        "model (or another version of it)",
+        map_name, missing, point_ids.size());
   }
   // A line must pass through its point, or the map is not this model's.
   for (size_t i = 0; i < secret.size(); ++i) {
     const PluckerLine& l = cloud.lines[i];
     const double d = (secret[i].cross(l.v) - l.w).norm() / l.v.norm();
     if (!(d <= 1e-3 * (1 + secret[i].norm()))) {
-      Fail("{}: line {} does not pass through its model point (off by {:.3g}): the map was "
-           "lifted from another model",
-           map_name, i, d);
+      Fail(
+          "{}: line {} does not pass through its model point (off by {:.3g}): the map was "
+          "lifted from another model",
+          map_name, i, d);
     }
   }
   return secret;
@@ -131,9 +136,10 @@ ojson RunAudit(const AuditOptions& o) {
   const LineCloud cloud = ReadLineCloud(o.map_path);
   const Reconstruction model = ReadColmapModel(o.model_dir);
   // The public demo key needs no key store (anyone can compute it).
-  const LiftingKey key = o.key_file.empty() && cloud.key_fingerprint == DemoLiftingKey().Fingerprint()
-                             ? DemoLiftingKey()
-                             : ModelKey(model, o.model_dir, o.key_file, o.key_store);
+  const LiftingKey key =
+      o.key_file.empty() && cloud.key_fingerprint == DemoLiftingKey().Fingerprint()
+          ? DemoLiftingKey()
+          : ModelKey(model, o.model_dir, o.key_file, o.key_store);
   const std::vector<Eigen::Vector3d> secret = SecretPointsOfLines(cloud, model, key, o.map_path);
   if (secret.empty()) Fail("{}: the map has no lines", o.map_path);
   const double diagonal = SceneDiagonal(secret);
@@ -156,8 +162,8 @@ ojson RunAudit(const AuditOptions& o) {
                      "(green 0, yellow 1 %, red >= 2 % of the scene diagonal)");
       WriteAuditFigure(
           JoinPaths(o.out_dir, "audit.png"), secret, attack.points, score.errors, diagonal,
-          {fmt::format("What an attacker recovers from {} ({} lines)", std::filesystem::path(o.map_path).filename().string(),
-                       cloud.size()),
+          {fmt::format("What an attacker recovers from {} ({} lines)",
+                       std::filesystem::path(o.map_path).filename().string(), cloud.size()),
            fmt::format("density attack: {} of the points within 1 % of the scene diagonal, {} "
                        "within 0.5 %; median error {:.2f} % of the diagonal",
                        Percent(ShareWithinDiagonal(score, 1.0)),
@@ -182,15 +188,15 @@ ojson RunAudit(const AuditOptions& o) {
 
 std::string AuditMarkdown(const ojson& r) {
   std::string md = fmt::format("# Privacy audit of {}\n\n", r["map"].get<std::string>());
-  md += fmt::format("{} lines ({} encoding) lifted from {} ({} points); scene diagonal {:.4g} model "
-                    "units{}.\n\n",
-                    r["lines"].get<size_t>(), r["encoding"].get<std::string>(),
-                    r["model"].get<std::string>(), r["model_points"].get<size_t>(),
-                    r["diagonal"].get<double>(),
-                    r["metric_scale"].is_null()
-                        ? ""
-                        : fmt::format(" ({:.3g} m)", r["diagonal"].get<double>() *
-                                                         r["metric_scale"].get<double>()));
+  md += fmt::format(
+      "{} lines ({} encoding) lifted from {} ({} points); scene diagonal {:.4g} model "
+      "units{}.\n\n",
+      r["lines"].get<size_t>(), r["encoding"].get<std::string>(), r["model"].get<std::string>(),
+      r["model_points"].get<size_t>(), r["diagonal"].get<double>(),
+      r["metric_scale"].is_null()
+          ? ""
+          : fmt::format(" ({:.3g} m)",
+                        r["diagonal"].get<double>() * r["metric_scale"].get<double>()));
   if (r.contains("density_attack")) {
     const ojson& a = r["density_attack"];
     const ojson& rec = a["recovery"];
@@ -208,24 +214,28 @@ std::string AuditMarkdown(const ojson& r) {
         md += fmt::format("| {:.0f} cm | {} |\n", 100 * std::stod(m), Percent(share.get<double>()));
       }
     }
-    if (a.contains("why_nothing")) md += fmt::format("Nothing to vote with: {}.\n\n", a["why_nothing"].get<std::string>());
-    md += fmt::format("\nMedian error: {:.2f} % of the diagonal{}. `audit.png` shows the secret and "
-                      "the recovered points side by side; `recovered.ply` the recovered points "
-                      "coloured by error.\n\n",
-                      rec["median_error_diagonal_percent"].get<double>(),
-                      rec.contains("median_error_m")
-                          ? fmt::format(" ({:.3f} m)", rec["median_error_m"].get<double>())
-                          : "");
+    if (a.contains("why_nothing"))
+      md += fmt::format("Nothing to vote with: {}.\n\n", a["why_nothing"].get<std::string>());
+    md += fmt::format(
+        "\nMedian error: {:.2f} % of the diagonal{}. `audit.png` shows the secret and "
+        "the recovered points side by side; `recovered.ply` the recovered points "
+        "coloured by error.\n\n",
+        rec["median_error_diagonal_percent"].get<double>(),
+        rec.contains("median_error_m")
+            ? fmt::format(" ({:.3f} m)", rec["median_error_m"].get<double>())
+            : "");
   }
   if (r.contains("two_keys")) {
     const ojson& t = r["two_keys"];
     md += "## Two liftings of one model (Speciale et al., CVPR 2019, Sec. 3.1)\n\n";
-    md += fmt::format("With {} as well, an attacker pairs the lines by {} and intersects them: "
-                      "{} points recovered, {} of them exactly ({} of the map's points).\n",
-                      t["other_map"].get<std::string>(), t["pairing"].get<std::string>(),
-                      t["recovered"].get<size_t>(), t["recovered_exactly"].get<size_t>(),
-                      Percent(t["share_recovered_exactly"].get<double>()));
-    if (t.contains("why_nothing")) md += fmt::format("Nothing recovered: {}.\n", t["why_nothing"].get<std::string>());
+    md += fmt::format(
+        "With {} as well, an attacker pairs the lines by {} and intersects them: "
+        "{} points recovered, {} of them exactly ({} of the map's points).\n",
+        t["other_map"].get<std::string>(), t["pairing"].get<std::string>(),
+        t["recovered"].get<size_t>(), t["recovered_exactly"].get<size_t>(),
+        Percent(t["share_recovered_exactly"].get<double>()));
+    if (t.contains("why_nothing"))
+      md += fmt::format("Nothing recovered: {}.\n", t["why_nothing"].get<std::string>());
     md += "\nThis is why a model must only ever be lifted with its one key.\n";
   }
   return md;

@@ -23,12 +23,12 @@ namespace linecloud {
 
 struct AuditOptions {
   std::string map_path;
-  std::string model_dir;        // the secret model the map was lifted from
-  std::string other_map_path;   // a second lifting of the model: the two-key attack
-  std::string out_dir;          // empty: report on stdout only
-  std::string key_file;         // empty: the key store's key of the model
+  std::string model_dir;       // the secret model the map was lifted from
+  std::string other_map_path;  // a second lifting of the model: the two-key attack
+  std::string out_dir;         // empty: report on stdout only
+  std::string key_file;        // empty: the key store's key of the model
   std::string key_store;
-  double metric_scale = 0;      // metres per model unit; 0: not metric
+  double metric_scale = 0;  // metres per model unit; 0: not metric
   bool skip_density_attack = false;
   DensityAttackOptions attack;
 
@@ -38,8 +38,7 @@ struct AuditOptions {
 // The model's point behind each line of `cloud` (in its order). Throws Error
 // when the map was lifted with another key or from another model.
 std::vector<Eigen::Vector3d> SecretPointsOfLines(const LineCloud& cloud,
-                                                 const Reconstruction& model,
-                                                 const LiftingKey& key,
+                                                 const Reconstruction& model, const LiftingKey& key,
                                                  const std::string& map_name);
 
 // Runs the audit, writes the outputs, returns report.json's content.

@@ -74,18 +74,20 @@ void WriteAuditFigure(const std::string& path, std::span<const Eigen::Vector3d> 
   for (int row = 0; row < 2; ++row) {
     const View& view = views[row];
     std::vector<double> us, vs;
-    for (const auto& p : secret) us.push_back(view.u.dot(p - mean)), vs.push_back(view.v.dot(p - mean));
+    for (const auto& p : secret)
+      us.push_back(view.u.dot(p - mean)), vs.push_back(view.v.dot(p - mean));
     const double u0 = Percentile(us, 0.005), u1 = Percentile(us, 0.995);
     const double v0 = Percentile(vs, 0.005), v1 = Percentile(vs, 0.995);
-    const double scale =
-        std::min((kPanelW - 20) / std::max(u1 - u0, 1e-12), (kPanelH - 20) / std::max(v1 - v0, 1e-12));
+    const double scale = std::min((kPanelW - 20) / std::max(u1 - u0, 1e-12),
+                                  (kPanelH - 20) / std::max(v1 - v0, 1e-12));
     for (int col = 0; col < 2; ++col) {
       const double x0 = kMargin + col * (kPanelW + kMargin);
       const double y0 = kHeader + kMargin + row * (kPanelH + kLabel + kMargin);
       cairo_set_source_rgb(cr, 0, 0, 0);
       cairo_move_to(cr, x0, y0 + 16);
-      cairo_show_text(cr, (std::string(col == 0 ? "secret points, " : "recovered by the attack, ") +
-                           view.name).c_str());
+      cairo_show_text(
+          cr, (std::string(col == 0 ? "secret points, " : "recovered by the attack, ") + view.name)
+                  .c_str());
       const double py = y0 + kLabel;
       cairo_set_source_rgb(cr, 0.97, 0.97, 0.97);
       cairo_rectangle(cr, x0, py, kPanelW, kPanelH);

@@ -64,7 +64,8 @@ void DensityAttackOptions::Check() const {
   if (refine_rounds < 0 || refine_rounds > 20) Fail("attack: refine rounds must be in [0, 20]");
   if (refine_neighbours < 1) Fail("attack: refine neighbours must be >= 1");
   if (min_shared < 0) Fail("attack: min shared must be >= 0");
-  if (histogram_bins < 2 || histogram_bins > 100000) Fail("attack: histogram bins must be in [2, 100000]");
+  if (histogram_bins < 2 || histogram_bins > 100000)
+    Fail("attack: histogram bins must be in [2, 100000]");
   if (trimmed_votes < 0) Fail("attack: trimmed votes must be >= 0");
   if (!(min_excess >= 0 && min_excess <= 1)) Fail("attack: min excess must be in [0, 1]");
 }
@@ -135,8 +136,8 @@ DensityAttackResult RunDensityAttack(const LineCloud& cloud, const DensityAttack
   std::vector<float> share(n, 0.f);
   auto peak = [&](Scratch& s, size_t i, std::vector<double>* out) {
     double sh = 0;
-    const double p = VotePeak(&s.votes, options.histogram_bins, options.trimmed_votes,
-                              options.min_excess, &sh);
+    const double p =
+        VotePeak(&s.votes, options.histogram_bins, options.trimmed_votes, options.min_excess, &sh);
     (*out)[i] = std::isfinite(p) ? p : 0.0;
     share[i] = static_cast<float>(sh);
   };

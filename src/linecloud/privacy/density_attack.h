@@ -37,13 +37,13 @@ namespace linecloud {
 struct DensityAttackOptions {
   // K of the coarse step; 0: min(500, 5 % of the lines), as published.
   int line_neighbours = 0;
-  int refine_rounds = 2;       // the published code suggests 2 or 3
-  int refine_neighbours = 100; // K' of the line-to-point and point-to-line sets
-  int min_shared = 10;         // more shared neighbours than this: use the intersection
+  int refine_rounds = 2;        // the published code suggests 2 or 3
+  int refine_neighbours = 100;  // K' of the line-to-point and point-to-line sets
+  int min_shared = 10;          // more shared neighbours than this: use the intersection
   int histogram_bins = 500;
-  int trimmed_votes = 5;       // dropped at each end before the peak search
-  double min_excess = 0.3;     // the peak search continues while the excess is at least this
-  int threads = 0;             // 0: all cores
+  int trimmed_votes = 5;    // dropped at each end before the peak search
+  double min_excess = 0.3;  // the peak search continues while the excess is at least this
+  int threads = 0;          // 0: all cores
   // Stage name, rows done, rows in the stage; from the calling thread.
   std::function<void(const std::string&, size_t, size_t)> progress;
 

@@ -149,8 +149,9 @@ TEST(TwoKeyAttack, RecoversEveryPointOfAModelLiftedTwice) {
   FacadeOptions other = fo;
   other.seed = 99;
   other.num_points = 2000;
-  EXPECT_EQ(AttackTwoLiftings(a.cloud, Lift(SampleFacade(other), FixedKey(8)).cloud, 2).points.size(),
-            0u);
+  EXPECT_EQ(
+      AttackTwoLiftings(a.cloud, Lift(SampleFacade(other), FixedKey(8)).cloud, 2).points.size(),
+      0u);
 }
 
 TEST(Sparsify, KeyedSubsetsOfTheSameLines) {
@@ -232,7 +233,8 @@ TEST(MapLifting, ParsesTheLiftingsOfTheCommandLine) {
   const MapLifting c = ParseMapLifting("uniform:0.9+compact", "x");
   EXPECT_EQ(c.sparsify, 0.9);
   EXPECT_TRUE(c.compact);
-  for (const char* bad : {"uniform:1.5", "resist:1", "resist:-1", "uniform", "plain:3", "x:1", "resist:1e999", ""}) {
+  for (const char* bad :
+       {"uniform:1.5", "resist:1", "resist:-1", "uniform", "plain:3", "x:1", "resist:1e999", ""}) {
     EXPECT_THROW(ParseMapLifting(bad, "--lifting"), Error) << bad;
   }
 }

@@ -13,8 +13,10 @@ namespace linecloud {
 
 std::string MapLifting::Name() const {
   std::string name;
-  if (sparsify > 0) name = fmt::format("{} {:g} %", SparsifyModeName(sparsify_mode), 100 * sparsify);
-  if (resist_attack >= 0) name += (name.empty() ? "" : " + ") + fmt::format("resist {:g}", resist_attack);
+  if (sparsify > 0)
+    name = fmt::format("{} {:g} %", SparsifyModeName(sparsify_mode), 100 * sparsify);
+  if (resist_attack >= 0)
+    name += (name.empty() ? "" : " + ") + fmt::format("resist {:g}", resist_attack);
   if (compact) name += (name.empty() ? "" : " + ") + std::string("compact");
   return name.empty() ? "plain" : name;
 }
@@ -66,7 +68,8 @@ MapLifting ParseMapLifting(const std::string& spec, const std::string& source) {
 
 LiftingKey MapLiftingKey(const LiftingKey& key, const MapLifting& lifting) {
   if (!lifting.compact || key.directions() == DirectionSet::kCompact256) return key;
-  return LiftingKey(key.DeriveSubkey("linecloud/eval/compact-variant/v1"), DirectionSet::kCompact256);
+  return LiftingKey(key.DeriveSubkey("linecloud/eval/compact-variant/v1"),
+                    DirectionSet::kCompact256);
 }
 
 LineCloud LiftMap(const LiftingKey& key, std::span<const uint64_t> ids,

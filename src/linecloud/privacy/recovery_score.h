@@ -16,9 +16,9 @@ double SceneDiagonal(std::span<const Eigen::Vector3d> points);
 
 struct RecoveryScore {
   size_t points = 0;
-  double diagonal = 0;       // model units
-  double metric_scale = 0;   // metres per model unit; 0: not metric
-  double median_error = 0;   // model units
+  double diagonal = 0;      // model units
+  double metric_scale = 0;  // metres per model unit; 0: not metric
+  double median_error = 0;  // model units
   // Share of points recovered within each threshold: percent of the diagonal,
   // and metres when metric.
   std::vector<std::pair<double, double>> within_diagonal_percent;

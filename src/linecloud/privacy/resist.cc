@@ -12,9 +12,11 @@
 namespace linecloud {
 
 void ResistOptions::Check() const {
-  if (!(max_recovered >= 0 && max_recovered < 1)) Fail("--resist-attack: {} is not a share in [0, 1)", max_recovered);
+  if (!(max_recovered >= 0 && max_recovered < 1))
+    Fail("--resist-attack: {} is not a share in [0, 1)", max_recovered);
   if (!(radius_percent > 0 && radius_percent <= 100)) Fail("resist: radius must be in (0, 100] %");
-  if (!(drop_per_round > 0 && drop_per_round <= 1)) Fail("resist: drop per round must be in (0, 1]");
+  if (!(drop_per_round > 0 && drop_per_round <= 1))
+    Fail("resist: drop per round must be in (0, 1]");
   if (max_rounds < 1 || max_rounds > 100) Fail("resist: rounds must be in [1, 100]");
   attack.Check();
 }
@@ -50,8 +52,10 @@ ResistResult SelectAttackResistantPoints(const LiftingKey& key, std::span<const 
     if (share <= o.max_recovered) break;
     std::sort(found.begin(), found.end(), std::greater<>());
     const size_t excess = found.size() - static_cast<size_t>(o.max_recovered * cloud.size());
-    const size_t drop = std::min(found.size(), std::max<size_t>(
-        1, std::min(excess, static_cast<size_t>(std::ceil(o.drop_per_round * found.size())))));
+    const size_t drop = std::min(
+        found.size(),
+        std::max<size_t>(
+            1, std::min(excess, static_cast<size_t>(std::ceil(o.drop_per_round * found.size())))));
     std::vector<bool> recovered(ids.size(), false);
     for (size_t k = 0; k < drop; ++k) recovered[found[k].second] = true;
     std::vector<size_t> next;

@@ -43,8 +43,8 @@ struct ResistOptions {
 };
 
 struct ResistResult {
-  std::vector<size_t> kept;               // indices into ids/points, increasing
-  std::vector<double> recovered_share;    // after each round, of the points kept then
+  std::vector<size_t> kept;             // indices into ids/points, increasing
+  std::vector<double> recovered_share;  // after each round, of the points kept then
 };
 
 ResistResult SelectAttackResistantPoints(const LiftingKey& key, std::span<const uint64_t> ids,

@@ -22,11 +22,11 @@ namespace linecloud {
 struct TwoLiftingsAttack {
   // How the lines were paired: "equal ids", or "crossing" (lines that meet).
   std::string pairing;
-  size_t shared_ids = 0;  // ids present in both clouds / pairs of crossing lines
-  size_t parallel = 0;    // pairs too close to parallel to cross (same line or shifted copy)
-  std::vector<uint64_t> ids;             // the ids (in `a`) of the recovered points
-  std::vector<size_t> indices;           // their indices in `a`
-  std::vector<Eigen::Vector3d> points;   // midpoint of the two lines' closest points
+  size_t shared_ids = 0;        // ids present in both clouds / pairs of crossing lines
+  size_t parallel = 0;          // pairs too close to parallel to cross (same line or shifted copy)
+  std::vector<uint64_t> ids;    // the ids (in `a`) of the recovered points
+  std::vector<size_t> indices;  // their indices in `a`
+  std::vector<Eigen::Vector3d> points;  // midpoint of the two lines' closest points
 };
 
 // Pairs whose directions differ by less than `min_angle_rad` are counted as

@@ -9,8 +9,7 @@
 
 namespace linecloud {
 
-int m_p2l_lus(std::span<const PluckerLine> lines,
-              std::span<const Eigen::Vector3d> points_local,
+int m_p2l_lus(std::span<const PluckerLine> lines, std::span<const Eigen::Vector3d> points_local,
               std::vector<Rigid3d>* out) {
   CheckMinimalSample("m_p2l_lus", 2, out, lines, points_local);
   const std::array<Eigen::Vector3d, 2> anchors = {lines[0].Anchor(), lines[1].Anchor()};

@@ -17,8 +17,7 @@ namespace linecloud {
 // Equivalently world_from_local = (Rᵀ, −Rᵀt) moves X̃_i onto line i: the
 // generalized upright 2-point problem with the lines as rays (m_p2p_u).
 // Up to 2 solutions, local_from_world (= rig_from_world).
-int m_p2l_lus(std::span<const PluckerLine> lines,
-              std::span<const Eigen::Vector3d> points_local,
+int m_p2l_lus(std::span<const PluckerLine> lines, std::span<const Eigen::Vector3d> points_local,
               std::vector<Rigid3d>* out);
 
 }  // namespace linecloud

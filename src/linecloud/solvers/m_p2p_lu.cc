@@ -8,8 +8,8 @@
 
 namespace linecloud {
 
-int m_p2p_lu(std::span<const Eigen::Vector3d> points_local,
-             std::span<const Eigen::Vector3d> points, std::vector<Sim3d>* out) {
+int m_p2p_lu(std::span<const Eigen::Vector3d> points_local, std::span<const Eigen::Vector3d> points,
+             std::vector<Sim3d>* out) {
   CheckMinimalSample("m_p2p_lu", 2, out, points_local, points);
   out->clear();
   const double scale = std::sqrt((points_local[1] - points_local[0]).squaredNorm() /

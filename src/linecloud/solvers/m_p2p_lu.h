@@ -14,7 +14,7 @@ namespace linecloud {
 // R = R_y(θ), t with
 //     X̃_i = s R X_i + t,   i = 1, 2.
 // s = |X̃_2 − X̃_1| / |X_2 − X_1|, θ as in m_p2p_lus. One solution.
-int m_p2p_lu(std::span<const Eigen::Vector3d> points_local,
-             std::span<const Eigen::Vector3d> points, std::vector<Sim3d>* out);
+int m_p2p_lu(std::span<const Eigen::Vector3d> points_local, std::span<const Eigen::Vector3d> points,
+             std::vector<Sim3d>* out);
 
 }  // namespace linecloud

@@ -28,10 +28,10 @@ bool UprightTwoPointAlignment(std::span<const Eigen::Vector3d> points_local,
   const double h = 0.5 * scale;
   const double mx = h * (points[0].x() + points[1].x()), my = h * (points[0].y() + points[1].y()),
                mz = h * (points[0].z() + points[1].z());
-  *translation = Eigen::Vector3d(
-      0.5 * (points_local[0].x() + points_local[1].x()) - (c * mx + sn * mz),
-      0.5 * (points_local[0].y() + points_local[1].y()) - my,
-      0.5 * (points_local[0].z() + points_local[1].z()) - (c * mz - sn * mx));
+  *translation =
+      Eigen::Vector3d(0.5 * (points_local[0].x() + points_local[1].x()) - (c * mx + sn * mz),
+                      0.5 * (points_local[0].y() + points_local[1].y()) - my,
+                      0.5 * (points_local[0].z() + points_local[1].z()) - (c * mz - sn * mx));
   return translation->allFinite();
 }
 

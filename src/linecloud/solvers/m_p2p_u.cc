@@ -6,8 +6,7 @@
 
 namespace linecloud {
 
-int m_p2p_u(std::span<const Eigen::Vector3d> origins,
-            std::span<const Eigen::Vector3d> directions,
+int m_p2p_u(std::span<const Eigen::Vector3d> origins, std::span<const Eigen::Vector3d> directions,
             std::span<const Eigen::Vector3d> points, UprightSolution solutions[2]) {
   CheckMinimalSample("m_p2p_u", 2, solutions, origins, directions, points);
   for (int i = 0; i < 2; ++i) {
@@ -34,9 +33,10 @@ int m_p2p_u(std::span<const Eigen::Vector3d> origins,
                oz = origins[0].z() - origins[1].z();
   // Scaled to unit |n|: α, β, γ then carry the lengths of the problem only.
   const double inverse_norm = 1 / std::sqrt(n2);
-  const double alpha = (n.x() * dx + n.z() * dz) * inverse_norm;           // nᵀA(ΔX)
-  const double beta = (n.x() * dz - n.z() * dx) * inverse_norm;            // nᵀB(ΔX)
-  const double gamma = (n.y() * dy - (n.x() * ox + n.y() * oy + n.z() * oz)) * inverse_norm;  // nᵀ(D(ΔX) − Δo)
+  const double alpha = (n.x() * dx + n.z() * dz) * inverse_norm;  // nᵀA(ΔX)
+  const double beta = (n.x() * dz - n.z() * dx) * inverse_norm;   // nᵀB(ΔX)
+  const double gamma =
+      (n.y() * dy - (n.x() * ox + n.y() * oy + n.z() * oz)) * inverse_norm;  // nᵀ(D(ΔX) − Δo)
   double cs[2][2];
   const int count = upright::IntersectLineUnitCircle(alpha, beta, gamma, cs);
   int num_solutions = 0;
@@ -58,8 +58,7 @@ int m_p2p_u(std::span<const Eigen::Vector3d> origins,
   return num_solutions;
 }
 
-int m_p2p_u(std::span<const Eigen::Vector3d> origins,
-            std::span<const Eigen::Vector3d> directions,
+int m_p2p_u(std::span<const Eigen::Vector3d> origins, std::span<const Eigen::Vector3d> directions,
             std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out) {
   CheckMinimalSample("m_p2p_u", 2, out, origins, directions, points);
   out->clear();

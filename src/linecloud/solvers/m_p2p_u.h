@@ -21,8 +21,7 @@ namespace linecloud {
 // d₁ × d₂ removes λ₁, λ₂ and leaves one line α c + β s + γ = 0 on the unit
 // circle (c = cos θ, s = sin θ): up to 2 solutions, each meeting both rays
 // exactly (λ₁ by a cross product, then t). rig_from_world.
-int m_p2p_u(std::span<const Eigen::Vector3d> origins,
-            std::span<const Eigen::Vector3d> directions,
+int m_p2p_u(std::span<const Eigen::Vector3d> origins, std::span<const Eigen::Vector3d> directions,
             std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out);
 
 // The same solutions as (cos θ, sin θ, t), for callers that build another pose
@@ -31,8 +30,7 @@ struct UprightSolution {
   double c, s;
   Eigen::Vector3d t;
 };
-int m_p2p_u(std::span<const Eigen::Vector3d> origins,
-            std::span<const Eigen::Vector3d> directions,
+int m_p2p_u(std::span<const Eigen::Vector3d> origins, std::span<const Eigen::Vector3d> directions,
             std::span<const Eigen::Vector3d> points, UprightSolution solutions[2]);
 
 }  // namespace linecloud

@@ -8,8 +8,8 @@
 
 namespace linecloud {
 
-int m_p3l_lu(std::span<const PluckerLine> lines,
-             std::span<const Eigen::Vector3d> points_local, std::vector<Sim3d>* out) {
+int m_p3l_lu(std::span<const PluckerLine> lines, std::span<const Eigen::Vector3d> points_local,
+             std::vector<Sim3d>* out) {
   CheckMinimalSample("m_p3l_lu", 3, out, lines, points_local);
   out->clear();
   Eigen::Vector3d anchor[3];
@@ -62,9 +62,8 @@ int m_p3l_lu(std::span<const PluckerLine> lines,
   if (!(scale > 0) || !(y[2] > 0) || !y.allFinite()) return 0;
   const double lambda0 = -g[0].dot(k_delta[0] * y - delta_anchor[0]);
   const Eigen::Vector3d& x0 = points_local[0];
-  const Eigen::Vector3d t =
-      anchor[0] + lambda0 * v0 - (y[0] * upright::A(x0) + y[1] * upright::B(x0) +
-                                  y[2] * upright::D(x0));
+  const Eigen::Vector3d t = anchor[0] + lambda0 * v0 -
+                            (y[0] * upright::A(x0) + y[1] * upright::B(x0) + y[2] * upright::D(x0));
   if (!t.allFinite()) return 0;
   const Sim3d world_from_local(scale, upright::RotationY(y[0], y[1]), t);
   out->push_back(world_from_local.Inverse());

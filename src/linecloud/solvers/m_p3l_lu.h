@@ -23,7 +23,7 @@ namespace linecloud {
 // components along v_i × v_0 and the two values of λ_0 they give leave a
 // 3 × 3 system in y (Cramer's rule), then λ_0 and t'. One solution.
 // local_from_world.
-int m_p3l_lu(std::span<const PluckerLine> lines,
-             std::span<const Eigen::Vector3d> points_local, std::vector<Sim3d>* out);
+int m_p3l_lu(std::span<const PluckerLine> lines, std::span<const Eigen::Vector3d> points_local,
+             std::vector<Sim3d>* out);
 
 }  // namespace linecloud

@@ -94,8 +94,7 @@ int Quadratic(double b, double c, double roots[2]) {
 
 }  // namespace
 
-int m_p3p(std::span<const Eigen::Vector3d> origins,
-          std::span<const Eigen::Vector3d> directions,
+int m_p3p(std::span<const Eigen::Vector3d> origins, std::span<const Eigen::Vector3d> directions,
           std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out,
           bool positive_depths) {
   CheckMinimalSample("m_p3p", 3, out, origins, directions, points);
@@ -104,7 +103,8 @@ int m_p3p(std::span<const Eigen::Vector3d> origins,
   const Eigen::Vector3d cx = (points[0] + points[1] + points[2]) / 3.0;
   const Eigen::Vector3d co = (origins[0] + origins[1] + origins[2]) / 3.0;
   const double scale = std::sqrt(((points[0] - cx).squaredNorm() + (points[1] - cx).squaredNorm() +
-                                  (points[2] - cx).squaredNorm()) / 3.0);
+                                  (points[2] - cx).squaredNorm()) /
+                                 3.0);
   if (!(scale > 0) || !std::isfinite(scale)) return 0;
   std::array<Eigen::Vector3d, 3> x, o, d;
   for (int i = 0; i < 3; ++i) {
@@ -203,8 +203,8 @@ int m_p3p(std::span<const Eigen::Vector3d> origins,
           if (std::max({std::abs(r0), std::abs(r1), std::abs(r2)}) <= 1e-15) break;
           double s0, s1, s2;
           if (!SolvePairwiseJacobian(e12.DLi(m0, m1), e12.DLj(m0, m1), e13.DLi(m0, m2),
-                                     e13.DLj(m0, m2), e23.DLi(m1, m2), e23.DLj(m1, m2), r0, r1,
-                                     r2, &s0, &s1, &s2)) {
+                                     e13.DLj(m0, m2), e23.DLi(m1, m2), e23.DLj(m1, m2), r0, r1, r2,
+                                     &s0, &s1, &s2)) {
             break;
           }
           m0 -= s0, m1 -= s1, m2 -= s2;

@@ -21,8 +21,7 @@ namespace linecloud {
 // sign are kept unless `positive_depths` (cheirality on the camera side, for
 // point maps); never for line clouds, where the rays are unoriented lines.
 // Each real root gives R, t by the TRIAD construction. rig_from_world.
-int m_p3p(std::span<const Eigen::Vector3d> origins,
-          std::span<const Eigen::Vector3d> directions,
+int m_p3p(std::span<const Eigen::Vector3d> origins, std::span<const Eigen::Vector3d> directions,
           std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out,
           bool positive_depths = true);
 

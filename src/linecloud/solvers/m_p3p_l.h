@@ -16,7 +16,7 @@ namespace linecloud {
 //     X̃_i = s R X_i + t,   i = 1, 2, 3.
 // s is the ratio of the triangles' edge lengths (root of summed squares), R
 // the TRIAD rotation. One solution (none for collinear points).
-int m_p3p_l(std::span<const Eigen::Vector3d> points_local,
-            std::span<const Eigen::Vector3d> points, std::vector<Sim3d>* out);
+int m_p3p_l(std::span<const Eigen::Vector3d> points_local, std::span<const Eigen::Vector3d> points,
+            std::vector<Sim3d>* out);
 
 }  // namespace linecloud

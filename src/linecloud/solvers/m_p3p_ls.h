@@ -15,7 +15,7 @@ namespace linecloud {
 // TRIAD construction). Find R, t with
 //     X̃_i = R X_i + t,   i = 1, 2, 3.
 // One solution (none for collinear points), local_from_world.
-int m_p3p_ls(std::span<const Eigen::Vector3d> points_local,
-             std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out);
+int m_p3p_ls(std::span<const Eigen::Vector3d> points_local, std::span<const Eigen::Vector3d> points,
+             std::vector<Rigid3d>* out);
 
 }  // namespace linecloud

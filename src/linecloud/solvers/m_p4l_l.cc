@@ -35,26 +35,32 @@ constexpr int kBasis = 8;
 constexpr int kReducible = 3;
 constexpr int kEliminated = kCols - kBasis - kReducible;  // 23
 // Quadric monomials: 1, x, y, z, x², xy, xz, y², yz, z².
-constexpr std::array<Exponent, 10> kQuadricMonomials = {{
-    {0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {2, 0, 0},
-    {1, 1, 0}, {1, 0, 1}, {0, 2, 0}, {0, 1, 1}, {0, 0, 2}}};
+constexpr std::array<Exponent, 10> kQuadricMonomials = {{{0, 0, 0},
+                                                         {1, 0, 0},
+                                                         {0, 1, 0},
+                                                         {0, 0, 1},
+                                                         {2, 0, 0},
+                                                         {1, 1, 0},
+                                                         {1, 0, 1},
+                                                         {0, 2, 0},
+                                                         {0, 1, 1},
+                                                         {0, 0, 2}}};
 // Basis B = (z³, xz, yz, z², x, y, z, 1); z·B leaves B in z⁴, xz², yz².
-constexpr std::array<Exponent, kBasis> kBasisMonomials = {{
-    {0, 0, 3}, {1, 0, 1}, {0, 1, 1}, {0, 0, 2}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0, 0, 0}}};
-constexpr std::array<Exponent, kReducible> kReducibleMonomials = {{
-    {0, 0, 4}, {1, 0, 2}, {0, 1, 2}}};
+constexpr std::array<Exponent, kBasis> kBasisMonomials = {
+    {{0, 0, 3}, {1, 0, 1}, {0, 1, 1}, {0, 0, 2}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {0, 0, 0}}};
+constexpr std::array<Exponent, kReducible> kReducibleMonomials = {
+    {{0, 0, 4}, {1, 0, 2}, {0, 1, 2}}};
 // Rows: (equation, multiplier).
 struct Row {
   int equation;
   Exponent multiplier;
 };
-constexpr std::array<Row, kRows> kTemplateRows = {{
-    {0, {0, 0, 0}}, {0, {0, 0, 1}}, {0, {0, 1, 0}}, {0, {1, 0, 0}}, {0, {0, 0, 2}},
-    {0, {0, 1, 1}}, {0, {0, 2, 0}}, {0, {1, 0, 1}},
-    {1, {0, 0, 0}}, {1, {0, 0, 1}}, {1, {0, 1, 0}}, {1, {1, 0, 0}}, {1, {0, 0, 2}},
-    {1, {0, 1, 1}}, {1, {0, 2, 0}}, {1, {1, 0, 1}}, {1, {1, 1, 0}},
-    {2, {0, 0, 0}}, {2, {0, 0, 1}}, {2, {0, 1, 0}}, {2, {1, 0, 0}}, {2, {0, 0, 2}},
-    {2, {0, 1, 1}}, {2, {0, 2, 0}}, {2, {1, 0, 1}}, {2, {1, 1, 0}}}};
+constexpr std::array<Row, kRows> kTemplateRows = {
+    {{0, {0, 0, 0}}, {0, {0, 0, 1}}, {0, {0, 1, 0}}, {0, {1, 0, 0}}, {0, {0, 0, 2}}, {0, {0, 1, 1}},
+     {0, {0, 2, 0}}, {0, {1, 0, 1}}, {1, {0, 0, 0}}, {1, {0, 0, 1}}, {1, {0, 1, 0}}, {1, {1, 0, 0}},
+     {1, {0, 0, 2}}, {1, {0, 1, 1}}, {1, {0, 2, 0}}, {1, {1, 0, 1}}, {1, {1, 1, 0}}, {2, {0, 0, 0}},
+     {2, {0, 0, 1}}, {2, {0, 1, 0}}, {2, {1, 0, 0}}, {2, {0, 0, 2}}, {2, {0, 1, 1}}, {2, {0, 2, 0}},
+     {2, {1, 0, 1}}, {2, {1, 1, 0}}}};
 
 // column[r][k]: template column of quadric monomial k multiplied by row r's
 // multiplier; columns are ordered eliminated | reducible | basis.
@@ -110,8 +116,8 @@ Eigen::Matrix<double, 3, 10> RotateCoefficients(const Eigen::Vector3d& p) {
 
 Eigen::Matrix<double, 10, 1> QuaternionMonomials(const Eigen::Vector4d& q) {
   Eigen::Matrix<double, 10, 1> m;
-  m << q[0] * q[0], q[0] * q[1], q[0] * q[2], q[0] * q[3], q[1] * q[1], q[1] * q[2],
-      q[1] * q[3], q[2] * q[2], q[2] * q[3], q[3] * q[3];
+  m << q[0] * q[0], q[0] * q[1], q[0] * q[2], q[0] * q[3], q[1] * q[1], q[1] * q[2], q[1] * q[3],
+      q[2] * q[2], q[2] * q[3], q[3] * q[3];
   return m;
 }
 
@@ -176,8 +182,7 @@ bool HiddenZ(const Eigen::Matrix<double, 3, 10>& quadrics, HiddenZRelations* out
   Eigen::Matrix3d leading;
   leading << quadrics.col(4), quadrics.col(5), quadrics.col(7);
   const double det = leading.determinant();
-  const double hadamard =
-      leading.row(0).norm() * leading.row(1).norm() * leading.row(2).norm();
+  const double hadamard = leading.row(0).norm() * leading.row(1).norm() * leading.row(2).norm();
   if (!(std::abs(det) > 1e-6 * hadamard)) return false;
   const Eigen::Matrix3d inverse = leading.inverse();
   // Aᵢ = −(leading⁻¹ · rest)ᵢ on the rest's columns.
@@ -185,8 +190,8 @@ bool HiddenZ(const Eigen::Matrix<double, 3, 10>& quadrics, HiddenZRelations* out
   std::array<ZPoly<2>, 3> alpha, beta;
   std::array<ZPoly<3>, 3> gamma;
   for (int i = 0; i < 3; ++i) {
-    alpha[i] = {rest(i, 1), rest(i, 6)};           // x, xz
-    beta[i] = {rest(i, 2), rest(i, 8)};            // y, yz
+    alpha[i] = {rest(i, 1), rest(i, 6)};              // x, xz
+    beta[i] = {rest(i, 2), rest(i, 8)};               // y, yz
     gamma[i] = {rest(i, 0), rest(i, 3), rest(i, 9)};  // 1, z, z²
   }
   // The relation Σ cᵢAᵢ + dx·x + dy·y as (X, Y, C) = (Σ cᵢαᵢ + dx, Σ cᵢβᵢ + dy,
@@ -209,8 +214,7 @@ bool HiddenZ(const Eigen::Matrix<double, 3, 10>& quadrics, HiddenZRelations* out
   for (int k = 0; k < 2; ++k) {
     // k = 0: S₁ (c = α₂, β₂ − α₁, −β₁; dx = γ₂, dy = −γ₁); k = 1: S₂ (indices + 1).
     const std::array<ZPoly<2>, 3> c = {
-        alpha[k + 1],
-        ZPoly<2>{beta[k + 1][0] - alpha[k][0], beta[k + 1][1] - alpha[k][1]},
+        alpha[k + 1], ZPoly<2>{beta[k + 1][0] - alpha[k][0], beta[k + 1][1] - alpha[k][1]},
         ZPoly<2>{-beta[k][0], -beta[k][1]}};
     const ZPoly<3> minus_gamma = {-gamma[k][0], -gamma[k][1], -gamma[k][2]};
     relation(k, c, pad(gamma[k + 1]), pad(minus_gamma));
@@ -236,8 +240,8 @@ void PolishRoot(const Eigen::Matrix<double, 3, 10>& quadrics, Eigen::Vector3d* x
     S3 f, jx, jy, jz;
     for (int i = 0; i < 3; ++i) {
       const auto q = quadrics.row(i);
-      f[i] = q[0] + (q[1] + q[4] * x + q[5] * y + q[6] * z) * x +
-             (q[2] + q[7] * y + q[8] * z) * y + (q[3] + q[9] * z) * z;
+      f[i] = q[0] + (q[1] + q[4] * x + q[5] * y + q[6] * z) * x + (q[2] + q[7] * y + q[8] * z) * y +
+             (q[3] + q[9] * z) * z;
       jx[i] = q[1] + 2 * q[4] * x + q[5] * y + q[6] * z;
       jy[i] = q[2] + q[5] * x + 2 * q[7] * y + q[8] * z;
       jz[i] = q[3] + q[6] * x + q[8] * y + 2 * q[9] * z;
@@ -352,8 +356,7 @@ int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
       for (int b = 0; b < 3; ++b) {
         rel.x[b] = {action[b][4], action[b][1], b == 1 ? -1.0 : 0.0, 0.0};
         rel.y[b] = {action[b][5], action[b][2], b == 2 ? -1.0 : 0.0, 0.0};
-        rel.c[b] = {action[b][7], action[b][6], action[b][3], action[b][0],
-                    b == 0 ? -1.0 : 0.0};
+        rel.c[b] = {action[b][7], action[b][6], action[b][3], action[b][0], b == 0 ? -1.0 : 0.0};
       }
     }
   }
@@ -405,16 +408,16 @@ int IntersectThreeQuadrics(const Eigen::Matrix<double, 3, 10>& quadrics,
   return static_cast<int>(out->size());
 }
 
-int m_p4l_l(std::span<const PluckerLine> lines,
-            std::span<const Eigen::Vector3d> points_local, std::vector<Sim3d>* out) {
+int m_p4l_l(std::span<const PluckerLine> lines, std::span<const Eigen::Vector3d> points_local,
+            std::vector<Sim3d>* out) {
   CheckMinimalSample("m_p4l_l", 4, out, lines, points_local);
   out->clear();
   // Normalise both sides: centroid at the origin, unit RMS radius.
   Eigen::Vector3d mean_local = Eigen::Vector3d::Zero(), mean_world = Eigen::Vector3d::Zero();
   std::array<Eigen::Vector3d, 4> anchors;
   for (int i = 0; i < 4; ++i) {
-    if (!points_local[i].allFinite() || !lines[i].v.allFinite() ||
-        !lines[i].w.allFinite() || !(lines[i].v.squaredNorm() > 0)) {
+    if (!points_local[i].allFinite() || !lines[i].v.allFinite() || !lines[i].w.allFinite() ||
+        !(lines[i].v.squaredNorm() > 0)) {
       return 0;
     }
     anchors[i] = lines[i].Anchor() / lines[i].v.squaredNorm();

@@ -37,8 +37,8 @@ namespace linecloud {
 // 100× of the best one (for exact data: exactly the solutions of all eight
 // equations). No sign is imposed along the lines. local_from_world, best
 // first.
-int m_p4l_l(std::span<const PluckerLine> lines,
-            std::span<const Eigen::Vector3d> points_local, std::vector<Sim3d>* out);
+int m_p4l_l(std::span<const PluckerLine> lines, std::span<const Eigen::Vector3d> points_local,
+            std::vector<Sim3d>* out);
 
 // The eight intersections of three quadrics in (x, y, z), each given by its
 // coefficients on (1, x, y, z, x², xy, xz, y², yz, z²). Writes the real ones

@@ -13,8 +13,8 @@ Eigen::Matrix<double, 1, 10> ProductOfPlanes(const Eigen::Vector3d& a, double b,
                                              const Eigen::Vector3d& c, double d) {
   Eigen::Matrix<double, 1, 10> q;
   q << b * d, -(a.x() * d + c.x() * b), -(a.y() * d + c.y() * b), -(a.z() * d + c.z() * b),
-      a.x() * c.x(), a.x() * c.y() + a.y() * c.x(), a.x() * c.z() + a.z() * c.x(),
-      a.y() * c.y(), a.y() * c.z() + a.z() * c.y(), a.z() * c.z();
+      a.x() * c.x(), a.x() * c.y() + a.y() * c.x(), a.x() * c.z() + a.z() * c.x(), a.y() * c.y(),
+      a.y() * c.z() + a.z() * c.y(), a.z() * c.z();
   return q;
 }
 
@@ -101,9 +101,9 @@ TEST(IntersectThreeQuadrics, FindsTheIntersectionsWhenTheLeadingBlockIsSingular)
 // No real intersection: x² + 1 = 0 combined with anything.
 TEST(IntersectThreeQuadrics, ReturnsNothingWithoutRealIntersections) {
   Eigen::Matrix<double, 3, 10> quadrics;
-  quadrics << 1, 0, 0, 0, 1, 0, 0, 0, 0, 0,   // x² + 1
-      -1, 0, 0, 0, 0, 0, 0, 1, 0, 0,          // y² − 1
-      -4, 0, 0, 0, 0, 0, 0, 0, 0, 1;          // z² − 4
+  quadrics << 1, 0, 0, 0, 1, 0, 0, 0, 0, 0,  // x² + 1
+      -1, 0, 0, 0, 0, 0, 0, 1, 0, 0,         // y² − 1
+      -4, 0, 0, 0, 0, 0, 0, 0, 0, 1;         // z² − 4
   const Eigen::Matrix3d mix = (Eigen::Matrix3d() << 1, 2, 0.5, -1, 1, 3, 2, 0, 1).finished();
   std::vector<Eigen::Vector3d> roots;
   EXPECT_EQ(IntersectThreeQuadrics(mix * quadrics, &roots), 0);

@@ -49,8 +49,7 @@ std::array<double, 9> Determinant(const std::array<std::array<Quad, 4>, 4>& m) {
 
 }  // namespace
 
-int m_p4l_u(std::span<const Eigen::Vector3d> origins,
-            std::span<const Eigen::Vector3d> directions,
+int m_p4l_u(std::span<const Eigen::Vector3d> origins, std::span<const Eigen::Vector3d> directions,
             std::span<const PluckerLine> lines, std::vector<Rigid3d>* out) {
   CheckMinimalSample("m_p4l_u", 4, out, origins, directions, lines);
   out->clear();
@@ -102,8 +101,7 @@ int m_p4l_u(std::span<const Eigen::Vector3d> origins,
     const Eigen::Vector3d c03 = g[0].cross(g[3]), c12 = g[1].cross(g[2]);
     const Eigen::Vector3d c13 = g[1].cross(g[3]), c23 = g[2].cross(g[3]);
     // Triples (1,2,3), (0,2,3), (0,1,3), (0,1,2); their determinants.
-    const std::array<double, 4> dets = {g[1].dot(c23), g[0].dot(c23), g[0].dot(c13),
-                                        g[0].dot(c12)};
+    const std::array<double, 4> dets = {g[1].dot(c23), g[0].dot(c23), g[0].dot(c13), g[0].dot(c12)};
     int drop = 0;
     for (int j = 1; j < 4; ++j) {
       if (std::abs(dets[j]) > std::abs(dets[drop])) drop = j;
@@ -111,10 +109,18 @@ int m_p4l_u(std::span<const Eigen::Vector3d> origins,
     if (!(std::abs(dets[drop]) > 0)) continue;
     Eigen::Vector3d weighted;
     switch (drop) {
-      case 0: weighted = k[1] * c23 - k[2] * c13 + k[3] * c12; break;  // rows 1, 2, 3
-      case 1: weighted = k[0] * c23 - k[2] * c03 + k[3] * c02; break;  // rows 0, 2, 3
-      case 2: weighted = k[0] * c13 - k[1] * c03 + k[3] * c01; break;  // rows 0, 1, 3
-      default: weighted = k[0] * c12 - k[1] * c02 + k[2] * c01; break;  // rows 0, 1, 2
+      case 0:
+        weighted = k[1] * c23 - k[2] * c13 + k[3] * c12;
+        break;  // rows 1, 2, 3
+      case 1:
+        weighted = k[0] * c23 - k[2] * c03 + k[3] * c02;
+        break;  // rows 0, 2, 3
+      case 2:
+        weighted = k[0] * c13 - k[1] * c03 + k[3] * c01;
+        break;  // rows 0, 1, 3
+      default:
+        weighted = k[0] * c12 - k[1] * c02 + k[2] * c01;
+        break;  // rows 0, 1, 2
     }
     const Eigen::Vector3d t = -weighted / dets[drop];
     if (!t.allFinite()) continue;

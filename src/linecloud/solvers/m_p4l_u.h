@@ -22,8 +22,7 @@ namespace linecloud {
 // s = 2x/(1 + x²) is a polynomial of degree 8 in x = tan(θ/2); t follows from
 // the best-conditioned three of the four rows (Cramer's rule). Up to 8
 // solutions; no sign is imposed along the lines.
-int m_p4l_u(std::span<const Eigen::Vector3d> origins,
-            std::span<const Eigen::Vector3d> directions,
+int m_p4l_u(std::span<const Eigen::Vector3d> origins, std::span<const Eigen::Vector3d> directions,
             std::span<const PluckerLine> lines, std::vector<Rigid3d>* out);
 
 // p4L+u: one camera (all rays through the origin), cam_from_world.

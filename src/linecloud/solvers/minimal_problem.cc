@@ -24,22 +24,22 @@ namespace {
 
 //                                   name          n  lines  multi  local  scale  grav.  impl.
 constexpr std::array<MethodInfo, 16> kMethods = {{
-    {MethodId::kP3P, "p3P",          3, false, false, false, false, false, true},
-    {MethodId::kP2PU, "p2P+u",        2, false, false, false, false, true,  true},
-    {MethodId::kMP3P, "m-p3P",        3, false, true,  false, false, false, true},
-    {MethodId::kMP2PU, "m-p2P+u",      2, false, true,  false, false, true,  true},
-    {MethodId::kMP3PL, "m-P3P+l",      3, false, true,  true,  false, false, true},
-    {MethodId::kMP2PLU, "m-P2P+l+u",    2, false, true,  true,  false, true,  true},
-    {MethodId::kMP3PLS, "m-P3P+l+s",    3, false, true,  true,  true,  false, true},
-    {MethodId::kMP2PLUS, "m-P2P+l+u+s",  2, false, true,  true,  true,  true,  true},
-    {MethodId::kP6L, "p6L",          6, true,  false, false, false, false, true},
-    {MethodId::kP4LU, "p4L+u",        4, true,  false, false, false, true,  true},
-    {MethodId::kMP6L, "m-p6L",        6, true,  true,  false, false, false, true},
-    {MethodId::kMP4LU, "m-p4L+u",      4, true,  true,  false, false, true,  true},
-    {MethodId::kMP4LL, "m-P4L+l",      4, true,  true,  true,  false, false, true},
-    {MethodId::kMP3LLU, "m-P3L+l+u",    3, true,  true,  true,  false, true,  true},
-    {MethodId::kMP3LLS, "m-P3L+l+s",    3, true,  true,  true,  true,  false, true},
-    {MethodId::kMP2LLUS, "m-P2L+l+u+s",  2, true,  true,  true,  true,  true,  true},
+    {MethodId::kP3P, "p3P", 3, false, false, false, false, false, true},
+    {MethodId::kP2PU, "p2P+u", 2, false, false, false, false, true, true},
+    {MethodId::kMP3P, "m-p3P", 3, false, true, false, false, false, true},
+    {MethodId::kMP2PU, "m-p2P+u", 2, false, true, false, false, true, true},
+    {MethodId::kMP3PL, "m-P3P+l", 3, false, true, true, false, false, true},
+    {MethodId::kMP2PLU, "m-P2P+l+u", 2, false, true, true, false, true, true},
+    {MethodId::kMP3PLS, "m-P3P+l+s", 3, false, true, true, true, false, true},
+    {MethodId::kMP2PLUS, "m-P2P+l+u+s", 2, false, true, true, true, true, true},
+    {MethodId::kP6L, "p6L", 6, true, false, false, false, false, true},
+    {MethodId::kP4LU, "p4L+u", 4, true, false, false, false, true, true},
+    {MethodId::kMP6L, "m-p6L", 6, true, true, false, false, false, true},
+    {MethodId::kMP4LU, "m-p4L+u", 4, true, true, false, false, true, true},
+    {MethodId::kMP4LL, "m-P4L+l", 4, true, true, true, false, false, true},
+    {MethodId::kMP3LLU, "m-P3L+l+u", 3, true, true, true, false, true, true},
+    {MethodId::kMP3LLS, "m-P3L+l+s", 3, true, true, true, true, false, true},
+    {MethodId::kMP2LLUS, "m-P2L+l+u+s", 2, true, true, true, true, true, true},
 }};
 
 bool UsesBearings(const MethodInfo& m) { return !m.local_points; }
@@ -74,8 +74,7 @@ void CheckSample(const MethodInfo& m, const MinimalSample& s, std::string_view s
   const size_t n = static_cast<size_t>(m.sample_size);
   const auto require = [&](const auto& field, const char* name, bool needed) {
     if (needed && field.size() != n) {
-      Fail("{}: method {} needs {} entries in '{}', got {}", source, m.name, n, name,
-           field.size());
+      Fail("{}: method {} needs {} entries in '{}', got {}", source, m.name, n, name, field.size());
     }
   };
   const auto finite = [&](const std::vector<Eigen::Vector3d>& v, const char* name) {
@@ -95,8 +94,7 @@ void CheckSample(const MethodInfo& m, const MinimalSample& s, std::string_view s
   }
   for (size_t i = 0; i < s.lines.size(); ++i) {
     if (!s.lines[i].IsValid(1e-6)) {
-      Fail("{}: 'lines'[{}] is not a valid Plücker line (need |v| = 1, v·w = 0)",
-           source, i);
+      Fail("{}: 'lines'[{}] is not a valid Plücker line (need |v| = 1, v·w = 0)", source, i);
     }
   }
   if (m.multi && UsesBearings(m)) {
@@ -105,8 +103,8 @@ void CheckSample(const MethodInfo& m, const MinimalSample& s, std::string_view s
     for (size_t i = 0; i < n; ++i) {
       if (s.camera_index[i] < 0 ||
           static_cast<size_t>(s.camera_index[i]) >= s.cam_from_rig.size()) {
-        Fail("{}: 'camera_index'[{}] = {} but there are {} cameras in 'cam_from_rig'",
-             source, i, s.camera_index[i], s.cam_from_rig.size());
+        Fail("{}: 'camera_index'[{}] = {} but there are {} cameras in 'cam_from_rig'", source, i,
+             s.camera_index[i], s.cam_from_rig.size());
       }
     }
   }
@@ -132,22 +130,38 @@ int PreparedSample::Solve(std::vector<Rigid3d>* rigid, std::vector<Sim3d>* sim) 
   const std::span<const Eigen::Vector3d> origins(origins_.data(), num_rays_);
   const std::span<const Eigen::Vector3d> directions(directions_.data(), num_rays_);
   switch (method_->id) {
-    case MethodId::kP3P: return p3p(s.bearings, s.points, rigid);
-    case MethodId::kP2PU: return p2p_u(s.bearings, s.points, rigid);
-    case MethodId::kMP3P: return m_p3p(origins, directions, s.points, rigid);
-    case MethodId::kMP2PU: return m_p2p_u(origins, directions, s.points, rigid);
-    case MethodId::kMP3PL: return m_p3p_l(s.points_local, s.points, sim);
-    case MethodId::kMP2PLU: return m_p2p_lu(s.points_local, s.points, sim);
-    case MethodId::kMP3PLS: return m_p3p_ls(s.points_local, s.points, rigid);
-    case MethodId::kMP2PLUS: return m_p2p_lus(s.points_local, s.points, rigid);
-    case MethodId::kP4LU: return p4l_u(s.bearings, s.lines, rigid);
-    case MethodId::kMP4LU: return m_p4l_u(origins, directions, s.lines, rigid);
-    case MethodId::kMP4LL: return m_p4l_l(s.lines, s.points_local, sim);
-    case MethodId::kMP3LLU: return m_p3l_lu(s.lines, s.points_local, sim);
-    case MethodId::kMP3LLS: return m_p3l_ls(s.lines, s.points_local, rigid);
-    case MethodId::kMP2LLUS: return m_p2l_lus(s.lines, s.points_local, rigid);
-    case MethodId::kP6L: return p6l(s.bearings, s.lines, rigid);
-    case MethodId::kMP6L: return m_p6l(origins, directions, s.lines, rigid);
+    case MethodId::kP3P:
+      return p3p(s.bearings, s.points, rigid);
+    case MethodId::kP2PU:
+      return p2p_u(s.bearings, s.points, rigid);
+    case MethodId::kMP3P:
+      return m_p3p(origins, directions, s.points, rigid);
+    case MethodId::kMP2PU:
+      return m_p2p_u(origins, directions, s.points, rigid);
+    case MethodId::kMP3PL:
+      return m_p3p_l(s.points_local, s.points, sim);
+    case MethodId::kMP2PLU:
+      return m_p2p_lu(s.points_local, s.points, sim);
+    case MethodId::kMP3PLS:
+      return m_p3p_ls(s.points_local, s.points, rigid);
+    case MethodId::kMP2PLUS:
+      return m_p2p_lus(s.points_local, s.points, rigid);
+    case MethodId::kP4LU:
+      return p4l_u(s.bearings, s.lines, rigid);
+    case MethodId::kMP4LU:
+      return m_p4l_u(origins, directions, s.lines, rigid);
+    case MethodId::kMP4LL:
+      return m_p4l_l(s.lines, s.points_local, sim);
+    case MethodId::kMP3LLU:
+      return m_p3l_lu(s.lines, s.points_local, sim);
+    case MethodId::kMP3LLS:
+      return m_p3l_ls(s.lines, s.points_local, rigid);
+    case MethodId::kMP2LLUS:
+      return m_p2l_lus(s.lines, s.points_local, rigid);
+    case MethodId::kP6L:
+      return p6l(s.bearings, s.lines, rigid);
+    case MethodId::kMP6L:
+      return m_p6l(origins, directions, s.lines, rigid);
   }
   Fail("method {} has no minimal solver in this build yet", method_->name);
 }
@@ -168,8 +182,8 @@ double MaxResidual(const MethodInfo& m, const MinimalSample& s, const Sim3d& pos
     double r;
     if (m.local_points) {
       const Eigen::Vector3d& x = s.points_local[i];
-      const double dist = m.lines ? Transform(pose, s.lines[i]).DistanceTo(x)
-                                  : (x - pose * s.points[i]).norm();
+      const double dist =
+          m.lines ? Transform(pose, s.lines[i]).DistanceTo(x) : (x - pose * s.points[i]).norm();
       r = dist / std::max(1.0, x.norm());
     } else {
       Rigid3d cam_from_world(pose.rotation, pose.translation);

@@ -17,8 +17,22 @@
 namespace linecloud {
 
 enum class MethodId {
-  kP3P, kP2PU, kMP3P, kMP2PU, kMP3PL, kMP2PLU, kMP3PLS, kMP2PLUS,
-  kP6L, kP4LU, kMP6L, kMP4LU, kMP4LL, kMP3LLU, kMP3LLS, kMP2LLUS,
+  kP3P,
+  kP2PU,
+  kMP3P,
+  kMP2PU,
+  kMP3PL,
+  kMP2PLU,
+  kMP3PLS,
+  kMP2PLUS,
+  kP6L,
+  kP4LU,
+  kMP6L,
+  kMP4LU,
+  kMP4LL,
+  kMP3LLU,
+  kMP3LLS,
+  kMP2LLUS,
 };
 
 struct MethodInfo {
@@ -52,8 +66,7 @@ struct MinimalSample {
 
 // Throws Error naming `source` and the field when the sample does not fit
 // the method (missing field, wrong count, bad camera index, non-finite value).
-void CheckSample(const MethodInfo& method, const MinimalSample& sample,
-                 std::string_view source);
+void CheckSample(const MethodInfo& method, const MinimalSample& sample, std::string_view source);
 
 // A checked sample in the form its solver takes: for m- methods with
 // bearings, the rays in the rig frame (origin = camera centre c_i, direction

@@ -14,7 +14,7 @@ namespace linecloud {
 //     λ_i f_i = R X_i + t,   i = 1, 2.
 // The central case of m_p2p_u (all rays through the origin): up to 2
 // solutions, cam_from_world. Inputs are gravity-aligned (see METHODS.md).
-int p2p_u(std::span<const Eigen::Vector3d> bearings,
-          std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out);
+int p2p_u(std::span<const Eigen::Vector3d> bearings, std::span<const Eigen::Vector3d> points,
+          std::vector<Rigid3d>* out);
 
 }  // namespace linecloud

@@ -65,8 +65,7 @@ struct Triangle {
 // τ. Returns the number of rays (0 to 2), or −1 when the line holds no real
 // intersection at all.
 template <int K>
-int CutLine(const Eigen::Vector3d& n, const Sym3& f, const Triangle& tri,
-            Eigen::Vector3d* rays) {
+int CutLine(const Eigen::Vector3d& n, const Sym3& f, const Triangle& tri, Eigen::Vector3d* rays) {
   constexpr int I = K == 0 ? 1 : 0, J = K == 2 ? 1 : 2;
   const double inv_nk = -1 / n[K];
   const double ci = n[I] * inv_nk, cj = n[J] * inv_nk;
@@ -96,8 +95,8 @@ int CutLine(const Eigen::Vector3d& n, const Sym3& f, const Triangle& tri,
 
 }  // namespace
 
-int p3p(std::span<const Eigen::Vector3d> bearings,
-        std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out) {
+int p3p(std::span<const Eigen::Vector3d> bearings, std::span<const Eigen::Vector3d> points,
+        std::vector<Rigid3d>* out) {
   CheckMinimalSample("p3p", 3, out, bearings, points);
   out->clear();
   for (int i = 0; i < 3; ++i) {
@@ -164,8 +163,11 @@ int p3p(std::span<const Eigen::Vector3d> bearings,
     beta = 1;
   }
   if (!std::isfinite(alpha) || !std::isfinite(beta)) return 0;
-  const Sym3 c{alpha * m1.e00 + beta * m2.e00, alpha * m1.e01, beta * m2.e02,
-               alpha * m1.e11 + beta * m2.e11, alpha * m1.e12 + beta * m2.e12,
+  const Sym3 c{alpha * m1.e00 + beta * m2.e00,
+               alpha * m1.e01,
+               beta * m2.e02,
+               alpha * m1.e11 + beta * m2.e11,
+               alpha * m1.e12 + beta * m2.e12,
                alpha * m1.e22 + beta * m2.e22};
   // On a line of the member αF1 + βF2 vanishes, so there F1 = −(β/α) F2: the
   // conic with the smaller weight in the member is nearly zero along the line
@@ -191,9 +193,8 @@ int p3p(std::span<const Eigen::Vector3d> bearings,
     }
     p *= 1 / std::sqrt(-min_diag);
     Eigen::Matrix3d r;
-    r << c.e00, c.e01 - p.z(), c.e02 + p.y(),
-        c.e01 + p.z(), c.e11, c.e12 - p.x(),
-        c.e02 - p.y(), c.e12 + p.x(), c.e22;
+    r << c.e00, c.e01 - p.z(), c.e02 + p.y(), c.e01 + p.z(), c.e11, c.e12 - p.x(), c.e02 - p.y(),
+        c.e12 + p.x(), c.e22;
     int j = 0, k = 0;
     double largest = -1;
     for (int row = 0; row < 3; ++row) {
@@ -260,8 +261,8 @@ int p3p(std::span<const Eigen::Vector3d> bearings,
     const Eigen::Vector3d& lam = depths[d];
     const Eigen::Vector3d p0 = lam[0] * y[0];
     const Eigen::Vector3d y01 = lam[1] * y[1] - p0, y02 = lam[2] * y[2] - p0;
-    const Eigen::Matrix3d r = y01 * g0.transpose() + y02 * g1.transpose() +
-                              y01.cross(y02) * g2.transpose();
+    const Eigen::Matrix3d r =
+        y01 * g0.transpose() + y02 * g1.transpose() + y01.cross(y02) * g2.transpose();
     const Eigen::Vector3d t = p0 - r * x[0];
     if (r.allFinite() && t.allFinite()) {
       // The camera triangle is congruent to the world one, so R is a rotation

@@ -25,7 +25,7 @@ namespace linecloud {
 // cubic has a single real root, the two real solutions share one plane and the
 // other is skipped. R = Y X⁻¹ with X, Y the triangles' edge frames
 // [x12, x13, x12 × x13] in world and camera, t = λ1 f1 − R X1.
-int p3p(std::span<const Eigen::Vector3d> bearings,
-        std::span<const Eigen::Vector3d> points, std::vector<Rigid3d>* out);
+int p3p(std::span<const Eigen::Vector3d> bearings, std::span<const Eigen::Vector3d> points,
+        std::vector<Rigid3d>* out);
 
 }  // namespace linecloud

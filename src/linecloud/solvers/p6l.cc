@@ -117,9 +117,8 @@ Layout MakeLayout() {
   for (int b = 0; b < tpl::kBasis; ++b) {
     const Exponent e = tpl::kBasisMonomials[b];
     const int target = key({e.x + 1, e.y, e.z});
-    layout.action[b] = basis_index[target] >= 0
-                           ? basis_index[target]
-                           : -1 - (column[target] - tpl::kEliminated);
+    layout.action[b] =
+        basis_index[target] >= 0 ? basis_index[target] : -1 - (column[target] - tpl::kEliminated);
   }
   int chains = 0;
   std::array<int, 16 * 16 * 16> chain_of_start;
@@ -372,11 +371,9 @@ void SolveSextics(const std::array<Sextic, 15>& sextics, std::vector<Eigen::Vect
 }
 
 Eigen::Matrix3d CayleyRotation(const Eigen::Vector3d& s) {
-  const Eigen::Matrix3d skew = (Eigen::Matrix3d() << 0, -s.z(), s.y(), s.z(), 0, -s.x(),
-                                -s.y(), s.x(), 0)
-                                   .finished();
-  return ((1 - s.squaredNorm()) * Eigen::Matrix3d::Identity() + 2 * skew +
-          2 * s * s.transpose()) /
+  const Eigen::Matrix3d skew =
+      (Eigen::Matrix3d() << 0, -s.z(), s.y(), s.z(), 0, -s.x(), -s.y(), s.x(), 0).finished();
+  return ((1 - s.squaredNorm()) * Eigen::Matrix3d::Identity() + 2 * skew + 2 * s * s.transpose()) /
          (1 + s.squaredNorm());
 }
 
@@ -525,9 +522,9 @@ int m_p6l(std::span<const Eigen::Vector3d> origins, std::span<const Eigen::Vecto
 int p6l(std::span<const Eigen::Vector3d> bearings, std::span<const PluckerLine> lines,
         std::vector<Rigid3d>* out) {
   CheckMinimalSample("p6l", 6, out, bearings, lines);
-  const std::array<Eigen::Vector3d, 6> zero = {
-      Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(),
-      Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  const std::array<Eigen::Vector3d, 6> zero = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(),
+                                               Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(),
+                                               Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
   return m_p6l(zero, bearings, lines, out);
 }
 

@@ -26,8 +26,7 @@ namespace linecloud {
 // Newton steps on the six equations in (R, t) and kept when every ray meets
 // its line in front of its camera (camera-side cheirality only: no sign is
 // imposed along a line). rig_from_world; up to 64 solutions (typically 2–6).
-int m_p6l(std::span<const Eigen::Vector3d> origins,
-          std::span<const Eigen::Vector3d> directions,
+int m_p6l(std::span<const Eigen::Vector3d> origins, std::span<const Eigen::Vector3d> directions,
           std::span<const PluckerLine> lines, std::vector<Rigid3d>* out);
 
 // p6L: one camera (every ray through the origin, m_i = 0), cam_from_world.

@@ -108,8 +108,8 @@ void RealRoots(Poly p, std::vector<double>* roots) {
   }
   if (n > kMaxCompanion) return;
   // Dynamic size with a fixed upper bound: lives on the stack.
-  using Companion = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxCompanion,
-                                  kMaxCompanion>;
+  using Companion =
+      Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxCompanion, kMaxCompanion>;
   Companion companion = Companion::Zero(n, n);
   for (int i = 0; i < n; ++i) companion(0, i) = -p[n - 1 - i] / p[n];
   for (int i = 1; i < n; ++i) companion(i, i - 1) = 1.0;
@@ -157,8 +157,7 @@ double EvalRawDerivative(const double* p, int n, double x) {
 
 // The root of p in (lo, hi) given p(lo) = flo and p(hi) of the opposite
 // sign: Newton steps kept inside the shrinking bracket, bisection otherwise.
-double BracketedRoot(const double* p, int n, double lo, double hi, double flo,
-                     double tolerance) {
+double BracketedRoot(const double* p, int n, double lo, double hi, double flo, double tolerance) {
   double x = 0.5 * (lo + hi);
   for (int it = 0; it < 200; ++it) {
     const double f = EvalRaw(p, n, x);
@@ -181,8 +180,8 @@ double BracketedRoot(const double* p, int n, double lo, double hi, double flo,
 
 // Sorted real roots of p (degree n) in [-bound, bound], given the sorted
 // roots of p' in `critical`.
-int RootsBetween(const double* p, int n, double bound, const double* critical,
-                 int num_critical, double tolerance, double* out) {
+int RootsBetween(const double* p, int n, double bound, const double* critical, int num_critical,
+                 double tolerance, double* out) {
   int count = 0;
   double lo = -bound;
   double flo = EvalRaw(p, n, lo);
@@ -258,7 +257,7 @@ constexpr double kSturmNegligibleLead = 1e-14;
 // unit largest coefficient; a member may drop more than one degree, and the
 // sequence ends early at a common factor (a multiple root).
 struct SturmSequence {
-  static constexpr int kFixedDegree = 0;  // degree known only at run time
+  static constexpr int kFixedDegree = 0;   // degree known only at run time
   double p[kMaxSturm + 1][kMaxSturm + 1];  // p[k][i]: coefficient i of member k
   int degree[kMaxSturm + 1];
   int size = 0;
@@ -546,8 +545,8 @@ double PolishRoot(const Evaluator& evaluate, double a, double b, double fa, doub
     // C |δₖ|³ = |δₖ|⁴ / |δₖ₋₁|³, would be. Tested before the bracket check: x
     // is itself an end of the updated bracket.
     if (std::abs(delta) <= tolerance) return halley;
-    if (last_halley != 0 && std::abs(delta) < 1e-3 * std::abs(last_halley) &&
-        halley > a && halley < b) {
+    if (last_halley != 0 && std::abs(delta) < 1e-3 * std::abs(last_halley) && halley > a &&
+        halley < b) {
       const double ratio = delta / last_halley;
       if (std::abs(delta) * ratio * ratio * ratio <= 1e-16 * scale) return halley;
     }
@@ -584,8 +583,12 @@ int IsolateRoots(const Sequence& sturm, double bound, double* roots) {
   };
   Interval stack[2 * kMaxSturm + 64];
   int top = 0;
-  stack[top++] = {-bound, bound, sturm.SignChangesAtInfinity(-1), sturm.SignChangesAtInfinity(1),
-                  sturm.Value(-bound), sturm.Value(bound)};
+  stack[top++] = {-bound,
+                  bound,
+                  sturm.SignChangesAtInfinity(-1),
+                  sturm.SignChangesAtInfinity(1),
+                  sturm.Value(-bound),
+                  sturm.Value(bound)};
   int count = 0;
   while (top > 0 && count < n) {
     // Fields read one by one (a whole-struct copy here stalled on store
@@ -689,8 +692,8 @@ int SturmRealRoots(const double* coefficients, int degree, double* roots) {
   // coefficients spanning 10¹⁸). The roots are scaled back at the end.
   int lowest = 0;
   while (lowest < n && monic[lowest] == 0) ++lowest;
-  const int exponent = static_cast<int>(std::lround(
-      std::ilogb(monic[lowest]) / static_cast<double>(n - lowest)));
+  const int exponent =
+      static_cast<int>(std::lround(std::ilogb(monic[lowest]) / static_cast<double>(n - lowest)));
   if (exponent != 0) {
     // a_i σ^(i−n), by exact multiplications with 2^−exponent (one ldexp each
     // only where a power could leave double's range).

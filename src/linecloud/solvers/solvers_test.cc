@@ -49,8 +49,8 @@ TEST_P(MinimalSolverTest, RecoversTheTruePoseAndSatisfiesItsEquations) {
     found += has_truth;
   }
   std::cout << "[ " << method.name << " ] true pose in " << found << " / " << kInstances
-            << ", mean solutions " << double(total_solutions) / kInstances
-            << ", worst residual " << worst_residual << "\n";
+            << ", mean solutions " << double(total_solutions) / kInstances << ", worst residual "
+            << worst_residual << "\n";
   EXPECT_GE(found, kInstances * 999 / 1000)
       << method.name << ": true pose found in " << found << " of " << kInstances;
   EXPECT_LT(worst_residual, 1e-8) << method.name;
@@ -101,7 +101,8 @@ TEST_P(MinimalSolverTest, DegenerateSamplesGiveFiniteOrNoSolutions) {
         }
         break;
       case 1:  // collinear points
-        for (size_t i = 0; i < pts.size(); ++i) pts[i] = pts[0] + double(i) * Eigen::Vector3d(1, 2, 3);
+        for (size_t i = 0; i < pts.size(); ++i)
+          pts[i] = pts[0] + double(i) * Eigen::Vector3d(1, 2, 3);
         break;
       case 2:  // parallel lines / identical directions
         for (auto& l : s.lines) l = PluckerLine::FromPointAndDirection(l.Anchor(), s.lines[0].v);
@@ -165,8 +166,10 @@ namespace {
 // [harden] 7: a public solver given too short a sample (or no output) throws
 // instead of reading past its spans.
 TEST(Solvers, PreconditionsAtTheEntryPoints) {
-  const std::vector<Eigen::Vector3d> two(2, Eigen::Vector3d(0, 0, 1)), five(5, Eigen::Vector3d(0, 0, 1));
-  const std::vector<PluckerLine> lines5(5, PluckerLine(Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 0)));
+  const std::vector<Eigen::Vector3d> two(2, Eigen::Vector3d(0, 0, 1)),
+      five(5, Eigen::Vector3d(0, 0, 1));
+  const std::vector<PluckerLine> lines5(
+      5, PluckerLine(Eigen::Vector3d(1, 0, 0), Eigen::Vector3d(0, 1, 0)));
   std::vector<Rigid3d> out;
   EXPECT_THROW(p3p(two, two, &out), Error);
   EXPECT_THROW(p6l(five, lines5, &out), Error);

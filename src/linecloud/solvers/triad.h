@@ -13,8 +13,7 @@ inline bool OrthonormalFrame(const Eigen::Vector3d& a1, const Eigen::Vector3d& a
                              Eigen::Matrix3d* frame) {
   const Eigen::Vector3d n = a1.cross(a2);
   const double n_norm = n.norm(), a1_norm = a1.norm();
-  if (!(n_norm > 1e-12 * a1_norm * a2.norm()) || !(a1_norm > 0) ||
-      !std::isfinite(n_norm)) {
+  if (!(n_norm > 1e-12 * a1_norm * a2.norm()) || !(a1_norm > 0) || !std::isfinite(n_norm)) {
     return false;
   }
   const Eigen::Vector3d e1 = a1 / a1_norm;

@@ -44,8 +44,7 @@ inline Eigen::Quaterniond RotationYUnit(double c, double s) {
 }
 
 // Orthonormal u1, u2 spanning the plane orthogonal to a non-zero d.
-inline void OrthogonalBasis(const Eigen::Vector3d& d, Eigen::Vector3d* u1,
-                            Eigen::Vector3d* u2) {
+inline void OrthogonalBasis(const Eigen::Vector3d& d, Eigen::Vector3d* u1, Eigen::Vector3d* u2) {
   Eigen::Index axis;
   d.cwiseAbs().minCoeff(&axis);
   *u1 = d.cross(Eigen::Vector3d::Unit(axis)).normalized();
@@ -53,8 +52,7 @@ inline void OrthogonalBasis(const Eigen::Vector3d& d, Eigen::Vector3d* u1,
 }
 
 // Real (c, s) on the unit circle with α c + β s + γ = 0; returns how many (0–2).
-inline int IntersectLineUnitCircle(double alpha, double beta, double gamma,
-                                   double cs[2][2]) {
+inline int IntersectLineUnitCircle(double alpha, double beta, double gamma, double cs[2][2]) {
   const double r2 = alpha * alpha + beta * beta;
   if (!(r2 > 1e-300) || !std::isfinite(r2) || !std::isfinite(gamma)) return 0;
   const double disc = r2 - gamma * gamma;

@@ -56,9 +56,7 @@ LocalizationInstance RandomLocalizationInstance(const MethodInfo& method,
                                   s * 0.3 * Eigen::Vector3d(g(rng), g(rng), g(rng)));
     }
   }
-  const auto cam_from_rig = [&](int c) {
-    return method.multi ? q.cam_from_rig[c] : Rigid3d();
-  };
+  const auto cam_from_rig = [&](int c) { return method.multi ? q.cam_from_rig[c] : Rigid3d(); };
 
   uint64_t next_id = 1;
   const auto add_map_point = [&](const Eigen::Vector3d& x) {

@@ -14,10 +14,10 @@ namespace linecloud {
 struct LocalizationInstanceOptions {
   int num_correspondences = 500;
   double inlier_ratio = 0.7;
-  double noise_px = 1.0;            // std. dev. of the pixel noise of inliers
-  double local_noise = 0.005;       // std. dev. of +l points, relative to depth
-  int num_rig_cameras = 3;          // for m- methods
-  double scene_depth = 10.0;        // points at depths in [0.2, 1] × scene_depth
+  double noise_px = 1.0;       // std. dev. of the pixel noise of inliers
+  double local_noise = 0.005;  // std. dev. of +l points, relative to depth
+  int num_rig_cameras = 3;     // for m- methods
+  double scene_depth = 10.0;   // points at depths in [0.2, 1] × scene_depth
   // Each observation gets a match ratio drawn from the histograms measured on
   // real photos (match_scores.h), for progressive sampling.
   bool match_scores = false;
@@ -28,10 +28,10 @@ struct LocalizationInstanceOptions {
 struct LocalizationInstance {
   Query query;
   PointMap point_map;
-  LineMap line_map;               // the point map lifted with random directions
-  Sim3d truth;                    // query_from_world
-  std::vector<char> is_inlier;    // per observation
-  double scene_size = 0;          // for relative translation errors
+  LineMap line_map;             // the point map lifted with random directions
+  Sim3d truth;                  // query_from_world
+  std::vector<char> is_inlier;  // per observation
+  double scene_size = 0;        // for relative translation errors
 };
 
 LocalizationInstance RandomLocalizationInstance(const MethodInfo& method,

@@ -9,7 +9,7 @@ namespace {
 constexpr double kBinWidth = 0.05;
 constexpr std::array<double, 16> kInliers = {44,   30,   165,  671,  1552, 3189, 4546, 5681,
                                              6391, 6641, 6661, 6490, 6102, 5662, 5141, 4639};
-constexpr std::array<double, 16> kOutliers = {1,  0,   0,   1,   6,   5,   13,  26,
+constexpr std::array<double, 16> kOutliers = {1,  0,  0,   1,   6,   5,   13,  26,
                                               44, 69, 112, 170, 266, 398, 743, 1652};
 
 }  // namespace

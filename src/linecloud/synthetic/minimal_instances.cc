@@ -9,10 +9,14 @@ namespace linecloud {
 
 std::string_view FamilyName(InstanceFamily family) {
   switch (family) {
-    case InstanceFamily::kGeneric: return "generic";
-    case InstanceFamily::kNarrowFov: return "10° FOV";
-    case InstanceFamily::kLinesAlongRays: return "lines ~1° from rays";
-    case InstanceFamily::kLinesThroughPoint: return "lines through 1 point";
+    case InstanceFamily::kGeneric:
+      return "generic";
+    case InstanceFamily::kNarrowFov:
+      return "10° FOV";
+    case InstanceFamily::kLinesAlongRays:
+      return "lines ~1° from rays";
+    case InstanceFamily::kLinesThroughPoint:
+      return "lines through 1 point";
   }
   return "?";
 }
@@ -60,15 +64,15 @@ MinimalInstance RandomMinimalInstance(const MethodInfo& m, std::mt19937_64& rng,
   }
   const Rigid3d rig_from_world(truth.rotation, truth.translation);
   // Half-width of the image plane at unit depth: ~90° or 10° field of view.
-  const double half_width = family == InstanceFamily::kNarrowFov ? std::tan(5.0 * std::numbers::pi / 180) : 1.0;
+  const double half_width =
+      family == InstanceFamily::kNarrowFov ? std::tan(5.0 * std::numbers::pi / 180) : 1.0;
   Eigen::Vector3d common_point = Eigen::Vector3d::Zero();
   if (family == InstanceFamily::kLinesThroughPoint) {  // no draw otherwise: same stream
     common_point = world_from_query * Eigen::Vector3d(g(rng), g(rng), 6.0);
   }
   for (int i = 0; i < n; ++i) {
     const int c = m.multi ? (i < num_cameras ? i : static_cast<int>(rng() % num_cameras)) : 0;
-    const Rigid3d cam_from_world =
-        m.multi ? s.cam_from_rig[c] * rig_from_world : rig_from_world;
+    const Rigid3d cam_from_world = m.multi ? s.cam_from_rig[c] * rig_from_world : rig_from_world;
     // A point in front of the camera within a ~90° field of view.
     const Eigen::Vector3d x_cam = Eigen::Vector3d(half_width * u(rng), half_width * u(rng), 1.0) *
                                   (2.0 + 8.0 * 0.5 * (1.0 + u(rng)));
@@ -94,8 +98,8 @@ MinimalInstance RandomMinimalInstance(const MethodInfo& m, std::mt19937_64& rng,
 PoseError ComparePoses(const Sim3d& estimate, const Sim3d& truth) {
   PoseError e;
   e.rotation_rad = estimate.rotation.angularDistance(truth.rotation);
-  e.translation_rel = (estimate.translation - truth.translation).norm() /
-                      std::max(1.0, truth.translation.norm());
+  e.translation_rel =
+      (estimate.translation - truth.translation).norm() / std::max(1.0, truth.translation.norm());
   e.scale_rel = std::abs(estimate.scale - truth.scale) / truth.scale;
   return e;
 }

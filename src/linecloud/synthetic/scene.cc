@@ -39,8 +39,7 @@ void AddBox(const Eigen::Vector3d& lo, const Eigen::Vector3d& hi, bool inward,
   }
 }
 
-Rigid3d LookAt(const Eigen::Vector3d& center, double yaw, double pitch,
-               double roll) {
+Rigid3d LookAt(const Eigen::Vector3d& center, double yaw, double pitch, double roll) {
   const Eigen::Vector3d up = Eigen::Vector3d::UnitY();
   const Eigen::Vector3d forward(std::cos(pitch) * std::sin(yaw), std::sin(pitch),
                                 std::cos(pitch) * std::cos(yaw));
@@ -93,8 +92,7 @@ SyntheticScene GenerateSyntheticScene(const SyntheticSceneOptions& options) {
   camera.model_id = CameraModelId::kSimpleRadial;
   camera.width = options.width;
   camera.height = options.height;
-  camera.params = {options.focal, options.width / 2.0, options.height / 2.0,
-                   options.radial_k};
+  camera.params = {options.focal, options.width / 2.0, options.height / 2.0, options.radial_k};
 
   // Points on surfaces, area-weighted; colour = surface colour + texture.
   struct ScenePoint {
@@ -104,8 +102,8 @@ SyntheticScene GenerateSyntheticScene(const SyntheticSceneOptions& options) {
   std::vector<ScenePoint> points;
   while (static_cast<int>(points.size()) < options.num_points) {
     const double pick = uniform(rng) * total;
-    const size_t k = std::lower_bound(cumulative.begin(), cumulative.end(), pick) -
-                     cumulative.begin();
+    const size_t k =
+        std::lower_bound(cumulative.begin(), cumulative.end(), pick) - cumulative.begin();
     const Surface& s = surfaces[std::min(k, surfaces.size() - 1)];
     ScenePoint p;
     p.xyz = s.origin + uniform(rng) * s.du + uniform(rng) * s.dv;
@@ -123,16 +121,14 @@ SyntheticScene GenerateSyntheticScene(const SyntheticSceneOptions& options) {
 
   // Cameras inside the room at standing height, looking around.
   const auto random_pose = [&]() {
-    const Eigen::Vector3d center(room.x() * (0.2 + 0.6 * uniform(rng)),
-                                 1.2 + 0.6 * uniform(rng),
+    const Eigen::Vector3d center(room.x() * (0.2 + 0.6 * uniform(rng)), 1.2 + 0.6 * uniform(rng),
                                  room.z() * (0.2 + 0.6 * uniform(rng)));
     const double yaw = 2.0 * std::numbers::pi * uniform(rng);
     const double pitch = (uniform(rng) - 0.5) * 0.5;  // ±14°
     const double roll = (uniform(rng) - 0.5) * 0.2;   // ±6°
     return LookAt(center, yaw, pitch, roll);
   };
-  const auto observe = [&](const Rigid3d& cam_from_world, size_t i,
-                           Eigen::Vector2d* xy) {
+  const auto observe = [&](const Rigid3d& cam_from_world, size_t i, Eigen::Vector2d* xy) {
     const ScenePoint& p = points[i];
     const Eigen::Vector3d center = cam_from_world.Center();
     if (p.normal.dot(center - p.xyz) <= 0) return false;  // back-facing
@@ -142,8 +138,7 @@ SyntheticScene GenerateSyntheticScene(const SyntheticSceneOptions& options) {
     if (x.hnormalized().norm() > 1.0) return false;
     const Eigen::Vector2d ideal = camera.ImgFromCam(x);
     *xy = ideal + options.noise_px * Eigen::Vector2d(gaussian(rng), gaussian(rng));
-    return xy->x() >= 0 && xy->y() >= 0 && xy->x() < options.width &&
-           xy->y() < options.height;
+    return xy->x() >= 0 && xy->y() >= 0 && xy->x() < options.width && xy->y() < options.height;
   };
 
   SyntheticScene scene;
@@ -177,8 +172,7 @@ SyntheticScene GenerateSyntheticScene(const SyntheticSceneOptions& options) {
       model.points3D[i + 1] = std::move(p);
     } else {
       for (const TrackElement& el : tracks[i]) {
-        model.images[el.image_id].points2D[el.point2D_idx].point3D_id =
-            kInvalidPoint3DId;
+        model.images[el.image_id].points2D[el.point2D_idx].point3D_id = kInvalidPoint3DId;
       }
     }
   }

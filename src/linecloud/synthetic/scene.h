@@ -18,7 +18,7 @@ struct SyntheticSceneOptions {
   int num_points = 4000;
   int num_map_images = 30;
   int num_queries = 20;
-  double noise_px = 1.0;     // std. dev. of the 2D observation noise
+  double noise_px = 1.0;  // std. dev. of the 2D observation noise
   Eigen::Vector3d room_size = Eigen::Vector3d(10.0, 3.0, 7.0);  // x, y(up), z
   // SIMPLE_RADIAL camera: width, height, f, k (cx, cy at the centre).
   int width = 1024;

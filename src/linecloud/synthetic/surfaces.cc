@@ -18,7 +18,8 @@ struct Patch {
 };
 
 Patch Rectangle(const Eigen::Vector3d& origin, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
-  return {a.cross(b).norm(), [=](double u, double v) { return Eigen::Vector3d(origin + u * a + v * b); }};
+  return {a.cross(b).norm(),
+          [=](double u, double v) { return Eigen::Vector3d(origin + u * a + v * b); }};
 }
 
 // The visible faces of an axis-aligned block standing on the wall (z = 0).
@@ -26,10 +27,10 @@ void Block(const Eigen::Vector3d& min, const Eigen::Vector3d& max, std::vector<P
   const Eigen::Vector3d d = max - min;
   const Eigen::Vector3d ex(d.x(), 0, 0), ey(0, d.y(), 0), ez(0, 0, d.z());
   patches->push_back(Rectangle(Eigen::Vector3d(min.x(), min.y(), max.z()), ex, ey));  // front
-  patches->push_back(Rectangle(min, ey, ez));                                           // left
+  patches->push_back(Rectangle(min, ey, ez));                                         // left
   patches->push_back(Rectangle(Eigen::Vector3d(max.x(), min.y(), min.z()), ey, ez));  // right
   patches->push_back(Rectangle(Eigen::Vector3d(min.x(), max.y(), min.z()), ex, ez));  // top
-  patches->push_back(Rectangle(min, ex, ez));                                           // bottom
+  patches->push_back(Rectangle(min, ex, ez));                                         // bottom
 }
 
 // A half cylinder (column) of radius r on the wall, axis along y at x = cx.
@@ -67,9 +68,11 @@ std::vector<Eigen::Vector3d> SampleFacade(const FacadeOptions& o) {
   o.Check();
   const double w = o.width, h = o.height;
   std::vector<Patch> patches;
-  patches.push_back(Rectangle(Eigen::Vector3d::Zero(), Eigen::Vector3d(w, 0, 0), Eigen::Vector3d(0, h, 0)));
+  patches.push_back(
+      Rectangle(Eigen::Vector3d::Zero(), Eigen::Vector3d(w, 0, 0), Eigen::Vector3d(0, h, 0)));
   // Ground in front of the wall.
-  patches.push_back(Rectangle(Eigen::Vector3d::Zero(), Eigen::Vector3d(w, 0, 0), Eigen::Vector3d(0, 0, 0.3 * h)));
+  patches.push_back(
+      Rectangle(Eigen::Vector3d::Zero(), Eigen::Vector3d(w, 0, 0), Eigen::Vector3d(0, 0, 0.3 * h)));
   // Window sills / blocks, a door frame, two columns and a dome (a fountain's basin).
   for (int i = 0; i < 4; ++i) {
     const double x = (0.1 + 0.22 * i) * w;

@@ -51,13 +51,12 @@ inline std::string SharedDataPath(const std::string& relative) {
 }
 
 // Skips the test, saying why, when a real data set is not present.
-#define LINECLOUD_REQUIRE_DATA(relative)                                      \
-  do {                                                                        \
-    if (!std::filesystem::exists(::linecloud::testing::SharedDataPath(relative))) { \
-      GTEST_SKIP() << "real data absent: "                                    \
-                   << ::linecloud::testing::SharedDataPath(relative)          \
-                   << " (set LINECLOUD_SHARED to the shared/ folder)";       \
-    }                                                                         \
+#define LINECLOUD_REQUIRE_DATA(relative)                                                     \
+  do {                                                                                       \
+    if (!std::filesystem::exists(::linecloud::testing::SharedDataPath(relative))) {          \
+      GTEST_SKIP() << "real data absent: " << ::linecloud::testing::SharedDataPath(relative) \
+                   << " (set LINECLOUD_SHARED to the shared/ folder)";                       \
+    }                                                                                        \
   } while (0)
 
 // The message of the linecloud::Error that `f` throws ("" when none).

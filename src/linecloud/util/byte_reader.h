@@ -22,8 +22,7 @@ static_assert(std::endian::native == std::endian::little,
 
 class ByteReader {
  public:
-  ByteReader(std::string_view data, std::string source)
-      : data_(data), source_(std::move(source)) {}
+  ByteReader(std::string_view data, std::string source) : data_(data), source_(std::move(source)) {}
 
   template <typename T>
   T Read(std::string_view field) {
@@ -48,8 +47,7 @@ class ByteReader {
   std::string ReadCString(std::string_view field) {
     const size_t end = data_.find('\0', pos_);
     if (end == std::string_view::npos) {
-      Fail("{}: truncated: unterminated string '{}' at byte {}", source_,
-           field, pos_);
+      Fail("{}: truncated: unterminated string '{}' at byte {}", source_, field, pos_);
     }
     std::string value(data_.substr(pos_, end - pos_));
     pos_ = end + 1;
@@ -61,17 +59,18 @@ class ByteReader {
   uint64_t ReadCount(std::string_view field, size_t min_record_bytes) {
     const uint64_t count = Read<uint64_t>(field);
     if (min_record_bytes > 0 && count > Remaining() / min_record_bytes) {
-      Fail("{}: corrupt or truncated: '{}' = {} but only {} bytes remain",
-           source_, field, count, Remaining());
+      Fail("{}: corrupt or truncated: '{}' = {} but only {} bytes remain", source_, field, count,
+           Remaining());
     }
     return count;
   }
 
   void Require(size_t bytes, std::string_view field) const {
     if (bytes > Remaining()) {
-      Fail("{}: truncated while reading '{}' at byte {} ({} bytes needed, {} "
-           "left)",
-           source_, field, pos_, bytes, Remaining());
+      Fail(
+          "{}: truncated while reading '{}' at byte {} ({} bytes needed, {} "
+          "left)",
+          source_, field, pos_, bytes, Remaining());
     }
   }
 

@@ -68,8 +68,7 @@ bool WriteAll(int fd, const std::string& data) {
 
 }  // namespace
 
-void WriteFileAtomically(const std::string& path,
-                         const std::function<void(std::ostream&)>& write,
+void WriteFileAtomically(const std::string& path, const std::function<void(std::ostream&)>& write,
                          unsigned mode) {
   // The content first: a failing writer touches no file at all.
   std::ostringstream buffer(std::ios::binary);
@@ -101,7 +100,8 @@ void WriteFileAtomically(const std::string& path,
   // same directory (mkstemp: O_CREAT | O_EXCL, so a planted file or link at
   // its name is never followed), synced, then renamed over the target.
   const std::filesystem::path dir = std::filesystem::path(target).parent_path();
-  std::string tmp = (dir.empty() ? std::filesystem::path(".") : dir).string() + "/.linecloud-XXXXXX";
+  std::string tmp =
+      (dir.empty() ? std::filesystem::path(".") : dir).string() + "/.linecloud-XXXXXX";
   const int fd = ::mkstemp(tmp.data());
   if (fd < 0) Fail("{}: cannot create a file in its folder ({})", path, std::strerror(errno));
   bool ok = ::fchmod(fd, mode) == 0;  // the requested bits, whatever the umask

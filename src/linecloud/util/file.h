@@ -28,8 +28,7 @@ bool IsDirectory(const std::string& path);
 // target; through a symbolic link, replaces the file the link names (the link
 // stays); a device or FIFO (/dev/null, /dev/stdout) is written through, never
 // replaced. Throws Error naming the path on any failure, leaving no file.
-void WriteFileAtomically(const std::string& path,
-                         const std::function<void(std::ostream&)>& write,
+void WriteFileAtomically(const std::string& path, const std::function<void(std::ostream&)>& write,
                          unsigned mode = 0644);
 
 // Throws Error when `output` exists and is one of `inputs` (the same file by

@@ -16,7 +16,8 @@ using testing::TempDir;
 namespace fs = std::filesystem;
 
 void Write(const std::string& path, const std::string& text, unsigned mode = 0644) {
-  WriteFileAtomically(path, [&](std::ostream& out) { out << text; }, mode);
+  WriteFileAtomically(
+      path, [&](std::ostream& out) { out << text; }, mode);
 }
 
 TEST(File, WritesAtomicallyWithTheRequestedMode) {
@@ -77,7 +78,7 @@ TEST(File, RefusesNonRegularInputsAndOutputsOverInputs) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(ReadFileToString(tmp.Path()), Error);       // a directory
+  EXPECT_THROW(ReadFileToString(tmp.Path()), Error);        // a directory
   EXPECT_THROW(ReadFileToString(tmp.Path("none")), Error);  // missing
   Write(tmp.Path("in.lcm"), "map");
   fs::create_directories(tmp.Path("model"));

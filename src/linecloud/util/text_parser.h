@@ -16,8 +16,7 @@ namespace linecloud {
 
 class TextLines {
  public:
-  TextLines(std::string_view data, std::string source)
-      : data_(data), source_(std::move(source)) {}
+  TextLines(std::string_view data, std::string source) : data_(data), source_(std::move(source)) {}
 
   // Next non-empty, non-comment line; false at the end.
   bool Next(std::string_view* line) {
@@ -73,21 +72,20 @@ inline std::vector<std::string_view> SplitWhitespace(std::string_view line) {
 }
 
 template <typename T>
-T ParseNumber(std::string_view token, const TextLines& lines,
-              std::string_view field) {
+T ParseNumber(std::string_view token, const TextLines& lines, std::string_view field) {
   T value{};
   const char* begin = token.data();
   const char* end = token.data() + token.size();
   if (!token.empty() && *begin == '+') ++begin;
   const auto [ptr, ec] = std::from_chars(begin, end, value);
   if (ec != std::errc() || ptr != end) {
-    lines.FailHere("field '" + std::string(field) + "': cannot parse '" +
-                   std::string(token) + "' as a number");
+    lines.FailHere("field '" + std::string(field) + "': cannot parse '" + std::string(token) +
+                   "' as a number");
   }
   if constexpr (std::is_floating_point_v<T>) {
     if (!std::isfinite(value)) {
-      lines.FailHere("field '" + std::string(field) + "' is not finite ('" +
-                     std::string(token) + "')");
+      lines.FailHere("field '" + std::string(field) + "' is not finite ('" + std::string(token) +
+                     "')");
     }
   }
   return value;
