@@ -110,7 +110,7 @@ class ProgressiveSampler {
     if (drawn_ > t_prime_ && subset_ < std::min(n, limit_)) {
       // U_{n+1}: T'_{n+1} = T'_n + ⌈T_{n+1} − T_n⌉.
       const double next = t_n_ * (subset_ + 1) / (subset_ + 1 - k_);
-      t_prime_ += static_cast<int>(std::ceil(next - t_n_));
+      t_prime_ += static_cast<int64_t>(std::ceil(next - t_n_));
       t_n_ = next;
       ++subset_;
     }
@@ -135,10 +135,10 @@ class ProgressiveSampler {
   std::vector<int> ranking_;
   int k_;
   std::mt19937_64 rng_;
-  int subset_;       // n: the sampled prefix U_n
-  int drawn_ = 0;    // t
-  double t_n_ = 0;   // T_n
-  int t_prime_ = 1;  // T'_n
+  int subset_;           // n: the sampled prefix U_n
+  int64_t drawn_ = 0;    // t (64 bits: T'_n may pass 2^31 for huge caps)
+  double t_n_ = 0;       // T_n
+  int64_t t_prime_ = 1;  // T'_n
   bool with_newest_ = true;
   int limit_;  // n*: the prefix does not grow beyond it
 };
