@@ -86,10 +86,11 @@ class UniformSampler {
 
 class ProgressiveSampler {
  public:
-  // `ranking`: the data indices, best first (a permutation of [0, N)).
+  // `ranking`: the data indices, best first (a permutation of [0, N)); it must
+  // outlive the sampler (no copy is made).
   ProgressiveSampler(std::span<const int> ranking, int sample_size, uint64_t seed,
                      int growth_max_samples)
-      : ranking_(ranking.begin(), ranking.end()),
+      : ranking_(ranking),
         k_(sample_size),
         rng_(seed),
         subset_(sample_size),
@@ -132,7 +133,7 @@ class ProgressiveSampler {
   std::span<const int> ranking() const { return ranking_; }
 
  private:
-  std::vector<int> ranking_;
+  std::span<const int> ranking_;
   int k_;
   std::mt19937_64 rng_;
   int subset_;           // n: the sampled prefix U_n
