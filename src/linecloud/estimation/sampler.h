@@ -160,7 +160,8 @@ class ProgressiveStopping {
 
   // One more sample, drawn from U_n (with_newest: u_n and k − 1 of U_{n−1}).
   void Record(int subset, bool with_newest) {
-    ++counts_[Slot(subset, with_newest)];
+    const size_t slot = Slot(subset, with_newest);
+    if (counts_[slot]++ == 0) used_slots_.push_back(static_cast<int>(slot));
     if (has_model_) log_miss_ += LogMiss(subset, with_newest);
   }
 
@@ -175,18 +176,21 @@ class ProgressiveStopping {
       prefix_inliers_[static_cast<size_t>(n)] =
           prefix_inliers_[static_cast<size_t>(n - 1)] + ranking_inlier_[static_cast<size_t>(n)];
     }
+    // n*: the prefix whose samples are most likely all-inlier (largest p,
+    // compared without logarithms; ties keep the shorter). log(1 − p) only
+    // for the prefixes that samples came from (a handful).
     log_miss_ = 0;
     best_prefix_ = n_;
     double best = 0;
     for (int n = k_; n <= n_; ++n) {
-      if (LogMiss(n, false) < best) {  // strictly better: ties keep the shorter
-        best = LogMiss(n, false);
+      const double p = AllInlier(n, false);
+      if (p > best) {
+        best = p;
         best_prefix_ = n;
       }
-      for (const bool newest : {false, true}) {
-        const int c = counts_[Slot(n, newest)];
-        if (c > 0) log_miss_ += c * LogMiss(n, newest);
-      }
+    }
+    for (const int slot : used_slots_) {
+      log_miss_ += counts_[static_cast<size_t>(slot)] * LogMiss(slot / 2, slot % 2 != 0);
     }
   }
 
@@ -214,8 +218,9 @@ class ProgressiveStopping {
     return 2 * static_cast<size_t>(subset) + (with_newest ? 1 : 0);
   }
 
-  // log(1 − p) of a sample from U_n (or u_n + k − 1 of U_{n−1}).
-  double LogMiss(int n, bool with_newest) const {
+  // p: the probability that a sample from U_n (or u_n + k − 1 of U_{n−1}) is
+  // all-inlier; 0 when U_n's support could be chance.
+  double AllInlier(int n, bool with_newest) const {
     if (n < k_ || prefix_inliers_[static_cast<size_t>(n)] < MinInliers(n)) return 0;
     int pool = n, inliers = prefix_inliers_[static_cast<size_t>(n)], draws = k_;
     if (with_newest) {
@@ -226,6 +231,12 @@ class ProgressiveStopping {
     }
     double p = 1;
     for (int j = 0; j < draws; ++j) p *= static_cast<double>(inliers - j) / (pool - j);
+    return p > 0 ? p : 0;
+  }
+
+  // log(1 − p) of such a sample.
+  double LogMiss(int n, bool with_newest) const {
+    const double p = AllInlier(n, with_newest);
     if (!(p > 0)) return 0;
     return p >= 1 ? -std::numeric_limits<double>::infinity() : std::log1p(-p);
   }
@@ -254,7 +265,8 @@ class ProgressiveStopping {
   bool has_model_ = false;
   double log_miss_ = 0;
   int best_prefix_ = 0;
-  std::vector<int> counts_;  // samples per (prefix, with_newest)
+  std::vector<int> counts_;      // samples per (prefix, with_newest)
+  std::vector<int> used_slots_;  // the slots of counts_ that are not zero
   std::vector<int> min_inliers_;
   std::vector<char> ranking_inlier_;  // [n]: the n-th ranked datum is an inlier
   std::vector<int> prefix_inliers_;
