@@ -4,12 +4,14 @@
 #include <cmath>
 #include <limits>
 
+#include "linecloud/util/multiversion.h"
+
 namespace linecloud {
 namespace {
 
 // A ← G⁻¹ A G with G = elementary lower-triangular transforms and row/column
 // swaps, column by column; the result is upper Hessenberg.
-void ReduceToHessenberg(Eigen::MatrixXd* matrix) {
+LINECLOUD_INLINE_INTO_CLONES void ReduceToHessenberg(Eigen::MatrixXd* matrix) {
   Eigen::MatrixXd& a = *matrix;
   const Eigen::Index n = a.rows();
   for (Eigen::Index m = 1; m + 1 < n; ++m) {
@@ -51,8 +53,8 @@ void ReduceToHessenberg(Eigen::MatrixXd* matrix) {
 }
 
 // Eigenvalues of the 2 × 2 block [[p, q], [r, s]].
-void TwoByTwo(double p, double q, double r, double s, std::complex<double>* e1,
-              std::complex<double>* e2) {
+LINECLOUD_INLINE_INTO_CLONES void TwoByTwo(double p, double q, double r, double s,
+                                           std::complex<double>* e1, std::complex<double>* e2) {
   const double half_trace = 0.5 * (p + s);
   const double half_diff = 0.5 * (p - s);
   const double discriminant = half_diff * half_diff + q * r;
@@ -73,7 +75,7 @@ void TwoByTwo(double p, double q, double r, double s, std::complex<double>* e1,
 // Householder reflector P = I − 2vvᵀ/vᵀv with P (x, y[, z]) ∝ e₁; returns
 // the normalised v (v₀ = 1) and τ = 2/vᵀv; false when the input is zero.
 template <int N>
-bool Reflector(const double* in, double* v, double* tau) {
+LINECLOUD_INLINE_INTO_CLONES bool Reflector(const double* in, double* v, double* tau) {
   double norm2 = 0;
   for (int i = 0; i < N; ++i) norm2 += in[i] * in[i];
   if (norm2 == 0) return false;
@@ -93,8 +95,10 @@ bool Reflector(const double* in, double* v, double* tau) {
 // right to columns r..r+N−1 (rows r0..r1). The right product runs down whole
 // columns (contiguous in column-major storage) so that it vectorises.
 template <int N>
-void ApplyReflector(Eigen::MatrixXd& h, Eigen::Index r, const double* v, double tau,
-                    Eigen::Index c0, Eigen::Index c1, Eigen::Index r0, Eigen::Index r1) {
+LINECLOUD_INLINE_INTO_CLONES void ApplyReflector(Eigen::MatrixXd& h, Eigen::Index r,
+                                                 const double* v, double tau, Eigen::Index c0,
+                                                 Eigen::Index c1, Eigen::Index r0,
+                                                 Eigen::Index r1) {
   for (Eigen::Index j = c0; j <= c1; ++j) {
     double* column = &h(r, j);
     double dot = 0;
@@ -120,7 +124,9 @@ void ApplyReflector(Eigen::MatrixXd& h, Eigen::Index r, const double* v, double 
 
 }  // namespace
 
-bool EigenvaluesInPlace(Eigen::MatrixXd* matrix, std::vector<std::complex<double>>* values) {
+// AVX2/FMA and generic clones (util/multiversion.h).
+LINECLOUD_TARGET_CLONES bool EigenvaluesInPlace(Eigen::MatrixXd* matrix,
+                                                std::vector<std::complex<double>>* values) {
   values->clear();
   Eigen::MatrixXd& h = *matrix;
   const Eigen::Index n = h.rows();

@@ -1,6 +1,7 @@
 #include "linecloud/solvers/p6l.h"
 
 #include "linecloud/util/check.h"
+#include "linecloud/util/multiversion.h"
 
 #include <algorithm>
 #include <array>
@@ -273,6 +274,60 @@ void BuildSextics(const std::array<Eigen::Vector3d, 6>& d, const std::array<Eige
   }
 }
 
+// The template T = [T_sq | T_B] (kRows × kCols, column-major) reduced to the
+// rows the action matrix needs: R = the reducible rows of T_sq⁻¹ T_B. Gaussian
+// elimination with partial pivoting on the square block, applied to all
+// columns at once (P T = L [U | L⁻¹ P T_B]); then back substitution with the
+// trailing kReducible × kReducible block of U only. Writes R (kReducible ×
+// kBasis, column-major); false on a zero pivot or a non-finite result.
+// Plain loops on raw storage, cloned for AVX2/FMA (util/multiversion.h).
+LINECLOUD_TARGET_CLONES bool EliminateTemplate(double* t, double* reduced) {
+  constexpr int kSquare = tpl::kEliminated + tpl::kReducible;
+  constexpr int ld = tpl::kRows;
+  for (int k = 0; k < kSquare; ++k) {
+    double* column_k = t + k * ld;
+    int pivot = k;
+    double largest = std::abs(column_k[k]);
+    for (int i = k + 1; i < tpl::kRows; ++i) {
+      if (std::abs(column_k[i]) > largest) {
+        largest = std::abs(column_k[i]);
+        pivot = i;
+      }
+    }
+    if (!(largest > 0) || !std::isfinite(largest)) return false;
+    if (pivot != k) {
+      for (int j = k; j < tpl::kCols; ++j) std::swap(t[j * ld + k], t[j * ld + pivot]);
+    }
+    const double inverse = 1.0 / column_k[k];
+    for (int i = k + 1; i < tpl::kRows; ++i) column_k[i] *= inverse;
+    for (int j = k + 1; j < tpl::kCols; ++j) {
+      double* column = t + j * ld;
+      const double a = column[k];
+      if (a == 0) continue;  // the template is sparse: skip untouched columns
+      for (int i = k + 1; i < tpl::kRows; ++i) column[i] -= a * column_k[i];
+    }
+  }
+  // U_rr R = F_r, column by column of the right-hand side (column-oriented
+  // back substitution: the columns of U are contiguous).
+  constexpr int r0 = tpl::kEliminated;
+  for (int b = 0; b < tpl::kBasis; ++b) {
+    double x[tpl::kReducible];
+    const double* f = t + (kSquare + b) * ld + r0;
+    for (int i = 0; i < tpl::kReducible; ++i) x[i] = f[i];
+    for (int i = tpl::kReducible - 1; i >= 0; --i) {
+      const double* u = t + (r0 + i) * ld + r0;
+      x[i] /= u[i];
+      for (int r = 0; r < i; ++r) x[r] -= x[i] * u[r];
+    }
+    double* out = reduced + b * tpl::kReducible;
+    for (int i = 0; i < tpl::kReducible; ++i) {
+      if (!std::isfinite(x[i])) return false;
+      out[i] = x[i];
+    }
+  }
+  return true;
+}
+
 // Real roots s of the 15 sextics (imaginary part small), unpolished.
 void SolveSextics(const std::array<Sextic, 15>& sextics, std::vector<Eigen::Vector3d>* roots) {
   roots->clear();
@@ -289,20 +344,9 @@ void SolveSextics(const std::array<Sextic, 15>& sextics, std::vector<Eigen::Vect
     const int eq = tpl::kTemplateRows[r].equation;
     for (int k = 0; k < kSextic; ++k) t(r, layout.column[r][k]) = scale[eq] * sextics[eq][k];
   }
-  constexpr int kSquare = tpl::kEliminated + tpl::kReducible;
-  // P T_sq = L U; only the reducible rows of T_sq⁻¹ T_B are needed: forward
-  // substitution with L on all rows, back substitution with the trailing
-  // 26 × 26 block of U only.
-  const Eigen::PartialPivLU<Eigen::MatrixXd> lu(t.leftCols(kSquare));
-  thread_local Eigen::MatrixXd forward;
-  forward = lu.permutationP() * t.rightCols(tpl::kBasis);
-  lu.matrixLU().triangularView<Eigen::UnitLower>().solveInPlace(forward);
   thread_local Eigen::MatrixXd reduced;
-  reduced = lu.matrixLU()
-                .bottomRightCorner(tpl::kReducible, tpl::kReducible)
-                .triangularView<Eigen::Upper>()
-                .solve(forward.bottomRows(tpl::kReducible));
-  if (!reduced.allFinite()) return;
+  reduced.resize(tpl::kReducible, tpl::kBasis);
+  if (!EliminateTemplate(t.data(), reduced.data())) return;
   thread_local Eigen::MatrixXd action;
   action.setZero(tpl::kBasis, tpl::kBasis);
   for (int b = 0; b < tpl::kBasis; ++b) {
