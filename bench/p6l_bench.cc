@@ -34,7 +34,8 @@ std::vector<P6lInstance> P6lInstances(double origins_spread) {
     const Eigen::Vector3d t(u(rng), u(rng), 2 + u(rng));
     for (int i = 0; i < 6; ++i) {
       const Eigen::Vector3d point(u(rng), u(rng), u(rng));
-      instance.lines[i] = PluckerLine::FromPointAndDirection(point, Eigen::Vector3d(g(rng), g(rng), g(rng)));
+      instance.lines[i] =
+          PluckerLine::FromPointAndDirection(point, Eigen::Vector3d(g(rng), g(rng), g(rng)));
       instance.origins[i] = origins_spread * Eigen::Vector3d(u(rng), u(rng), u(rng));
       instance.bearings[i] = (q * point + t - instance.origins[i]).normalized();
     }

@@ -198,6 +198,20 @@ Eigen::Vector2d DistortNormalized(CameraModelId model_id, const std::vector<doub
   Fail("unsupported camera model id {}", static_cast<int>(model_id));
 }
 
+Eigen::Matrix2d DistortionJacobian(CameraModelId model_id, const std::vector<double>& params,
+                                   const Eigen::Vector2d& x) {
+  const double h = 1e-7 * std::max(1.0, x.norm());
+  Eigen::Matrix2d jacobian;
+  for (int d = 0; d < 2; ++d) {
+    Eigen::Vector2d dx = Eigen::Vector2d::Zero();
+    dx[d] = h;
+    jacobian.col(d) = (DistortNormalized(model_id, params, x + dx) -
+                       DistortNormalized(model_id, params, x - dx)) /
+                      (2.0 * h);
+  }
+  return jacobian;
+}
+
 // Newton's method on D(x) = x_d with a central-difference Jacobian. Converges
 // in a few iterations for the mild-to-strong distortions found in practice.
 Eigen::Vector2d UndistortNormalized(CameraModelId model_id, const std::vector<double>& params,
@@ -209,15 +223,7 @@ Eigen::Vector2d UndistortNormalized(CameraModelId model_id, const std::vector<do
   constexpr double kStepTolerance = 1e-15;
   Eigen::Vector2d x = distorted;
   for (int iter = 0; iter < kMaxIterations; ++iter) {
-    const double h = 1e-7 * std::max(1.0, x.norm());
-    Eigen::Matrix2d jacobian;
-    for (int d = 0; d < 2; ++d) {
-      Eigen::Vector2d dx = Eigen::Vector2d::Zero();
-      dx[d] = h;
-      jacobian.col(d) = (DistortNormalized(model_id, params, x + dx) -
-                         DistortNormalized(model_id, params, x - dx)) /
-                        (2.0 * h);
-    }
+    const Eigen::Matrix2d jacobian = DistortionJacobian(model_id, params, x);
     const Eigen::Vector2d residual = DistortNormalized(model_id, params, x) - distorted;
     const Eigen::Vector2d step = jacobian.partialPivLu().solve(residual);
     if (!step.allFinite()) break;
@@ -234,6 +240,19 @@ Eigen::Vector2d Camera::ImgFromCam(const Eigen::Vector3d& point_in_cam) const {
   const Eigen::Vector2d d = DistortNormalized(model_id, params, normalized);
   const Eigen::Vector2d c = PrincipalPoint();
   return {FocalLengthX() * d.x() + c.x(), FocalLengthY() * d.y() + c.y()};
+}
+
+bool Camera::CanUndistort(const Eigen::Vector2d& xy) const {
+  if (!xy.allFinite()) return false;
+  if (model_id == CameraModelId::kSimplePinhole || model_id == CameraModelId::kPinhole) return true;
+  const Eigen::Vector3d ray = CamFromImg(xy);
+  if (!ray.allFinite() || !(ray.z() > 0)) return false;
+  if (!((ImgFromCam(ray) - xy).norm() < 0.01)) return false;
+  const Eigen::Vector2d undistorted = ray.head<2>() / ray.z();
+  const Eigen::Vector2d distorted = DistortNormalized(model_id, params, undistorted);
+  if (distorted.dot(undistorted) < 0) return false;
+  const Eigen::Matrix2d jacobian = DistortionJacobian(model_id, params, undistorted);
+  return jacobian.determinant() > 0 && jacobian.trace() > 0;
 }
 
 Eigen::Vector3d Camera::CamFromImg(const Eigen::Vector2d& xy) const {

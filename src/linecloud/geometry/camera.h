@@ -70,6 +70,13 @@ struct Camera {
   // removing distortion iteratively.
   Eigen::Vector3d CamFromImg(const Eigen::Vector2d& xy) const;
 
+  // Whether the pixel's ray can be recovered: undistortion converges (the
+  // pixel comes back within 0.01 px), the ray is in front, and the pixel lies
+  // before the distortion's fold (same side of the centre, Jacobian keeps its
+  // orientation). Polynomial models fold beyond some radius (SIMPLE_RADIAL
+  // with k < 0 peaks and falls). Always true without distortion.
+  bool CanUndistort(const Eigen::Vector2d& xy) const;
+
   // Unit bearing vector of a pixel.
   Eigen::Vector3d BearingFromImg(const Eigen::Vector2d& xy) const {
     return CamFromImg(xy).normalized();
@@ -82,5 +89,8 @@ Eigen::Vector2d DistortNormalized(CameraModelId model_id, const std::vector<doub
                                   const Eigen::Vector2d& undistorted);
 Eigen::Vector2d UndistortNormalized(CameraModelId model_id, const std::vector<double>& params,
                                     const Eigen::Vector2d& distorted);
+// ∂D/∂x of DistortNormalized at x (central differences).
+Eigen::Matrix2d DistortionJacobian(CameraModelId model_id, const std::vector<double>& params,
+                                   const Eigen::Vector2d& x);
 
 }  // namespace linecloud

@@ -1,5 +1,6 @@
 #include "linecloud/geometry/camera.h"
 
+#include <cmath>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -121,6 +122,33 @@ TEST(Camera, CheckRejectsImplausibleDistortion) {
   c = RealisticCameras()[4];  // OPENCV
   c.params[4] = -3;
   EXPECT_THROW(c.Check("cams.txt"), Error);
+}
+
+TEST(Camera, DistortionJacobianMatchesTheFormula) {
+  // SIMPLE_RADIAL: D(x) = x (1 + k |x|²), ∂D/∂x = (1 + k |x|²) I + 2k x xᵀ.
+  const Camera c = RealisticCameras()[2];
+  const double k = c.params[3];
+  const Eigen::Vector2d x(0.4, -0.3);
+  const Eigen::Matrix2d expected =
+      (1 + k * x.squaredNorm()) * Eigen::Matrix2d::Identity() + 2 * k * x * x.transpose();
+  EXPECT_LT((DistortionJacobian(c.model_id, c.params, x) - expected).norm(), 1e-8);
+}
+
+TEST(Camera, CanUndistortStopsAtTheFold) {
+  for (const Camera& c : RealisticCameras()) {
+    EXPECT_TRUE(c.CanUndistort({0, 0})) << CameraModelName(c.model_id);
+    EXPECT_TRUE(c.CanUndistort({1536, 1024})) << CameraModelName(c.model_id);
+    EXPECT_FALSE(c.CanUndistort({std::nan(""), 3})) << CameraModelName(c.model_id);
+  }
+  // SIMPLE_RADIAL k = −0.08, f = 1200: the distorted radius r (1 + k r²) peaks
+  // at r = 1/√(3|k|), 1.36 normalised (1633 px from the centre); beyond it no
+  // ray maps to the pixel.
+  const Camera c = RealisticCameras()[2];
+  EXPECT_TRUE(c.CanUndistort({768 + 1500, 512}));
+  EXPECT_FALSE(c.CanUndistort({768 + 1800, 512}));
+  EXPECT_FALSE(c.CanUndistort({768 - 4000, 512 + 3000}));
+  // No distortion: every finite pixel has a ray.
+  EXPECT_TRUE(RealisticCameras()[0].CanUndistort({1e6, -1e6}));
 }
 
 }  // namespace

@@ -334,30 +334,6 @@ double RefineFocalFactor(const MethodInfo& method, const Query& query, const Loc
 
 namespace {
 
-// Whether undistortion gives the pixel back from a ray the lens can see: far
-// outside the image a distortion polynomial folds back (r (1 + k r²) with
-// k < 0 peaks and falls), and Newton's method then finds no answer or one
-// beyond the fold — on the opposite side of the image centre, or where the
-// distortion's Jacobian reverses orientation.
-bool Undistortable(const Camera& camera, const Eigen::Vector2d& xy) {
-  const Eigen::Vector3d ray = camera.CamFromImg(xy);
-  if (!ray.allFinite() || !(ray.z() > 0)) return false;
-  if (!((camera.ImgFromCam(ray) - xy).norm() < 0.01)) return false;
-  const Eigen::Vector2d undistorted = ray.head<2>() / ray.z();
-  const Eigen::Vector2d distorted = DistortNormalized(camera.model_id, camera.params, undistorted);
-  if (distorted.dot(undistorted) < 0) return false;
-  const double h = 1e-6 * std::max(1.0, undistorted.norm());
-  Eigen::Matrix2d jacobian;
-  for (int d = 0; d < 2; ++d) {
-    Eigen::Vector2d dx = Eigen::Vector2d::Zero();
-    dx[d] = h;
-    jacobian.col(d) = (DistortNormalized(camera.model_id, camera.params, undistorted + dx) -
-                       DistortNormalized(camera.model_id, camera.params, undistorted - dx)) /
-                      (2 * h);
-  }
-  return jacobian.determinant() > 0 && jacobian.trace() > 0;
-}
-
 // The query without the observations that cannot be undistorted; kept[i] is
 // the original index of observation i.
 Query UsableObservations(const Query& query, std::vector<int>* kept) {
@@ -367,7 +343,7 @@ Query UsableObservations(const Query& query, std::vector<int>* kept) {
   kept->clear();
   for (size_t i = 0; i < query.observations.size(); ++i) {
     const QueryObservation& o = query.observations[i];
-    if (!Undistortable(query.cameras[static_cast<size_t>(o.camera)], o.xy)) continue;
+    if (!query.cameras[static_cast<size_t>(o.camera)].CanUndistort(o.xy)) continue;
     kept->push_back(static_cast<int>(i));
     usable.observations.push_back(o);
     if (!query.points_local.empty()) usable.points_local.push_back(query.points_local[i]);
