@@ -408,10 +408,13 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
   const PoseEstimator final_inliers(method, prepared.data, options.local_refinement);
   final_inliers.inliers(pose, options.ransac.max_error, &mask);
   InlierIndices(mask, &result.inliers);
-  // Refined again on the refined pose's inliers until they stop changing (at
-  // most two more rounds): the pose then does not depend on how rough
-  // RANSAC's model was — a progressive run may stop after three samples.
-  for (int round = 0; round < 2 && options.refine && result.inliers != ransac_inliers; ++round) {
+  // After progressive sampling, refined again on the refined pose's inliers
+  // until they stop changing (at most two more rounds): such a run may stop
+  // after three samples, and the pose should not depend on how rough RANSAC's
+  // model was. Uniform runs keep one refinement (their cost is unchanged).
+  const int extra_rounds = ransac.stats.progressive ? 2 : 0;
+  for (int round = 0; round < extra_rounds && options.refine && result.inliers != ransac_inliers;
+       ++round) {
     ransac_inliers = result.inliers;
     result.refine_iterations += RefineStage(method, prepared.data, ransac_inliers, options, &pose,
                                             &result.refine_ms, nullptr);
