@@ -128,11 +128,14 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
 
   const bool progressive = options.progressive_sampling && !ranking.empty();
   UniformSampler uniform(n, k, options.seed);
+  // Only progressive runs pay for their sampler and stopping rule (the rule's
+  // table of I_min(n) costs about as much as a whole p3P run).
   std::optional<ProgressiveSampler> prosac;
+  std::optional<ProgressiveStopping> stopping;
   if (progressive) {
     prosac.emplace(ranking, k, options.seed, options.max_iterations);
+    stopping.emplace(n, k, options.confidence);
   }
-  ProgressiveStopping stopping(n, k, options.confidence);
   std::vector<int> sample(k);
   std::vector<char> mask;
   std::vector<Model> models;
@@ -147,7 +150,7 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
   // min_iterations is a floor of uniform sampling; the progressive rule needs
   // a support that chance cannot explain before it counts any sample.
   const auto enough = [&] {
-    if (progressive) return stopping.Done();
+    if (progressive) return stopping->Done();
     return iteration >= options.min_iterations && iteration >= needed;
   };
   for (; iteration < options.max_iterations; ++iteration) {
@@ -168,7 +171,7 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
     }
     if (progressive) {
       prosac->Sample(&sample);
-      stopping.Record(prosac->subset_size(), prosac->last_with_newest());
+      stopping->Record(prosac->subset_size(), prosac->last_with_newest());
     } else {
       uniform.Sample(&sample);
     }
@@ -203,9 +206,9 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
       result.success = true;
       if (progressive) {
         estimator.inliers(model, options.max_error, &mask);
-        stopping.Update(mask, ranking);
-        prosac->LimitGrowth(stopping.best_prefix());
-        needed = iteration + 1 + stopping.Remaining(prosac->subset_size(), options.max_iterations);
+        stopping->Update(mask, ranking);
+        prosac->LimitGrowth(stopping->best_prefix());
+        needed = iteration + 1 + stopping->Remaining(prosac->subset_size(), options.max_iterations);
       } else {
         needed = RequiredIterations(static_cast<double>(inliers) / n, k, options.confidence,
                                     options.max_iterations);
