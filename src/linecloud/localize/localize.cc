@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <numeric>
+#include <span>
 
 #include <Eigen/Geometry>
 
@@ -170,8 +171,9 @@ std::vector<int> MatchRanking(const std::vector<QueryObservation>& observations)
   return ranking;
 }
 
-PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query, const LocalizationMap& map,
-                           std::string_view source) {
+namespace {
+
+void CheckMethodAndMap(const MethodInfo& method, const LocalizationMap& map) {
   if (!method.implemented) Fail("method {} has no minimal solver in this build yet", method.name);
   const bool line_map = std::holds_alternative<LineMap>(map);
   if (method.lines != line_map) {
@@ -179,8 +181,18 @@ PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query, const L
          method.lines ? "line cloud (--map)" : "point model (--model)",
          line_map ? "line cloud" : "point model");
   }
-  CheckQuery(method, query, source);
+}
 
+// PrepareQuery for a query CheckQuery has passed (Localize checks once, then
+// prepares the undistortable subset). Errors name observation
+// original_index[i] when given (the index in the query as the user wrote it).
+PreparedQuery PrepareCheckedQuery(const MethodInfo& method, const Query& query,
+                                  const LocalizationMap& map, std::string_view source,
+                                  std::span<const int> original_index = {}) {
+  const bool line_map = std::holds_alternative<LineMap>(map);
+  const auto index = [&](size_t i) {
+    return original_index.empty() ? i : static_cast<size_t>(original_index[i]);
+  };
   // +u: rotate both frames so that gravity is −y; the solvers then look for
   // a rotation about y. aligned = A x; undone on the result.
   PreparedQuery prepared;
@@ -206,8 +218,8 @@ PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query, const L
     const Camera& camera = query.cameras[o.camera];
     const Eigen::Vector3d ray = camera.CamFromImg(o.xy);
     if (!ray.allFinite() || !(ray.z() > 0)) {
-      Fail("{}: observations[{}].xy = ({}, {}) cannot be undistorted by camera {}", source, i,
-           o.xy.x(), o.xy.y(), o.camera);
+      Fail("{}: observations[{}].xy = ({}, {}) cannot be undistorted by camera {}", source,
+           index(i), o.xy.x(), o.xy.y(), o.camera);
     }
     data.camera.push_back(o.camera);
     data.normalized.push_back(ray.head<2>() / ray.z());
@@ -219,7 +231,7 @@ PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query, const L
       const uint64_t id = o.line_id.value_or(o.id);
       const auto it = lines.find(id);
       if (it == lines.end()) {
-        Fail("{}: observations[{}].{} = {} is not in the map", source, i,
+        Fail("{}: observations[{}].{} = {} is not in the map", source, index(i),
              o.line_id ? "line_id" : "id", id);
       }
       data.lines.push_back(PluckerLine(align_map * it->second.v, align_map * it->second.w));
@@ -227,12 +239,21 @@ PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query, const L
       const auto& points = std::get<PointMap>(map).points;
       const auto it = points.find(o.id);
       if (it == points.end())
-        Fail("{}: observations[{}].id = {} is not in the map", source, i, o.id);
+        Fail("{}: observations[{}].id = {} is not in the map", source, index(i), o.id);
       data.points.push_back(align_map * it->second);
     }
   }
   data.ranking = MatchRanking(query.observations);
   return prepared;
+}
+
+}  // namespace
+
+PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query, const LocalizationMap& map,
+                           std::string_view source) {
+  CheckMethodAndMap(method, map);
+  CheckQuery(method, query, source);
+  return PrepareCheckedQuery(method, query, map, source);
 }
 
 Sim3d PreparedQuery::ToQueryFromWorld(const Sim3d& aligned_pose) const {
@@ -353,12 +374,12 @@ Query UsableObservations(const Query& query, std::vector<int>* kept) {
 
 LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
                               const LocalizationMap& map, const LocalizeOptions& options,
-                              std::string_view source) {
+                              std::string_view source, std::span<const int> kept) {
   if (options.refine_focal && query.cameras.size() != 1) {
     Fail("{}: refining the focal length needs a query with one camera, got {}", source,
          query.cameras.size());
   }
-  PreparedQuery prepared = PrepareQuery(method, query, map, source);
+  PreparedQuery prepared = PrepareCheckedQuery(method, query, map, source, kept);
   LocalizeResult result;
   result.num_correspondences = static_cast<int>(query.observations.size());
   PoseEstimator estimator(method, prepared.data, options.local_refinement);
@@ -383,7 +404,7 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
       const double k =
           RefineFocalFactor(method, scaled, map, ransac_inliers, pose, options, &result.refine_ms);
       scaled.cameras[0].ScaleFocalLength(k);
-      prepared = PrepareQuery(method, scaled, map, source);
+      prepared = PrepareCheckedQuery(method, scaled, map, source, kept);
       RefineStage(method, prepared.data, ransac_inliers, options, &pose, &result.refine_ms,
                   nullptr);
       std::vector<char> mask;
@@ -434,10 +455,11 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
 LocalizeResult Localize(const MethodInfo& method, const Query& query, const LocalizationMap& map,
                         const LocalizeOptions& options, std::string_view source) {
   options.Check();
+  CheckMethodAndMap(method, map);
   CheckQuery(method, query, source);
   std::vector<int> kept;
   const Query usable = UsableObservations(query, &kept);
-  LocalizeResult result = LocalizeUsable(method, usable, map, options, source);
+  LocalizeResult result = LocalizeUsable(method, usable, map, options, source, kept);
   // Indices and counts refer to the query as given; rejected observations
   // count against the inlier ratio.
   result.num_correspondences = static_cast<int>(query.observations.size());

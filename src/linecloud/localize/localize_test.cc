@@ -128,6 +128,14 @@ TEST(Localize, ObservationsThatCannotBeUndistortedAreRejectedAndCounted) {
   EXPECT_GE(r.inliers.size(), 130u);
   const LocalizationError e = CompareLocalization(r.query_from_world, inst.truth);
   EXPECT_LT(e.rotation_rad, 0.1 * kDeg);
+  // An error after the rejection names the observation as the query numbers
+  // it, not its place among the kept ones.
+  Query unknown = inst.query;
+  unknown.observations[150].id = 987654321;
+  EXPECT_NE(testing::ErrorOf([&] {
+              Localize(method, unknown, LocalizationMap(inst.point_map), options, "q.json");
+            }).find("q.json: observations[150].id = 987654321 is not in the map"),
+            std::string::npos);
 }
 
 INSTANTIATE_TEST_SUITE_P(Methods, LocalizeTest,
