@@ -404,6 +404,7 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
       const double k =
           RefineFocalFactor(method, scaled, map, ransac_inliers, pose, options, &result.refine_ms);
       scaled.cameras[0].ScaleFocalLength(k);
+      CheckQuery(method, scaled, source);  // the rescaled camera is checked anew, as before
       prepared = PrepareCheckedQuery(method, scaled, map, source, kept);
       RefineStage(method, prepared.data, ransac_inliers, options, &pose, &result.refine_ms,
                   nullptr);
