@@ -71,6 +71,23 @@ MapDescriptors MapDescriptorsExcluding(const Reconstruction& map, const std::str
   return MapDescriptorsFromModel(map, database);
 }
 
+namespace {
+
+// The photo's features: extracted now, or once into `cache` and copied from
+// it.
+ImageQuery ExtractOnce(const std::string& path, const Camera& camera, ExtractedPhotos* cache) {
+  if (!cache) return ExtractImageQuery(path, camera, {});
+  auto it = cache->find(path);
+  if (it == cache->end()) {
+    ImageQuery q = ExtractImageQuery(path, camera, {});
+    q.image = GreyImage{};
+    it = cache->emplace(path, std::move(q)).first;
+  }
+  return it->second;
+}
+
+}  // namespace
+
 json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const LiftingKey& key,
                        const DirectMatchingOptions& options) {
   constexpr double kDeg = 180.0 / std::numbers::pi;
@@ -87,7 +104,9 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
     const GroupMap map = LoadGroupMap(work_dir, g, key, options);
     for (const EvalImage& im : g.images) {
       const std::string path = JoinPaths(JoinPaths(work.dataset_dir, "images"), im.name);
-      const ImageQuery q = QueryFromImage(path, work.cameras.at(im.camera_id), map.descriptors, {});
+      const Camera& camera = work.cameras.at(im.camera_id);
+      ImageQuery q = ExtractOnce(path, camera, options.extracted.get());
+      MatchImageQuery(q, camera, map.descriptors, {});
       json row = {{"group", g.name},
                   {"image", im.name},
                   {"features", q.features.size()},

@@ -7,6 +7,8 @@
 // reach the map it is localized against.
 #pragma once
 
+#include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -19,6 +21,11 @@
 
 namespace linecloud {
 
+// Photos already decoded and described (SIFT), by path, without their
+// pixels: `eval privacy` matches each photo to every lifting's maps and
+// extracts it once.
+using ExtractedPhotos = std::map<std::string, ImageQuery>;
+
 struct DirectMatchingOptions {
   std::vector<std::string> methods = {"p6L", "p3P"};
   double max_rotation_deg = 0.5;  // "localized" thresholds of [image]
@@ -26,6 +33,9 @@ struct DirectMatchingOptions {
   double threshold_px = 4.0;
   uint64_t seed = 1;
   MapLifting lifting;  // how the maps are lifted (lift's --sparsify, ...)
+  // When set, photos are extracted once into it and reused from it (their
+  // extract_ms is the time of that one extraction).
+  std::shared_ptr<ExtractedPhotos> extracted;
 };
 
 // The map's descriptors (medoid of each track) from `database`; throws Error

@@ -604,6 +604,7 @@ void RunDirectMatchingStage(const EvalInputs& in, const EvalRunOptions& options,
   dm.threshold_px = options.threshold_px;
   dm.seed = options.seed;
   dm.lifting = options.lifting;
+  dm.extracted = options.extracted_photos;
   (*report)["direct_matching"] = RunDirectMatching(in.work, options.work_dir, in.key, dm);
 }
 

@@ -5,11 +5,13 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "linecloud/eval/direct_matching.h"
 #include "linecloud/eval/eval_work.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/privacy/map_lifting.h"
@@ -32,6 +34,9 @@ struct EvalRunOptions {
   // The deployable protocol beside the paper's: query images' own features
   // matched to the map's descriptors (direct_matching.h).
   bool direct_matching = true;
+  // Shared by runs that match the same photos to other maps (eval privacy):
+  // each photo's SIFT is extracted once.
+  std::shared_ptr<ExtractedPhotos> extracted_photos;
 
   void Check() const;
 };

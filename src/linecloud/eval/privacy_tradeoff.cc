@@ -240,6 +240,7 @@ ojson RunPrivacyTradeoff(const PrivacyTradeoffOptions& o) {
     Fail("eval privacy: the first lifting must be the plain one");
   CreateDirectories(o.out_dir);
   ojson rows = ojson::array();
+  const auto photos = std::make_shared<ExtractedPhotos>();  // SIFT once per photo
   for (const MapLifting& lifting : liftings) {
     if (o.progress) o.progress(fmt::format("{}: attack", lifting.Name()));
     ojson row = {{"lifting", lifting.Name()}};
@@ -253,6 +254,7 @@ ojson RunPrivacyTradeoff(const PrivacyTradeoffOptions& o) {
     run.density_sweep.clear();
     run.noise_sweep.clear();
     run.direct_matching = o.direct_matching;
+    run.extracted_photos = photos;
     row["localization"] = Localization(RunEvaluation(run), o.methods);
     rows.push_back(row);
   }

@@ -104,12 +104,8 @@ Eigen::Vector3d ParseDirection(const std::string& text, const std::string& optio
   return v.normalized();
 }
 
-ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
-                          const MapDescriptors& map, const ImageQueryOptions& options,
-                          const DescriptorIndex* index) {
-  const auto say = [&](const std::string& what) {
-    if (options.progress) options.progress(what);
-  };
+ImageQuery ExtractImageQuery(const std::string& image_path, const Camera& camera,
+                             const ImageQueryOptions& options) {
   ImageQuery out;
   auto start = Clock::now();
   out.image = ReadGreyImage(image_path);
@@ -120,24 +116,42 @@ ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
     Fail("{}: the image is {}x{} pixels but the camera is {}x{}", image_path, image.width,
          image.height, camera.width, camera.height);
   }
-  say(fmt::format("extracting SIFT from {} ({}x{})", image_path, image.width, image.height));
+  if (options.progress) {
+    options.progress(
+        fmt::format("extracting SIFT from {} ({}x{})", image_path, image.width, image.height));
+  }
   start = Clock::now();
   out.features = ExtractSift(image, options.sift);
   out.times.extract_ms = MsSince(start);
-  say(fmt::format("{} features in {:.0f} ms; matching to {} map descriptors", out.features.size(),
-                  out.times.extract_ms, map.ids.size()));
-  start = Clock::now();
-  out.matches = index
-                    ? index->Match(out.features.descriptors, options.matching)
-                    : MatchDescriptors(out.features.descriptors, map.descriptors, options.matching);
-  out.times.match_ms = MsSince(start);
-  say(fmt::format("{} matches in {:.0f} ms", out.matches.size(), out.times.match_ms));
-  out.query.cameras.push_back(camera);
-  for (const DescriptorMatch& m : out.matches) {
-    const SiftKeypoint& k = out.features.keypoints[m.query];
-    out.query.observations.push_back(
+  return out;
+}
+
+void MatchImageQuery(ImageQuery& q, const Camera& camera, const MapDescriptors& map,
+                     const ImageQueryOptions& options, const DescriptorIndex* index) {
+  const auto say = [&](const std::string& what) {
+    if (options.progress) options.progress(what);
+  };
+  say(fmt::format("{} features in {:.0f} ms; matching to {} map descriptors", q.features.size(),
+                  q.times.extract_ms, map.ids.size()));
+  const auto start = Clock::now();
+  q.matches = index ? index->Match(q.features.descriptors, options.matching)
+                    : MatchDescriptors(q.features.descriptors, map.descriptors, options.matching);
+  q.times.match_ms = MsSince(start);
+  say(fmt::format("{} matches in {:.0f} ms", q.matches.size(), q.times.match_ms));
+  q.query = Query{};
+  q.query.cameras.push_back(camera);
+  for (const DescriptorMatch& m : q.matches) {
+    const SiftKeypoint& k = q.features.keypoints[m.query];
+    q.query.observations.push_back(
         {0, Eigen::Vector2d(k.x, k.y), map.ids[m.map], std::nullopt, m.ratio});
   }
+}
+
+ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
+                          const MapDescriptors& map, const ImageQueryOptions& options,
+                          const DescriptorIndex* index) {
+  ImageQuery out = ExtractImageQuery(image_path, camera, options);
+  MatchImageQuery(out, camera, map, options, index);
   return out;
 }
 

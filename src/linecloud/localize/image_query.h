@@ -68,6 +68,14 @@ struct ImageQuery {
 // Throws Error naming the image when it cannot be read or its size differs
 // from the camera's.
 // `index`, when given, matches instead of the exact search.
+// QueryFromImage = ExtractImageQuery + MatchImageQuery; the two halves let a
+// caller that matches one photo to several maps extract it once.
+ImageQuery ExtractImageQuery(const std::string& image_path, const Camera& camera,
+                             const ImageQueryOptions& options);
+// Matches `q`'s features to `map` and sets its matches, query and match time
+// (any earlier ones are replaced).
+void MatchImageQuery(ImageQuery& q, const Camera& camera, const MapDescriptors& map,
+                     const ImageQueryOptions& options, const DescriptorIndex* index = nullptr);
 ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
                           const MapDescriptors& map, const ImageQueryOptions& options,
                           const DescriptorIndex* index = nullptr);
