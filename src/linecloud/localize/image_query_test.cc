@@ -34,8 +34,7 @@ void ExpectSameQuery(const ImageQuery& a, const ImageQuery& b) {
 // earlier match leaves nothing behind.
 TEST(ImageQuery, ExtractedOnceMatchesEachMapAsAFreshExtraction) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
-  const Reconstruction model =
-      ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
+  const Reconstruction model = ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
   const MapDescriptors full =
       MapDescriptorsFromModel(model, SharedDataPath("colmap-maupertuis/colmap.db"));
   MapDescriptors half;  // every other descriptor: another map
