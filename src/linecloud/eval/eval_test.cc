@@ -488,7 +488,7 @@ namespace {
 // but COLMAP 3.8's matching and registration are not reproducible (its PRNG is
 // thread-local and only the main thread gets --random_seed), so the map and
 // COLMAP's median of 11 photos move from run to run: the ratio of one run was
-// 1.05x-1.61x over nine runs (docs/image.md, "How much one run says").
+// 1.05x-1.61x over ten runs (docs/image.md, "How much one run says").
 TEST(EvalColmap, P6lAgainstColmapsOwnRegistration) {
   const char* path = std::getenv("LINECLOUD_COLMAP_REPORT");
   if (!path)
