@@ -63,6 +63,21 @@ CameraPoses::CameraPoses(const PoseData& data, const Sim3d& query_from_world)
   }
 }
 
+double MeanReprojectionError(const PoseData& data, const Sim3d& query_from_world,
+                             std::span<const int> indices) {
+  CheckIndices(data, indices, "MeanReprojectionError");
+  const CameraPoses poses(data, query_from_world);
+  double sum = 0;
+  size_t n = 0;
+  for (const int i : indices) {
+    const double e2 = SquaredReprojectionError(data, poses, static_cast<size_t>(i));
+    if (!std::isfinite(e2)) continue;
+    sum += std::sqrt(e2);
+    ++n;
+  }
+  return n ? sum / static_cast<double>(n) : 0.0;
+}
+
 PoseLinearization::PoseLinearization(const PoseData& data, const Sim3d& query_from_world)
     : rotation(query_from_world.rotation.toRotationMatrix()),
       translation(query_from_world.translation),

@@ -79,6 +79,12 @@ struct PoseLinearization {
   PoseLinearization(const PoseData& data, const Sim3d& query_from_world);
 };
 
+// Mean reprojection error (px) of the correspondences `indices` at the pose;
+// those it puts behind their camera (no image position, +∞ above) are left
+// out, like the secret points of the evaluation. 0 when none is left.
+double MeanReprojectionError(const PoseData& data, const Sim3d& query_from_world,
+                             std::span<const int> indices);
+
 // Residuals of correspondence i (2 for a point, 1 for a line, in px) and their
 // Jacobian with respect to a left perturbation of query_from_world:
 // R ← exp([ω]×) R, t ← t + δt, s ← s·exp(δσ), columns (ω, δt, δσ).

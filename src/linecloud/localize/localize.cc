@@ -17,17 +17,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
-double MeanReprojectionError(const PoseData& data, const Sim3d& pose,
-                             const std::vector<int>& indices) {
-  if (indices.empty()) return 0;
-  const CameraPoses poses(data, pose);
-  double sum = 0;
-  for (const int i : indices) {
-    sum += std::sqrt(SquaredReprojectionError(data, poses, static_cast<size_t>(i)));
-  }
-  return sum / static_cast<double>(indices.size());
-}
-
 void CheckQuery(const MethodInfo& method, const Query& q, std::string_view source) {
   if (q.cameras.empty()) Fail("{}: 'cameras' is empty", source);
   for (size_t c = 0; c < q.cameras.size(); ++c) {
@@ -392,8 +381,9 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
   }
   std::vector<int> ransac_inliers;
   InlierIndices(ransac.inlier_mask, &ransac_inliers);
+  const std::vector<int> first_inliers = ransac_inliers;  // both reprojection means use these
   result.reprojection_initial_px =
-      MeanReprojectionError(prepared.data, ransac.model, ransac_inliers);
+      MeanReprojectionError(prepared.data, ransac.model, first_inliers);
   Sim3d pose = ransac.model;
   result.given_focal = query.cameras[0].MeanFocalLength();
   if (options.refine_focal) {
@@ -425,7 +415,6 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
   }
   result.refine_iterations = RefineStage(method, prepared.data, ransac_inliers, options, &pose,
                                          &result.refine_ms, nullptr);
-  result.reprojection_refined_px = MeanReprojectionError(prepared.data, pose, ransac_inliers);
   std::vector<char> mask;
   const PoseEstimator final_inliers(method, prepared.data, options.local_refinement);
   final_inliers.inliers(pose, options.ransac.max_error, &mask);
@@ -443,6 +432,7 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
     final_inliers.inliers(pose, options.ransac.max_error, &mask);
     InlierIndices(mask, &result.inliers);
   }
+  result.reprojection_refined_px = MeanReprojectionError(prepared.data, pose, first_inliers);
   result.query_from_world = prepared.ToQueryFromWorld(pose);
   result.initial = prepared.ToQueryFromWorld(ransac.model);
   result.has_pose = true;

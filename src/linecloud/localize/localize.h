@@ -134,8 +134,11 @@ struct LocalizeResult {
   RansacStats stats;
   double refine_ms = 0;
   int refine_iterations = 0;
-  double reprojection_initial_px = 0;  // mean over RANSAC's inliers
-  double reprojection_refined_px = 0;  // mean over the same correspondences
+  // Mean reprojection errors (px) over RANSAC's inliers, at `initial` and at
+  // `query_from_world`; an inlier the refined pose puts behind its camera is
+  // left out of the second (always finite).
+  double reprojection_initial_px = 0;
+  double reprojection_refined_px = 0;
 };
 
 // A query checked and turned into the solvers' frames: observations
