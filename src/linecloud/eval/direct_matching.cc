@@ -86,22 +86,123 @@ ImageQuery ExtractOnce(const std::string& path, const Camera& camera, ExtractedP
   return it->second;
 }
 
+constexpr double kDeg = 180.0 / std::numbers::pi;
+
+struct Tally {
+  std::vector<double> rotation, translation;
+  int localized = 0;
+  double extract_ms = 0, match_ms = 0, ransac_ms = 0, refine_ms = 0;
+  double solver_ms = 0, scoring_ms = 0, lo_ms = 0, iterations = 0;
+};
+
+// One method on one query (a photo or a rig's photos): Localize as
+// `localize --image` does, the error against `truth` into the tally and the
+// row. `extract_ms` / `match_ms`: the query's photos' stage times.
+void LocalizeQuery(const MethodInfo& method, const Query& query, const GroupMap& map,
+                   const Sim3d& truth, double extract_ms, double match_ms, std::string_view source,
+                   const DirectMatchingOptions& options, Tally* t, json* row) {
+  LocalizeOptions lo;
+  lo.ransac.max_error = options.threshold_px;
+  lo.ransac.seed = options.seed;
+  double rot = 180, trans = 1e9;
+  std::string failure;
+  if (query.observations.size() >= static_cast<size_t>(method.sample_size)) {
+    const LocalizationMap lm =
+        method.lines ? LocalizationMap(map.lines) : LocalizationMap(map.points);
+    const LocalizeResult r = Localize(method, query, lm, lo, source);
+    t->ransac_ms += r.stats.ransac_ms;
+    t->solver_ms += r.stats.solver_ms;
+    t->scoring_ms += r.stats.scoring_ms;
+    t->lo_ms += r.stats.lo_ms;
+    t->iterations += r.stats.iterations;
+    (*row)["ransac_ms"] = r.stats.ransac_ms;
+    (*row)["iterations"] = r.stats.iterations;
+    (*row)["inliers"] = r.inliers.size();
+    t->refine_ms += r.refine_ms;
+    failure = r.failure;
+    if (r.success) {
+      const LocalizationError e = CompareLocalization(r.query_from_world, truth);
+      rot = e.rotation_rad * kDeg;
+      trans = e.position;
+    }
+  } else {
+    failure = "too few matches";
+  }
+  t->extract_ms += extract_ms;
+  t->match_ms += match_ms;
+  t->rotation.push_back(rot);
+  t->translation.push_back(trans);
+  t->localized += rot <= options.max_rotation_deg && trans <= options.max_translation;
+  (*row)["rotation_deg"] = rot;
+  (*row)["translation"] = trans;
+  if (!failure.empty()) (*row)["failure"] = failure;
+}
+
+// The group's photos as one generalized camera, with the rig the work holds
+// (from calibration or the group's local reconstruction; in that one's own
+// scale for the +s methods, as `eval run` poses them).
+void LocalizeRig(const EvalWork& work, const EvalGroup& g, const GroupMap& map,
+                 const std::vector<ImageQuery>& photos, const DirectMatchingOptions& options,
+                 std::map<std::string, Tally>* tallies, json* per_rig) {
+  json row = {{"group", g.name}, {"images", json::array()}};
+  double extract_ms = 0, match_ms = 0;
+  size_t matches = 0;
+  for (size_t c = 0; c < photos.size(); ++c) {
+    row["images"].push_back(g.images[c].name);
+    extract_ms += photos[c].times.extract_ms;
+    match_ms += photos[c].times.match_ms;
+    matches += photos[c].matches.size();
+  }
+  row["matches"] = matches;
+  // The rig's own disagreement with the truth (worst camera): a floor under
+  // any rig pose's error.
+  double rig_rot = 0, rig_trans = 0;
+  for (const EvalImage& im : g.images) {
+    const Rigid3d cam_from_world = im.cam_from_rig * g.rig_from_world;
+    const LocalizationError e =
+        CompareLocalization(Sim3d(1.0, cam_from_world.rotation, cam_from_world.translation),
+                            Sim3d(1.0, im.cam_from_world.rotation, im.cam_from_world.translation));
+    rig_rot = std::max(rig_rot, e.rotation_rad * kDeg);
+    rig_trans = std::max(rig_trans, e.position);
+  }
+  row["rig_error"] = {{"rotation_deg", rig_rot}, {"translation", rig_trans}};
+  for (const std::string& name : options.rig_methods) {
+    const MethodInfo& method = FindMethod(name);
+    const double scale = method.similarity() ? g.local_scale : 1.0;
+    std::vector<Rigid3d> cam_from_rig;
+    for (const EvalImage& im : g.images) {
+      cam_from_rig.push_back(im.cam_from_rig);
+      cam_from_rig.back().translation *= scale;
+    }
+    Query query = CombineImageQueries(photos, cam_from_rig);
+    if (method.gravity) {
+      query.gravity_query = g.gravity_rig;
+      query.gravity_map = work.gravity_world;
+    }
+    const Sim3d truth(scale, g.rig_from_world.rotation, scale * g.rig_from_world.translation);
+    LocalizeQuery(method, query, map, truth, extract_ms, match_ms, g.name, options,
+                  &(*tallies)[name], &row[name]);
+  }
+  per_rig->push_back(row);
+}
+
 }  // namespace
 
 json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const LiftingKey& key,
                        const DirectMatchingOptions& options) {
-  constexpr double kDeg = 180.0 / std::numbers::pi;
-  struct Tally {
-    std::vector<double> rotation, translation;
-    int localized = 0;
-    double extract_ms = 0, match_ms = 0, ransac_ms = 0, refine_ms = 0;
-    double solver_ms = 0, scoring_ms = 0, lo_ms = 0, iterations = 0;
-  };
+  for (const std::string& name : options.rig_methods) {
+    const MethodInfo& m = FindMethod(name);
+    if (!m.multi || m.local_points) {
+      Fail("direct matching: {} cannot localize a rig of photos (needs an m- method without +l)",
+           name);
+    }
+  }
   std::map<std::string, Tally> tallies;
-  json per_query = json::array();
+  json per_query = json::array(), per_rig = json::array();
   for (const EvalGroup& g : work.groups) {
     const auto t0 = std::chrono::steady_clock::now();
     const GroupMap map = LoadGroupMap(work_dir, g, key, options);
+    std::vector<ImageQuery> photos;
     for (const EvalImage& im : g.images) {
       const std::string path = JoinPaths(JoinPaths(work.dataset_dir, "images"), im.name);
       const Camera& camera = work.cameras.at(im.camera_id);
@@ -113,47 +214,17 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
                   {"matches", q.matches.size()},
                   {"extract_ms", q.times.extract_ms},
                   {"match_ms", q.times.match_ms}};
+      const Sim3d truth(1.0, im.cam_from_world.rotation, im.cam_from_world.translation);
       for (const std::string& name : options.methods) {
-        const MethodInfo& method = FindMethod(name);
-        LocalizeOptions lo;
-        lo.ransac.max_error = options.threshold_px;
-        lo.ransac.seed = options.seed;
-        Tally& t = tallies[name];
-        double rot = 180, trans = 1e9;
-        std::string failure;
-        if (q.query.observations.size() >= static_cast<size_t>(method.sample_size)) {
-          const LocalizationMap lm =
-              method.lines ? LocalizationMap(map.lines) : LocalizationMap(map.points);
-          const LocalizeResult r = Localize(method, q.query, lm, lo, im.name);
-          t.ransac_ms += r.stats.ransac_ms;
-          t.solver_ms += r.stats.solver_ms;
-          t.scoring_ms += r.stats.scoring_ms;
-          t.lo_ms += r.stats.lo_ms;
-          t.iterations += r.stats.iterations;
-          row[name]["ransac_ms"] = r.stats.ransac_ms;
-          row[name]["iterations"] = r.stats.iterations;
-          t.refine_ms += r.refine_ms;
-          failure = r.failure;
-          if (r.success) {
-            const LocalizationError e = CompareLocalization(
-                r.query_from_world,
-                Sim3d(1.0, im.cam_from_world.rotation, im.cam_from_world.translation));
-            rot = e.rotation_rad * kDeg;
-            trans = e.position;
-          }
-        } else {
-          failure = "too few matches";
-        }
-        t.extract_ms += q.times.extract_ms;
-        t.match_ms += q.times.match_ms;
-        t.rotation.push_back(rot);
-        t.translation.push_back(trans);
-        t.localized += rot <= options.max_rotation_deg && trans <= options.max_translation;
-        row[name]["rotation_deg"] = rot;
-        row[name]["translation"] = trans;
-        if (!failure.empty()) row[name]["failure"] = failure;
+        LocalizeQuery(FindMethod(name), q.query, map, truth, q.times.extract_ms, q.times.match_ms,
+                      im.name, options, &tallies[name], &row[name]);
       }
       per_query.push_back(row);
+      q.image = GreyImage{};  // the pixels are not needed any more
+      photos.push_back(std::move(q));
+    }
+    if (g.has_rig && g.images.size() >= 2 && !options.rig_methods.empty()) {
+      LocalizeRig(work, g, map, photos, options, &tallies, &per_rig);
     }
     fmt::print("[eval] direct matching, group {} ({:.1f} s)\n", g.name,
                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
@@ -180,7 +251,8 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
   return {{"thresholds",
            {{"rotation_deg", options.max_rotation_deg}, {"translation", options.max_translation}}},
           {"methods", methods},
-          {"per_query", per_query}};
+          {"per_query", per_query},
+          {"per_rig", per_rig}};
 }
 
 }  // namespace linecloud

@@ -28,6 +28,10 @@ using ExtractedPhotos = std::map<std::string, ImageQuery>;
 
 struct DirectMatchingOptions {
   std::vector<std::string> methods = {"p6L", "p3P"};
+  // Multi-camera methods run on each group with a rig: its photos, each
+  // matched as above, as one generalized camera (`localize --image A --image
+  // B --rig RIG.json`), against the group's rig_from_world.
+  std::vector<std::string> rig_methods = {"m-p6L", "m-p3P"};
   double max_rotation_deg = 0.5;  // "localized" thresholds of [image]
   double max_translation = 0.05;  // work units (metres with ground truth)
   double threshold_px = 4.0;
@@ -44,7 +48,9 @@ MapDescriptors MapDescriptorsExcluding(const Reconstruction& map, const std::str
                                        const std::vector<std::string>& excluded_images);
 
 // report.json's "direct_matching": per method the queries, localized count,
-// median errors and mean stage times, and per query the details.
+// median errors and mean stage times, per query (image) and per rig the
+// details. Throws Error on a rig method that is not a multi-camera one or
+// needs local points (+l: photos give none).
 nlohmann::json RunDirectMatching(const EvalWork& work, const std::string& work_dir,
                                  const LiftingKey& key, const DirectMatchingOptions& options);
 

@@ -381,7 +381,9 @@ std::string DirectMatchingMarkdown(const json& d) {
       "(COLMAP 3.8's CPU extractor reproduced) matched to the map's descriptors (medoids of the "
       "map "
       "images' observations only), then the same RANSAC, refinement and success criteria as "
-      "`localize --image`. Localized: within {}° and {} units of the ground truth.\n\n"
+      "`localize --image`; the m- methods take each group's photos as one rig (`localize "
+      "--image A --image B --rig RIG.json`). Localized: within {}° and {} units of the ground "
+      "truth.\n\n"
       "| method | queries | localized | median rot. ° | median transl. | extract ms | match ms | "
       "RANSAC ms | refine ms |\n|---|---|---|---|---|---|---|---|---|\n",
       d["thresholds"]["rotation_deg"].get<double>(), d["thresholds"]["translation"].get<double>());
