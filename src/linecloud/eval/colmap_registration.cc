@@ -218,9 +218,8 @@ ojson ImageRow(const EvalGroup& g, const EvalImage& im, const GroupRegistration&
              {"error", nullptr}};
   for (const auto& [id, image] : r.model.images) {
     if (image.name != im.name) continue;
-    const LocalizationError e = CompareLocalization(
-        Sim3d(1.0, image.cam_from_world.rotation, image.cam_from_world.translation),
-        Sim3d(1.0, im.cam_from_world.rotation, im.cam_from_world.translation));
+    const LocalizationError e =
+        CompareLocalization(ToSim3(image.cam_from_world), ToSim3(im.cam_from_world));
     c["error"] = {{"rotation_deg", e.rotation_rad * kDeg}, {"translation", e.position}};
   }
   return {{"group", g.name}, {"image", im.name}, {"colmap", c}, {"ours", OursFor(ours, im.name)}};

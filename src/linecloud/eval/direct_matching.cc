@@ -158,29 +158,21 @@ void LocalizeRig(const EvalWork& work, const EvalGroup& g, const GroupMap& map,
   // any rig pose's error.
   double rig_rot = 0, rig_trans = 0;
   for (const EvalImage& im : g.images) {
-    const Rigid3d cam_from_world = im.cam_from_rig * g.rig_from_world;
     const LocalizationError e =
-        CompareLocalization(Sim3d(1.0, cam_from_world.rotation, cam_from_world.translation),
-                            Sim3d(1.0, im.cam_from_world.rotation, im.cam_from_world.translation));
+        CompareLocalization(ToSim3(im.cam_from_rig * g.rig_from_world), ToSim3(im.cam_from_world));
     rig_rot = std::max(rig_rot, e.rotation_rad * kDeg);
     rig_trans = std::max(rig_trans, e.position);
   }
   row["rig_error"] = {{"rotation_deg", rig_rot}, {"translation", rig_trans}};
   for (const std::string& name : options.rig_methods) {
     const MethodInfo& method = FindMethod(name);
-    const double scale = method.similarity() ? g.local_scale : 1.0;
-    std::vector<Rigid3d> cam_from_rig;
-    for (const EvalImage& im : g.images) {
-      cam_from_rig.push_back(im.cam_from_rig);
-      cam_from_rig.back().translation *= scale;
-    }
-    Query query = CombineImageQueries(photos, cam_from_rig);
+    const PosedRig rig = PoseRig(g, method.similarity());
+    Query query = CombineImageQueries(photos, rig.cam_from_rig);
     if (method.gravity) {
       query.gravity_query = g.gravity_rig;
       query.gravity_map = work.gravity_world;
     }
-    const Sim3d truth(scale, g.rig_from_world.rotation, scale * g.rig_from_world.translation);
-    LocalizeQuery(method, query, map, truth, extract_ms, match_ms, g.name, options,
+    LocalizeQuery(method, query, map, rig.rig_from_world, extract_ms, match_ms, g.name, options,
                   &(*tallies)[name], &row[name]);
   }
   per_rig->push_back(row);
@@ -214,10 +206,9 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
                   {"matches", q.matches.size()},
                   {"extract_ms", q.times.extract_ms},
                   {"match_ms", q.times.match_ms}};
-      const Sim3d truth(1.0, im.cam_from_world.rotation, im.cam_from_world.translation);
       for (const std::string& name : options.methods) {
-        LocalizeQuery(FindMethod(name), q.query, map, truth, q.times.extract_ms, q.times.match_ms,
-                      im.name, options, &tallies[name], &row[name]);
+        LocalizeQuery(FindMethod(name), q.query, map, ToSim3(im.cam_from_world), q.times.extract_ms,
+                      q.times.match_ms, im.name, options, &tallies[name], &row[name]);
       }
       per_query.push_back(row);
       q.image = GreyImage{};  // the pixels are not needed any more

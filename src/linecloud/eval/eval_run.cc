@@ -74,8 +74,6 @@ struct EvalQuery {
 // JSON has no infinity: an unbounded value is written as null.
 json FiniteOrNull(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 
-Sim3d ToSim3(const Rigid3d& p) { return Sim3d(1.0, p.rotation, p.translation); }
-
 // One method's queries: single images, or each group as a rig; +l methods
 // use the correspondences that have a local point; without known scale the
 // local points and the rig are in the local reconstruction's own scale.
@@ -102,24 +100,19 @@ std::vector<EvalQuery> QueriesForMethod(const EvalWork& work, const MethodInfo& 
       continue;
     }
     if (!g.has_rig || g.images.size() < 2) continue;
-    const double scale = method.similarity() ? g.local_scale : 1.0;
+    const PosedRig rig = PoseRig(g, method.similarity());
     std::string name = g.name;
-    EvalQuery q{g.name,
-                "",
-                {},
-                Sim3d(scale, g.rig_from_world.rotation, scale * g.rig_from_world.translation)};
+    EvalQuery q{g.name, "", {}, rig.rig_from_world};
+    q.query.cam_from_rig = rig.cam_from_rig;
     for (size_t c = 0; c < g.images.size(); ++c) {
       const EvalImage& im = g.images[c];
       name += (c ? "+" : ":") + im.name;
       q.query.cameras.push_back(work.cameras.at(im.camera_id));
-      Rigid3d cam_from_rig = im.cam_from_rig;
-      cam_from_rig.translation *= scale;
-      q.query.cam_from_rig.push_back(cam_from_rig);
       for (const EvalCorrespondence& corr : im.correspondences) {
         if (!ids.count(corr.point_id)) continue;
         if (method.local_points) {
           if (!corr.point_local) continue;
-          q.query.points_local.push_back(scale * *corr.point_local);
+          q.query.points_local.push_back(rig.scale * *corr.point_local);
         }
         q.query.observations.push_back(
             {static_cast<int>(c), corr.xy, corr.point_id, std::nullopt, std::nullopt});

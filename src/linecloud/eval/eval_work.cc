@@ -27,6 +27,18 @@ T Get(const json& j, const char* key, const std::string& where) {
 
 }  // namespace
 
+PosedRig PoseRig(const EvalGroup& g, bool similarity) {
+  PosedRig rig;
+  rig.scale = similarity ? g.local_scale : 1.0;
+  for (const EvalImage& im : g.images) {
+    rig.cam_from_rig.push_back(im.cam_from_rig);
+    rig.cam_from_rig.back().translation *= rig.scale;
+  }
+  rig.rig_from_world =
+      Sim3d(rig.scale, g.rig_from_world.rotation, rig.scale * g.rig_from_world.translation);
+  return rig;
+}
+
 json EvalWorkToJson(const EvalWork& w) {
   json j;
   j["format"] = "linecloud-eval-work";

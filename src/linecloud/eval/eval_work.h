@@ -62,6 +62,16 @@ struct EvalWork {
   std::vector<EvalGroup> groups;
 };
 
+// A group's rig as a method poses it: metric, or for the methods that
+// estimate scale (+s) in the local reconstruction's own scale (local_scale),
+// which also scales their local points.
+struct PosedRig {
+  double scale = 1.0;
+  std::vector<Rigid3d> cam_from_rig;  // one per image of the group
+  Sim3d rig_from_world;               // the truth, in that scale
+};
+PosedRig PoseRig(const EvalGroup& g, bool similarity);
+
 nlohmann::json EvalWorkToJson(const EvalWork& work);
 // Throws Error naming `source` and the field on malformed input.
 EvalWork EvalWorkFromJson(const nlohmann::json& j, const std::string& source);

@@ -57,6 +57,9 @@ struct Sim3d {
   }
 };
 
+// A rigid transform as a similarity of scale 1.
+inline Sim3d ToSim3(const Rigid3d& p) { return Sim3d(1.0, p.rotation, p.translation); }
+
 inline Eigen::Vector3d operator*(const Sim3d& t, const Eigen::Vector3d& x) {
   return t.scale * (t.rotation * x) + t.translation;
 }
