@@ -21,17 +21,17 @@ struct InfoArgs {
 
 void RunInfo(const InfoArgs& args) {
   if (args.map.empty()) Fail("give the map: linecloud info --map MAP.lcm");
-  const std::string data = ReadFileToString(args.map);
-  const LineCloud cloud = ParseLineCloud(data, args.map);
+  const LineCloud cloud = ReadLineCloud(args.map);  // the magic checked before the rest is read
+  const uintmax_t file_bytes = std::filesystem::file_size(args.map);
   Eigen::Vector3d min, max;
   AnchorBoundingBox(cloud, &min, &max);
   nlohmann::json j;
   j["file"] = args.map;
-  j["file_bytes"] = data.size();
+  j["file_bytes"] = file_bytes;
   j["format_version"] = cloud.keyed_line_ids ? kLcmVersion : 1;
   j["num_lines"] = cloud.size();
   j["encoding"] = std::string(LineEncodingName(cloud.encoding));
-  j["bytes_per_line"] = cloud.size() ? static_cast<double>(data.size()) / cloud.size() : 0.0;
+  j["bytes_per_line"] = cloud.size() ? static_cast<double>(file_bytes) / cloud.size() : 0.0;
   j["has_descriptors"] = cloud.has_descriptors();
   if (cloud.has_descriptors()) {
     j["descriptors"] = {{"dim", cloud.descriptor_dim},
@@ -64,7 +64,7 @@ void RunInfo(const InfoArgs& args) {
       cloud.gravity ? fmt::format("({:.4f}, {:.4f}, {:.4f})", cloud.gravity->x(),
                                   cloud.gravity->y(), cloud.gravity->z())
                     : std::string("unknown (lift --gravity x,y,z)"),
-      min.x(), min.y(), min.z(), max.x(), max.y(), max.z(), data.size(),
+      min.x(), min.y(), min.z(), max.x(), max.y(), max.z(), file_bytes,
       j["bytes_per_line"].get<double>());
 }
 

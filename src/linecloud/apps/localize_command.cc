@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/lifting/key_store.h"
 #include "linecloud/eval/overlay.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/io/lcm_format.h"
@@ -95,7 +96,16 @@ void RunLocalize(LocalizeArgs args) {
     if (model && args.database.empty()) {
       Fail("--image with --model needs the model's --database colmap.db for descriptors");
     }
-    if (cloud && !args.exact_matching) args.image.index_cache = args.map_path + ".flann";
+    if (cloud && !args.exact_matching) {
+      // The cache beside the map is authenticated with this user's secret: one
+      // planted by someone else is rebuilt, never parsed. No key store: no cache.
+      try {
+        args.image.index_cache_key = KeyStore(KeyStore::DefaultDirectory()).CacheSecret();
+        args.image.index_cache = args.map_path + ".flann";
+      } catch (const Error& e) {
+        if (!args.quiet) std::cerr << "descriptor index not cached: " << e.what() << "\n";
+      }
+    }
     if (args.exact_matching) args.image.approximate_from = 0;
     photos = QueryFromPhotos(args.image_paths, args.cameras, args.rig, method,
                              cloud ? MapDescriptorsFromCloud(*cloud, args.map_path)

@@ -1,13 +1,46 @@
 #include "linecloud/features/descriptor_index.h"
 
-#include <flann/flann.hpp>
+// Every header FLANN's kd-tree includes from the standard library, first, so
+// that the two macros below reach FLANN's code only.
 #include <sodium.h>
+#include <stdarg.h>
 
 #include <algorithm>
 #include <array>
+#include <cassert>
 #include <cmath>
+#include <cstddef>
+#include <cstdio>
+#include <cstdlib>
 #include <cstring>
-#include <fstream>
+#include <map>
+#include <random>
+#include <vector>
+
+// FLANN's randomised kd-trees draw split dimensions with std::rand() (whose
+// seed is the host program's) and shuffle with std::random_device (a new
+// index every run). Our own flann/util/random.h stands in for FLANN's (same
+// names, a thread-local generator reseeded for every build), and its shuffle
+// gets a default-seeded engine: the same index from the same descriptors, in
+// any thread, without touching the program's rand().
+#define FLANN_RANDOM_H
+namespace flann {
+inline std::mt19937& SeededEngine() {
+  thread_local std::mt19937 engine;
+  return engine;
+}
+inline void seed_random(unsigned int seed) { SeededEngine().seed(seed); }
+inline double rand_double(double high = 1.0, double low = 0) {
+  return std::uniform_real_distribution<double>(low, high)(SeededEngine());
+}
+inline int rand_int(int high = RAND_MAX, int low = 0) {
+  return low + static_cast<int>(SeededEngine()() % static_cast<unsigned>(std::max(1, high - low)));
+}
+}  // namespace flann
+#define random_device minstd_rand
+#include <flann/algorithms/dist.h>
+#include <flann/algorithms/kdtree_index.h>
+#undef random_device
 
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
@@ -16,11 +49,26 @@ namespace linecloud {
 namespace {
 
 constexpr int kDim = 128;
-constexpr char kMagic[] = "linecloud-flann-kdtree-v1";
+constexpr char kMagic[] = "linecloud-flann-kdtree-v2\n";
+constexpr size_t kHashBytes = 32;
+constexpr unsigned kBuildSeed = 1;
+// A cache larger than this per descriptor is no cache of ours (FLANN's trees
+// take ~ trees x 2 nodes x 24 bytes per point, LZ4-compressed).
+constexpr size_t kMaxCacheBytesPerDescriptor = 1024;
 
-std::array<unsigned char, 32> DescriptorsHash(std::span<const uint8_t> d) {
-  std::array<unsigned char, 32> h;
+using Hash = std::array<unsigned char, kHashBytes>;
+using KdTrees = flann::KDTreeIndex<flann::L2<float>>;
+
+Hash DescriptorsHash(std::span<const uint8_t> d) {
+  Hash h;
   crypto_generichash(h.data(), h.size(), d.data(), d.size(), nullptr, 0);
+  return h;
+}
+
+Hash Mac(std::string_view data, std::span<const uint8_t, 32> key) {
+  Hash h;
+  crypto_generichash(h.data(), h.size(), reinterpret_cast<const unsigned char*>(data.data()),
+                     data.size(), key.data(), key.size());
   return h;
 }
 
@@ -39,7 +87,7 @@ float Dot(const uint8_t* a, const uint8_t* b) {
 struct DescriptorIndex::Impl {
   std::span<const uint8_t> descriptors;
   std::vector<float> data;  // the descriptors as float rows (FLANN indexes these)
-  std::unique_ptr<flann::Index<flann::L2<float>>> index;
+  std::unique_ptr<KdTrees> index;
   DescriptorIndexOptions options;
 
   flann::Matrix<float> Matrix() {
@@ -65,11 +113,8 @@ DescriptorIndex::DescriptorIndex(std::span<const uint8_t> descriptors,
   for (size_t i = 0; i < descriptors.size(); i += kDim)
     ToFloat(descriptors.data() + i, &impl_->data[i]);
   if (impl_->data.empty()) return;
-  // FLANN's randomised kd-trees draw their split dimensions with rand():
-  // seeded, so that an index (and its matches) is the same on every run.
-  std::srand(1);
-  impl_->index = std::make_unique<flann::Index<flann::L2<float>>>(
-      impl_->Matrix(), flann::KDTreeIndexParams(options.trees));
+  flann::seed_random(kBuildSeed);
+  impl_->index = std::make_unique<KdTrees>(impl_->Matrix(), flann::KDTreeIndexParams(options.trees));
   impl_->index->buildIndex();
 }
 
@@ -77,37 +122,53 @@ DescriptorIndex::~DescriptorIndex() = default;
 
 size_t DescriptorIndex::size() const { return impl_->descriptors.size() / kDim; }
 
-void DescriptorIndex::Save(const std::string& path) const {
+void DescriptorIndex::Save(const std::string& path, std::span<const uint8_t, 32> mac_key) const {
   if (!impl_->index) Fail("{}: an empty index has nothing to save", path);
-  // FLANN writes to a path: write it beside, then prepend our header.
-  const std::string raw = path + ".flann.tmp";
-  impl_->index->save(raw);
-  std::string body = ReadFileToString(raw);
-  std::remove(raw.c_str());
-  const auto hash = DescriptorsHash(impl_->descriptors);
-  WriteFileAtomically(path, [&](std::ostream& os) {
-    os << kMagic << '\n';
-    os.write(reinterpret_cast<const char*>(hash.data()), hash.size());
-    os << body;
-  });
+  // FLANN serialises to a FILE*: an in-memory one (no temporary file).
+  char* buffer = nullptr;
+  size_t size = 0;
+  FILE* stream = ::open_memstream(&buffer, &size);
+  if (stream == nullptr) Fail("{}: cannot serialise the index", path);
+  try {
+    impl_->index->saveIndex(stream);
+  } catch (const std::exception& e) {
+    std::fclose(stream);
+    std::free(buffer);
+    Fail("{}: cannot serialise the index ({})", path, e.what());
+  }
+  std::fclose(stream);
+  std::string body = kMagic;
+  const Hash hash = DescriptorsHash(impl_->descriptors);
+  body.append(reinterpret_cast<const char*>(hash.data()), hash.size());
+  body.append(buffer, size);
+  std::free(buffer);
+  const Hash mac = Mac(body, mac_key);
+  body.append(reinterpret_cast<const char*>(mac.data()), mac.size());
+  WriteFileAtomically(path, [&](std::ostream& os) { os << body; });
 }
 
 std::unique_ptr<DescriptorIndex> DescriptorIndex::Load(const std::string& path,
                                                        std::span<const uint8_t> descriptors,
-                                                       const DescriptorIndexOptions& options) {
-  if (!FileExists(path) || descriptors.empty()) return nullptr;
+                                                       const DescriptorIndexOptions& options,
+                                                       std::span<const uint8_t, 32> mac_key) {
+  if (!FileExists(path) || descriptors.empty() || descriptors.size() % kDim != 0) return nullptr;
   std::string data;
   try {
-    data = ReadFileToString(path);
+    const size_t limit = descriptors.size() / kDim * kMaxCacheBytesPerDescriptor + (1 << 20);
+    data = ReadFilePrefix(path, limit + 1);
+    if (data.size() > limit) return nullptr;
   } catch (const Error&) {
     return nullptr;
   }
-  const std::string magic = std::string(kMagic) + "\n";
-  if (data.compare(0, magic.size(), magic) != 0 || data.size() < magic.size() + 32) return nullptr;
-  const auto hash = DescriptorsHash(descriptors);
-  if (std::memcmp(data.data() + magic.size(), hash.data(), 32) != 0) return nullptr;  // stale
-  const std::string raw = path + ".flann.tmp";
-  WriteFileAtomically(raw, [&](std::ostream& os) { os << data.substr(magic.size() + 32); });
+  const size_t magic = sizeof(kMagic) - 1;
+  if (data.size() < magic + 2 * kHashBytes || data.compare(0, magic, kMagic) != 0) return nullptr;
+  // Only an index this user's own key authenticated is parsed: FLANN's reader
+  // trusts its input (a crafted tree crashes the search).
+  const std::string_view signed_part(data.data(), data.size() - kHashBytes);
+  const Hash mac = Mac(signed_part, mac_key);
+  if (sodium_memcmp(mac.data(), data.data() + signed_part.size(), kHashBytes) != 0) return nullptr;
+  const Hash hash = DescriptorsHash(descriptors);
+  if (std::memcmp(data.data() + magic, hash.data(), kHashBytes) != 0) return nullptr;  // stale
   std::unique_ptr<DescriptorIndex> index(new DescriptorIndex());
   index->impl_ = std::make_unique<Impl>();
   Impl& impl = *index->impl_;
@@ -116,14 +177,17 @@ std::unique_ptr<DescriptorIndex> DescriptorIndex::Load(const std::string& path,
   impl.data.resize(descriptors.size());
   for (size_t i = 0; i < descriptors.size(); i += kDim)
     ToFloat(descriptors.data() + i, &impl.data[i]);
+  const size_t start = magic + kHashBytes;
+  FILE* stream = ::fmemopen(data.data() + start, signed_part.size() - start, "rb");
+  if (stream == nullptr) return nullptr;
   try {
-    impl.index = std::make_unique<flann::Index<flann::L2<float>>>(impl.Matrix(),
-                                                                  flann::SavedIndexParams(raw));
+    impl.index = std::make_unique<KdTrees>(impl.Matrix(), flann::KDTreeIndexParams(options.trees));
+    impl.index->loadIndex(stream);
   } catch (const std::exception&) {
-    std::remove(raw.c_str());
+    std::fclose(stream);
     return nullptr;
   }
-  std::remove(raw.c_str());
+  std::fclose(stream);
   if (impl.index->size() != descriptors.size() / kDim) return nullptr;
   return index;
 }

@@ -3,6 +3,8 @@
 // 2009 / TPAMI 2014; Debian's libflann-dev), chosen over hnswlib by a measured
 // comparison (docs/image.md: at 100 000 descriptors FLANN found 0.99 of the
 // exact ratio-test matches in 0.4 s for 8 000 queries, hnswlib 0.90 in 2.1 s).
+// The index is built from a fixed seed (the same trees, and so the same
+// matches, on every run and thread) without touching the program's rand().
 // The index only proposes the two nearest neighbours; their descriptor angles
 // are computed exactly and the same ratio and distance tests as
 // MatchDescriptors decide.
@@ -35,12 +37,18 @@ class DescriptorIndex {
   DescriptorIndex(const DescriptorIndex&) = delete;
   DescriptorIndex& operator=(const DescriptorIndex&) = delete;
 
-  // Loads an index saved by Save for the same descriptors; nullptr when the
-  // file is missing, stale (other descriptors) or unreadable.
+  // Loads an index saved by Save for the same descriptors under the same
+  // `mac_key`; nullptr when the file is missing, stale (other descriptors),
+  // unreadable, too large, or not authenticated by `mac_key` (a keyed BLAKE2b
+  // over the whole file: a cache is untrusted input, and FLANN's reader trusts
+  // what it reads, so only an index this key's holder wrote is parsed).
   static std::unique_ptr<DescriptorIndex> Load(const std::string& path,
                                                std::span<const uint8_t> descriptors,
-                                               const DescriptorIndexOptions& options);
-  void Save(const std::string& path) const;
+                                               const DescriptorIndexOptions& options,
+                                               std::span<const uint8_t, 32> mac_key);
+  // Writes the index atomically, authenticated with `mac_key` (a secret of the
+  // user's, e.g. KeyStore::CacheSecret()).
+  void Save(const std::string& path, std::span<const uint8_t, 32> mac_key) const;
 
   size_t size() const;
 

@@ -1,12 +1,18 @@
 #include "linecloud/features/descriptor_index.h"
 
+#include <array>
+#include <atomic>
+#include <cstdlib>
+#include <filesystem>
 #include <random>
 #include <set>
+#include <thread>
 
 #include <gtest/gtest.h>
 
 #include "linecloud/features/matching.h"
 #include "linecloud/testing/test_util.h"
+#include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
 namespace linecloud {
@@ -56,8 +62,9 @@ TEST(DescriptorIndex, FindsTheExactRatioTestMatchesAndSurvivesASaveAndLoad) {
             exact.size() + 5);  // the same tests decide: no extra matches to speak of
 
   testing::TempDir tmp;
-  index.Save(tmp.Path("map.flann"));
-  const auto loaded = DescriptorIndex::Load(tmp.Path("map.flann"), map, {});
+  const std::array<uint8_t, 32> key{7};
+  index.Save(tmp.Path("map.flann"), key);
+  const auto loaded = DescriptorIndex::Load(tmp.Path("map.flann"), map, {}, key);
   ASSERT_NE(loaded, nullptr);
   const auto again = loaded->Match(query, options);
   ASSERT_EQ(again.size(), approx.size());
@@ -65,10 +72,86 @@ TEST(DescriptorIndex, FindsTheExactRatioTestMatchesAndSurvivesASaveAndLoad) {
   // Other descriptors: the saved index is stale and not used.
   std::vector<uint8_t> other = map;
   other[17] ^= 1;
-  EXPECT_EQ(DescriptorIndex::Load(tmp.Path("map.flann"), other, {}), nullptr);
-  EXPECT_EQ(DescriptorIndex::Load(tmp.Path("missing.flann"), map, {}), nullptr);
+  EXPECT_EQ(DescriptorIndex::Load(tmp.Path("map.flann"), other, {}, key), nullptr);
+  EXPECT_EQ(DescriptorIndex::Load(tmp.Path("missing.flann"), map, {}, key), nullptr);
   WriteFileAtomically(tmp.Path("junk.flann"), [](std::ostream& os) { os << "junk"; });
-  EXPECT_EQ(DescriptorIndex::Load(tmp.Path("junk.flann"), map, {}), nullptr);
+  EXPECT_EQ(DescriptorIndex::Load(tmp.Path("junk.flann"), map, {}, key), nullptr);
+}
+
+// [guard] #7: the same index (and matches) on every build, in any thread,
+// without resetting the host program's rand().
+TEST(DescriptorIndex, IsRepeatableAndLeavesTheProgramsRandAlone) {
+  std::vector<uint8_t> map, query;
+  MakeData(3000, 400, &map, &query);
+  std::srand(12345);
+  const int expected_rand = [] {
+    std::srand(12345);
+    return std::rand();
+  }();
+  std::srand(12345);
+  const DescriptorIndex a(map, {});
+  EXPECT_EQ(std::rand(), expected_rand) << "building an index changed the sequence of rand()";
+  const auto first = a.Match(query, {});
+  std::vector<DescriptorMatch> other_thread;
+  std::thread([&] { other_thread = DescriptorIndex(map, {}).Match(query, {}); }).join();
+  ASSERT_EQ(first.size(), other_thread.size());
+  for (size_t i = 0; i < first.size(); ++i) {
+    EXPECT_EQ(first[i].query, other_thread[i].query);
+    EXPECT_EQ(first[i].map, other_thread[i].map);
+  }
+}
+
+// [guard] #5: a cache is untrusted. One written under another user's secret,
+// or a valid one whose tree was altered (out-of-range leaves crashed FLANN's
+// search), is refused and never parsed; nothing is left in the folder but it.
+TEST(DescriptorIndex, RefusesACacheItsUsersSecretDidNotAuthenticate) {
+  std::vector<uint8_t> map, query;
+  MakeData(3000, 50, &map, &query);
+  testing::TempDir tmp;
+  const std::array<uint8_t, 32> mine{1}, theirs{2};
+  DescriptorIndex(map, {}).Save(tmp.Path("map.flann"), theirs);
+  EXPECT_EQ(DescriptorIndex::Load(tmp.Path("map.flann"), map, {}, mine), nullptr);
+  ASSERT_NE(DescriptorIndex::Load(tmp.Path("map.flann"), map, {}, theirs), nullptr);
+  // Every byte of the tree flipped in turn (a sample): never loaded.
+  const std::string good = ReadFileToString(tmp.Path("map.flann"));
+  for (size_t at = 0; at < good.size(); at += std::max<size_t>(1, good.size() / 200)) {
+    std::string bad = good;
+    bad[at] = static_cast<char>(bad[at] ^ 0x5a);
+    WriteFileAtomically(tmp.Path("bad.flann"), [&](std::ostream& os) { os << bad; });
+    EXPECT_EQ(DescriptorIndex::Load(tmp.Path("bad.flann"), map, {}, theirs), nullptr) << at;
+  }
+  // No temporary of FLANN's or ours stays behind.
+  size_t files = 0;
+  for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(tmp.Path())) ++files;
+  EXPECT_EQ(files, 2u);
+}
+
+// [guard] #7: saves and loads from several threads at once (the old code
+// wrote FLANN's output to one fixed temporary name: 7 of 8 runs failed).
+TEST(DescriptorIndex, ConcurrentSavesAndLoadsOfOneCacheAllSucceed) {
+  std::vector<uint8_t> map, query;
+  MakeData(2000, 50, &map, &query);
+  testing::TempDir tmp;
+  const std::array<uint8_t, 32> key{3};
+  const DescriptorIndex index(map, {});
+  const auto expected = index.Match(query, {});
+  std::atomic<int> failures = 0;
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 8; ++t) {
+    threads.emplace_back([&] {
+      for (int k = 0; k < 5; ++k) {
+        try {
+          index.Save(tmp.Path("map.flann"), key);
+          const auto loaded = DescriptorIndex::Load(tmp.Path("map.flann"), map, {}, key);
+          if (!loaded || loaded->Match(query, {}).size() != expected.size()) ++failures;
+        } catch (const Error&) {
+          ++failures;
+        }
+      }
+    });
+  }
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(failures.load(), 0);
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -17,9 +18,36 @@ struct GreyImage {
   uint8_t at(int x, int y) const { return pixels[static_cast<size_t>(y) * width + x]; }
 };
 
-// Throws Error naming `path` when the file is missing, not an image FreeImage
-// can read, corrupt, or empty.
-GreyImage ReadGreyImage(const std::string& path);
+// What an encoded image may be, checked on its header before any pixel is
+// decoded (a 138-byte PNG can announce 60000 x 60000 pixels).
+struct ImageLimits {
+  uint64_t max_pixels = 50'000'000;
+  uint64_t expected_width = 0;  // 0: any; else the header must say exactly this
+  uint64_t expected_height = 0;
+};
+
+struct ImageHeader {
+  std::string format;  // FreeImage's name, e.g. "JPEG", "PNG"
+  uint64_t width = 0;
+  uint64_t height = 0;
+};
+
+// The format and size from the header alone (FreeImage's FIF_LOAD_NOPIXELS);
+// throws Error naming `source` for data that is no image, a format whose size
+// cannot be read without decoding it, or a size the limits refuse.
+ImageHeader ReadImageHeader(std::span<const uint8_t> data, const std::string& source,
+                            const ImageLimits& limits = {});
+
+// Decodes an encoded image (JPEG, PNG, ... as bytes, e.g. an HTTP body) after
+// ReadImageHeader's checks. Throws Error naming `source` when it is not an
+// image FreeImage can read, corrupt, truncated (a JPEG that ends before its
+// last scan), empty, or refused by the limits.
+GreyImage DecodeGreyImage(std::span<const uint8_t> data, const std::string& source,
+                          const ImageLimits& limits = {});
+
+// DecodeGreyImage of a file's bytes; throws Error naming `path` when the file
+// is missing or unreadable, too.
+GreyImage ReadGreyImage(const std::string& path, const ImageLimits& limits = {});
 
 // Bilinear downscaling as COLMAP does before extraction when the larger side
 // exceeds `max_size` (FreeImage_Rescale); returns the image unchanged otherwise.

@@ -72,7 +72,13 @@ Matrix ReadBlobMatrix(const Statement& stmt, int rows_col, int cols_col, int dat
   }
   size_t bytes = 0;
   const void* data = stmt.Blob(data_col, &bytes);
-  const size_t expected = static_cast<size_t>(rows) * static_cast<size_t>(cols) * sizeof(Scalar);
+  // rows x cols x sizeof must not wrap around (a row count of 2^62 + 1 would
+  // "match" a small blob and then ask for exabytes).
+  size_t expected = 0;
+  if (__builtin_mul_overflow(static_cast<uint64_t>(rows), static_cast<uint64_t>(cols), &expected) ||
+      __builtin_mul_overflow(expected, sizeof(Scalar), &expected)) {
+    Fail("{}: {}: shape {}x{} is too large for any blob", path, what, rows, cols);
+  }
   if (bytes != expected) {
     Fail("{}: {}: blob has {} bytes, expected {} for {}x{} values", path, what, bytes, expected,
          rows, cols);

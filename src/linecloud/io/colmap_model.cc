@@ -173,8 +173,8 @@ void ParseImagesBinary(std::string_view data, const std::string& source, Reconst
     const uint64_t num_points2D = r.ReadCount("num_points2D", 24);
     image.points2D.resize(num_points2D);
     for (Point2D& p : image.points2D) {
-      p.xy.x() = r.Read<double>("points2D.x");
-      p.xy.y() = r.Read<double>("points2D.y");
+      p.xy.x() = r.ReadFiniteDouble("points2D.x");
+      p.xy.y() = r.ReadFiniteDouble("points2D.y");
       p.point3D_id = r.Read<uint64_t>("points2D.point3D_id");
     }
     const uint32_t id = image.image_id;

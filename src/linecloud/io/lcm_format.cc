@@ -306,6 +306,11 @@ LineCloud ParseLineCloud(std::string_view data, const std::string& source) {
 }
 
 LineCloud ReadLineCloud(const std::string& path) {
+  // The magic first: a large file that is no map is refused before it is read.
+  const std::string prefix = ReadFilePrefix(path, sizeof(kMagic));
+  if (prefix.size() < sizeof(kMagic) || std::memcmp(prefix.data(), kMagic, sizeof(kMagic)) != 0) {
+    Fail("{}: not a linecloud map (bad magic bytes)", path);
+  }
   return ParseLineCloud(ReadFileToString(path), path);
 }
 

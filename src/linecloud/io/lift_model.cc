@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
 #include <iostream>
 
 #include "linecloud/io/colmap_database.h"
@@ -22,8 +23,25 @@ struct ResolvedKey {
   std::string source;
 };
 
+// Refuses an output that would replace a key or an entry of the key store
+// (`lift --out` naming the store's own .key file would lose the key).
+void RefuseOutputInKeyStore(const LiftModelOptions& o, const KeyStore& store) {
+  RefuseOutputOverInputs(o.out_path, {o.key_file, store.dir()}, "--out");
+  std::error_code ec;
+  const std::filesystem::path parent =
+      std::filesystem::absolute(o.out_path, ec).lexically_normal().parent_path();
+  if (!ec && std::filesystem::equivalent(parent, store.dir(), ec)) {
+    Fail("--out {} is inside the key store {}: refusing to write maps among the keys", o.out_path,
+         store.dir());
+  }
+}
+
 ResolvedKey ResolveKey(const LiftModelOptions& o, const std::vector<uint64_t>& elements) {
   const KeyStore store(o.key_store.empty() ? KeyStore::DefaultDirectory() : o.key_store);
+  RefuseOutputInKeyStore(o, store);
+  // Find-or-create under one lock: two lifts of a new model started at once
+  // must not create two keys.
+  const KeyStore::Lock lock = store.LockExclusive();
   const std::optional<KeyStoreMatch> known = store.Find(elements, o.allow_shared_key);
   const DirectionSet directions = o.compact ? DirectionSet::kCompact256 : DirectionSet::kSphere;
   if (o.key_file.empty()) {
@@ -49,6 +67,8 @@ ResolvedKey ResolveKey(const LiftModelOptions& o, const std::vector<uint64_t>& e
         "that key, or pass --force if nothing lifted with it was ever shared",
         o.model_dir, known->key_path, ToHex(known->key.Fingerprint()), o.key_file);
   }
+  // --force: the new key replaces the old one for this model.
+  if (known && known->key.Fingerprint() != key.Fingerprint()) store.Retire(known->key.Fingerprint());
   store.Register(key, o.key_file, elements);
   return {key, o.key_file, create ? "new key file" : "key file"};
 }
@@ -101,6 +121,8 @@ std::vector<uint64_t> ModelSketchElements(const Reconstruction& model) {
     for (const TrackElement& t : point.track) {
       const auto im = model.images.find(t.image_id);
       elements.push_back(SketchElement(id, im == model.images.end() ? "" : im->second.name));
+      // Names can change (a folder prefix) while the tracks stay.
+      elements.push_back(SketchTrackElement(id, t.image_id, t.point2D_idx));
     }
   }
   return elements;

@@ -1,13 +1,17 @@
 #include "linecloud/lifting/key_store.h"
 
+#include <fcntl.h>
 #include <sodium.h>
+#include <sys/file.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <iostream>
 #include <limits>
 
 #include "linecloud/util/error.h"
@@ -102,6 +106,19 @@ uint64_t SketchElement(uint64_t point_id, std::string_view image_name) {
   return out;
 }
 
+uint64_t SketchTrackElement(uint64_t point_id, uint32_t image_id, uint32_t point2D_idx) {
+  EnsureSodiumInitialized();
+  static constexpr std::string_view kContext = "linecloud/model-sketch/track/v1";
+  unsigned char bytes[16];
+  std::memcpy(bytes, &point_id, 8);
+  std::memcpy(bytes + 8, &image_id, 4);
+  std::memcpy(bytes + 12, &point2D_idx, 4);
+  uint64_t out;
+  crypto_generichash(reinterpret_cast<unsigned char*>(&out), 8, bytes, sizeof(bytes),
+                     reinterpret_cast<const unsigned char*>(kContext.data()), kContext.size());
+  return out;
+}
+
 std::string KeyStore::DefaultDirectory() {
   if (const char* d = std::getenv("LINECLOUD_KEY_STORE"); d && *d) return d;
   if (const char* d = std::getenv("XDG_DATA_HOME"); d && *d) {
@@ -114,16 +131,39 @@ std::string KeyStore::DefaultDirectory() {
   return JoinPaths(home, ".local/share/linecloud/keys");
 }
 
-KeyStore::KeyStore(std::string dir) : dir_(std::move(dir)) {
-  if (!IsDirectory(dir_)) {
-    CreateDirectories(dir_);
-    if (::chmod(dir_.c_str(), 0700) != 0) {
-      Fail("{}: cannot make the key store owner-only ({})", dir_, std::strerror(errno));
+namespace {
+
+// Creates `dir` and its missing parents, each with mode 0700 (whatever the
+// umask): the folders above a key store reveal nothing, but others need not
+// list them either.
+void CreateOwnerOnlyDirectories(const std::string& dir) {
+  std::filesystem::path built;
+  for (const auto& part : std::filesystem::path(dir)) {
+    built /= part;
+    if (::mkdir(built.c_str(), 0700) == 0) {
+      ::chmod(built.c_str(), 0700);
+    } else if (errno != EEXIST) {
+      Fail("{}: cannot create the key store ({}: {})", dir, built.string(), std::strerror(errno));
     }
   }
+}
+
+}  // namespace
+
+KeyStore::KeyStore(std::string dir) : dir_(std::move(dir)) {
   struct stat st;
-  if (::stat(dir_.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) {
-    Fail("{}: key store is not a directory", dir_);
+  if (::lstat(dir_.c_str(), &st) != 0) {
+    CreateOwnerOnlyDirectories(dir_);
+    if (::lstat(dir_.c_str(), &st) != 0) Fail("{}: cannot create the key store", dir_);
+  }
+  // A link could be re-pointed by whoever controls the folder it sits in.
+  if (S_ISLNK(st.st_mode)) {
+    Fail("{}: key store is a symbolic link; give the folder it names instead", dir_);
+  }
+  if (!S_ISDIR(st.st_mode)) Fail("{}: key store is not a directory", dir_);
+  if (st.st_uid != ::geteuid()) {
+    Fail("{}: key store belongs to another user (uid {}); use a store of your own", dir_,
+         st.st_uid);
   }
   if ((st.st_mode & 077) != 0) {
     Fail("{}: key store is accessible by other users (mode {:o}); run chmod 700 on it", dir_,
@@ -131,39 +171,121 @@ KeyStore::KeyStore(std::string dir) : dir_(std::move(dir)) {
   }
 }
 
+KeyStore::Lock::Lock(const std::string& dir) {
+  const std::string path = JoinPaths(dir, ".lock");
+  fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0600);
+  if (fd_ < 0) Fail("{}: cannot open the key store's lock ({})", path, std::strerror(errno));
+  while (::flock(fd_, LOCK_EX) != 0) {
+    if (errno == EINTR) continue;
+    const std::string why = std::strerror(errno);
+    ::close(fd_);
+    Fail("{}: cannot lock the key store ({})", path, why);
+  }
+}
+
+KeyStore::Lock::~Lock() {
+  if (fd_ >= 0) ::close(fd_);  // closing releases the flock
+}
+
 std::optional<KeyStoreMatch> KeyStore::Find(std::span<const uint64_t> elements,
                                             bool allow_shared_key) const {
   const std::vector<uint64_t> mine = SortedUnique(elements);
-  std::optional<Sketch> best;
-  KeyStoreMatch match{.key_path = {}, .key = LiftingKey(LiftingKey::Bytes{})};
+  struct Candidate {
+    std::string entry;
+    Sketch sketch;
+    size_t shared = 0;
+    size_t comparable = 0;
+  };
+  std::vector<Candidate> matches;
   std::error_code ec;
   for (const auto& entry : std::filesystem::directory_iterator(dir_, ec)) {
     if (entry.path().extension() != ".model") continue;
-    Sketch s = ReadSketch(entry.path().string());
-    const size_t comparable = static_cast<size_t>(
-        std::upper_bound(mine.begin(), mine.end(), s.max_element) - mine.begin());
-    size_t shared = 0;
-    for (size_t i = 0; i < comparable; ++i) {
-      shared += std::binary_search(s.elements.begin(), s.elements.end(), mine[i]);
+    Candidate c;
+    c.entry = entry.path().string();
+    try {
+      c.sketch = ReadSketch(c.entry);
+    } catch (const Error& e) {
+      // Never silently: the entry may be this model's, and its key would be
+      // missed. Other models stay liftable.
+      std::cerr << "warning: key store entry skipped: " << e.what()
+                << " (if it belonged to this model, restore it from a backup)\n";
+      continue;
     }
-    const double needed = kMinSharedFraction * std::min(comparable, s.elements.size());
-    if (shared < kMinShared || shared < needed) continue;
-    if (best && shared <= match.shared) continue;
-    match.shared = shared;
-    match.comparable = comparable;
-    best = std::move(s);
+    const std::vector<uint64_t>& theirs = c.sketch.elements;
+    c.comparable = static_cast<size_t>(
+        std::upper_bound(mine.begin(), mine.end(), c.sketch.max_element) - mine.begin());
+    for (size_t i = 0; i < c.comparable; ++i) {
+      c.shared += std::binary_search(theirs.begin(), theirs.end(), mine[i]);
+    }
+    const double needed = kMinSharedFraction * std::min(c.comparable, theirs.size());
+    if (c.shared < kMinShared || c.shared < needed) continue;
+    matches.push_back(std::move(c));
   }
   if (ec) Fail("{}: cannot list the key store ({})", dir_, ec.message());
-  if (!best) return std::nullopt;
-  if (!FileExists(best->key_path)) {
+  if (matches.empty()) return std::nullopt;
+  if (matches.size() > 1) {
+    Fail(
+        "this model matches two keys of the key store, {} (key {}) and {} (key {}): two "
+        "liftings with different keys reveal the points they share. Keep the key whose maps were "
+        "shared and retire the other entry (rename its .model file)",
+        matches[0].entry, matches[0].sketch.key_path, matches[1].entry, matches[1].sketch.key_path);
+  }
+  const Candidate& best = matches.front();
+  if (!FileExists(best.sketch.key_path)) {
     Fail(
         "this model was lifted before with the key {}, which no longer exists; restore it (or "
         "pass it with --key-file). A new key would reveal the model's points",
-        best->key_path);
+        best.sketch.key_path);
   }
-  match.key_path = best->key_path;
-  match.key = ReadKeyFile(best->key_path, allow_shared_key);
+  KeyStoreMatch match{.key_path = best.sketch.key_path,
+                      .key = ReadKeyFile(best.sketch.key_path, allow_shared_key),
+                      .shared = best.shared,
+                      .comparable = best.comparable};
+  // Entries are named by the fingerprint of the key they registered.
+  const std::string registered = std::filesystem::path(best.entry).stem().string();
+  if (ToHex(match.key.Fingerprint()) != registered) {
+    Fail(
+        "{}: this key now has the fingerprint {}, but this model was lifted with the key of "
+        "fingerprint {} ({}): the key file was changed. Restore it; lifting with another key "
+        "would reveal the model's points",
+        match.key_path, ToHex(match.key.Fingerprint()), registered, best.entry);
+  }
   return match;
+}
+
+std::array<uint8_t, 32> KeyStore::CacheSecret() const {
+  const std::string path = JoinPaths(dir_, "cache.secret");
+  const Lock lock = LockExclusive();
+  if (!FileExists(path)) {
+    std::array<uint8_t, 32> fresh;
+    EnsureSodiumInitialized();
+    randombytes_buf(fresh.data(), fresh.size());
+    const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
+    if (fd < 0) Fail("{}: cannot create the cache secret ({})", path, std::strerror(errno));
+    const std::string text = ToHex(fresh) + "\n";
+    const bool ok = ::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size()) &&
+                    ::fsync(fd) == 0;
+    ::close(fd);
+    if (!ok) {
+      ::unlink(path.c_str());
+      Fail("{}: cannot write the cache secret", path);
+    }
+  }
+  const std::string text = ReadFileToString(path);
+  std::array<uint8_t, 32> secret;
+  if (text.size() != 65 || text[64] != '\n' || !ParseHex(std::string_view(text).substr(0, 64),
+                                                          secret.data(), secret.size())) {
+    Fail("{}: corrupt cache secret (expected 64 hex digits); delete it to make a new one", path);
+  }
+  return secret;
+}
+
+void KeyStore::Retire(const LiftingKey::Id& fingerprint) const {
+  const std::string path = JoinPaths(dir_, ToHex(fingerprint) + ".model");
+  if (!FileExists(path)) return;
+  if (std::rename(path.c_str(), (path + ".retired").c_str()) != 0) {
+    Fail("{}: cannot retire the key store entry ({})", path, std::strerror(errno));
+  }
 }
 
 void KeyStore::Register(const LiftingKey& key, const std::string& key_path,

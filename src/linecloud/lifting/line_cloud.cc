@@ -89,6 +89,12 @@ void LineCloud::Check(std::string_view source) const {
     if (dup != ids.end()) Fail("{}: line id {} appears twice", source, *dup);
   }
   for (size_t i = 0; i < ids.size(); ++i) {
+    // A line farther than this from the origin is no map's: squared distances
+    // would overflow (the attacks and the solvers square moments).
+    if (lines[i].w.allFinite() && !(lines[i].w.norm() <= kMaxLineDistance)) {
+      Fail("{}: line {} (id {}) passes {:.3g} units from the origin (more than {:.0e}): not a map",
+           source, i, ids[i], lines[i].w.norm(), kMaxLineDistance);
+    }
     if (!lines[i].IsValid(1e-6)) {
       Fail(
           "{}: line {} (id {}) is not a valid Plücker line (non-finite, "

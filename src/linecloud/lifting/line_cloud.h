@@ -40,6 +40,10 @@ const std::array<Eigen::Vector3d, 256>& CompactDirections();
 void CompactBasis(uint8_t direction_index, Eigen::Vector3d* e1, Eigen::Vector3d* e2);
 PluckerLine DecodeCompactLine(const CompactLine& compact);
 
+// The farthest a map's line may pass from the origin, in model units (Earth-
+// centred coordinates are ~6.4e6 m): beyond, products of moments overflow.
+inline constexpr double kMaxLineDistance = 1e12;
+
 struct LineCloud {
   LineEncoding encoding = LineEncoding::kPlucker;
   // Line ids: the keyed permutation of the ids of the points the lines came

@@ -108,14 +108,12 @@ ImageQuery ExtractImageQuery(const std::string& image_path, const Camera& camera
                              const ImageQueryOptions& options) {
   ImageQuery out;
   auto start = Clock::now();
-  out.image = ReadGreyImage(image_path);
+  // The header is checked against the camera and the pixel cap before decoding.
+  out.image = ReadGreyImage(image_path, {.max_pixels = options.max_pixels,
+                                         .expected_width = camera.width,
+                                         .expected_height = camera.height});
   const GreyImage& image = out.image;
   out.times.decode_ms = MsSince(start);
-  if (static_cast<uint64_t>(image.width) != camera.width ||
-      static_cast<uint64_t>(image.height) != camera.height) {
-    Fail("{}: the image is {}x{} pixels but the camera is {}x{}", image_path, image.width,
-         image.height, camera.width, camera.height);
-  }
   if (options.progress) {
     options.progress(
         fmt::format("extracting SIFT from {} ({}x{})", image_path, image.width, image.height));
@@ -204,7 +202,8 @@ PhotoQuery QueryFromPhotos(const std::vector<std::string>& images,
   if (options.approximate_from > 0 && map.ids.size() >= options.approximate_from &&
       !options.matching.cross_check) {
     if (!options.index_cache.empty()) {
-      index = DescriptorIndex::Load(options.index_cache, map.descriptors, {});
+      index = DescriptorIndex::Load(options.index_cache, map.descriptors, {},
+                                    options.index_cache_key);
     }
     if (!index) {
       if (options.progress) {
@@ -214,7 +213,7 @@ PhotoQuery QueryFromPhotos(const std::vector<std::string>& images,
       index = std::make_unique<DescriptorIndex>(map.descriptors, DescriptorIndexOptions{});
       if (!options.index_cache.empty()) {
         try {
-          index->Save(options.index_cache);
+          index->Save(options.index_cache, options.index_cache_key);
         } catch (const Error& e) {
           if (options.progress) options.progress(std::string("index not cached: ") + e.what());
         }

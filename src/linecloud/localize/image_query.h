@@ -5,6 +5,7 @@
 // model with its COLMAP database.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -47,9 +48,13 @@ struct ImageQueryOptions {
   DescriptorMatchOptions matching;
   // Maps with at least this many descriptors are matched through the
   // approximate index (DescriptorIndex), smaller ones exactly; 0: always
-  // exact. The index is loaded from / saved to `index_cache` when given.
+  // exact. The index is loaded from / saved to `index_cache` when given,
+  // authenticated with `index_cache_key` (KeyStore::CacheSecret()).
   size_t approximate_from = 20000;
   std::string index_cache;
+  std::array<uint8_t, 32> index_cache_key{};
+  // Photos whose header announces more pixels are refused before decoding.
+  uint64_t max_pixels = 50'000'000;
   std::function<void(const std::string&)> progress;  // stage messages
 };
 

@@ -1,6 +1,8 @@
 #include "linecloud/util/file.h"
 
+#include <dirent.h>
 #include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -42,6 +44,16 @@ std::string ReadFileToString(const std::string& path) {
   return data;
 }
 
+std::string ReadFilePrefix(const std::string& path, size_t max_bytes) {
+  CheckReadableFile(path);
+  std::ifstream file(path, std::ios::binary);
+  if (!file) Fail("{}: cannot open for reading ({})", path, std::strerror(errno));
+  std::string data(max_bytes, '\0');
+  file.read(data.data(), static_cast<std::streamsize>(max_bytes));
+  data.resize(static_cast<size_t>(file.gcount()));
+  return data;
+}
+
 bool FileExists(const std::string& path) {
   std::error_code ec;
   return std::filesystem::exists(path, ec);
@@ -66,7 +78,60 @@ bool WriteAll(int fd, const std::string& data) {
   return true;
 }
 
+constexpr char kTemporaryPrefix[] = ".linecloud-";
+constexpr size_t kTemporarySuffix = 6;  // mkstemp's XXXXXX
+constexpr int kStaleTemporarySeconds = 60;
+
+// Removes temporaries of our own naming in `dir` that a killed writer left:
+// older than a minute and not locked (a live writer holds an exclusive flock
+// on its temporary until the rename; the kernel drops it when a process dies).
+void RemoveStaleTemporaries(const std::string& dir) {
+  DIR* d = ::opendir(dir.c_str());
+  if (d == nullptr) return;
+  const time_t now = ::time(nullptr);
+  const size_t prefix = sizeof(kTemporaryPrefix) - 1;
+  while (const dirent* e = ::readdir(d)) {
+    const std::string_view name(e->d_name);
+    if (name.size() != prefix + kTemporarySuffix || name.substr(0, prefix) != kTemporaryPrefix) {
+      continue;
+    }
+    const int fd = ::openat(::dirfd(d), e->d_name, O_RDONLY | O_NOFOLLOW | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) continue;
+    struct stat st;
+    if (::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_uid == ::geteuid() &&
+        now - st.st_mtime > kStaleTemporarySeconds && ::flock(fd, LOCK_EX | LOCK_NB) == 0) {
+      ::unlinkat(::dirfd(d), e->d_name, 0);
+    }
+    ::close(fd);
+  }
+  ::closedir(d);
+}
+
+// Opens a device or FIFO for writing without ever blocking on a FIFO that has
+// no reader (open(2) would wait for one for ever), then writes blocking.
+int OpenDeviceForWriting(const std::string& path, const std::string& shown) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0 && errno == ENXIO) {
+    Fail("{}: is a FIFO that nothing reads: refusing to wait for a reader", shown);
+  }
+  if (fd < 0) Fail("{}: cannot open for writing ({})", shown, std::strerror(errno));
+  const int flags = ::fcntl(fd, F_GETFL);
+  if (flags >= 0) ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK);
+  return fd;
+}
+
 }  // namespace
+
+unsigned CurrentUmask() {
+  // umask(2) can only be read by setting it, which races with other threads:
+  // Linux reports it in /proc/self/status.
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("Umask:", 0) == 0) return std::stoul(line.substr(6), nullptr, 8) & 0777;
+  }
+  return 022;
+}
 
 void WriteFileAtomically(const std::string& path, const std::function<void(std::ostream&)>& write,
                          unsigned mode) {
@@ -89,8 +154,7 @@ void WriteFileAtomically(const std::string& path, const std::function<void(std::
   if (::stat(target.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
     if (S_ISDIR(st.st_mode)) Fail("{}: is a directory, expected a file", path);
     // A device or FIFO (/dev/null, /dev/stdout, a pipe): written through, never replaced.
-    const int fd = ::open(target.c_str(), O_WRONLY | O_NOCTTY);
-    if (fd < 0) Fail("{}: cannot open for writing ({})", path, std::strerror(errno));
+    const int fd = OpenDeviceForWriting(target, path);
     const bool ok = WriteAll(fd, data);
     ::close(fd);
     if (!ok) Fail("{}: write error ({})", path, std::strerror(errno));
@@ -99,12 +163,19 @@ void WriteFileAtomically(const std::string& path, const std::function<void(std::
   // A regular file or none: an exclusive, unpredictable temporary file in the
   // same directory (mkstemp: O_CREAT | O_EXCL, so a planted file or link at
   // its name is never followed), synced, then renamed over the target.
-  const std::filesystem::path dir = std::filesystem::path(target).parent_path();
-  std::string tmp =
-      (dir.empty() ? std::filesystem::path(".") : dir).string() + "/.linecloud-XXXXXX";
-  const int fd = ::mkstemp(tmp.data());
+  // The mode: a replaced file keeps its own (never more open than `mode`),
+  // a new one gets `mode` less the umask, as open(2) would give it.
+  const bool replacing = ::stat(target.c_str(), &st) == 0;
+  const unsigned final_mode = replacing ? (st.st_mode & 0777 & mode) : (mode & ~CurrentUmask());
+  const std::filesystem::path parent = std::filesystem::path(target).parent_path();
+  const std::string dir = (parent.empty() ? std::filesystem::path(".") : parent).string();
+  RemoveStaleTemporaries(dir);
+  std::string tmp = dir + "/" + kTemporaryPrefix + "XXXXXX";
+  const int fd = ::mkostemp(tmp.data(), O_CLOEXEC);
   if (fd < 0) Fail("{}: cannot create a file in its folder ({})", path, std::strerror(errno));
-  bool ok = ::fchmod(fd, mode) == 0;  // the requested bits, whatever the umask
+  // Held until the rename: a temporary that nobody locks belongs to a dead writer.
+  bool ok = ::flock(fd, LOCK_EX) == 0;
+  ok = ok && ::fchmod(fd, final_mode) == 0;
   ok = ok && WriteAll(fd, data) && ::fsync(fd) == 0;
   const std::string reason = std::strerror(errno);
   ::close(fd);

@@ -19,15 +19,27 @@ void CheckReadableFile(const std::string& path);
 // if it cannot be read.
 std::string ReadFileToString(const std::string& path);
 
+// At most the first `max_bytes` of the file (CheckReadableFile first): a
+// format's magic and header can be checked before a large file is read.
+std::string ReadFilePrefix(const std::string& path, size_t max_bytes);
+
 bool FileExists(const std::string& path);
+
+// The process umask, read without changing it (Linux: /proc/self/status).
+unsigned CurrentUmask();
 bool IsDirectory(const std::string& path);
 
 // Calls `write` on an in-memory stream, then, only if it returned without
 // throwing: for a regular file (or none), writes an exclusive temporary file
-// (mkstemp) in the same folder, sets `mode`, fsyncs it and renames it over the
-// target; through a symbolic link, replaces the file the link names (the link
-// stays); a device or FIFO (/dev/null, /dev/stdout) is written through, never
-// replaced. Throws Error naming the path on any failure, leaving no file.
+// (mkstemp, flock'ed while written) in the same folder, fsyncs it and renames
+// it over the target; through a symbolic link, replaces the file the link
+// names (the link stays); a device or FIFO (/dev/null, /dev/stdout) is
+// written through, never replaced, and a FIFO nothing reads is refused instead
+// of blocking. Modes: a new file gets `mode` less the process umask (as
+// open(2)); a replaced file keeps its mode, narrowed to `mode` (so secrets
+// written 0600 stay 0600). Temporaries of a writer killed mid-write (older
+// than a minute, unlocked) are removed on the next write into that folder.
+// Throws Error naming the path on any failure, leaving no file.
 void WriteFileAtomically(const std::string& path, const std::function<void(std::ostream&)>& write,
                          unsigned mode = 0644);
 
