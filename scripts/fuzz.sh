@@ -9,7 +9,7 @@ CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWit
   -DLINECLOUD_FUZZ=ON -DLINECLOUD_BUILD_TESTS=OFF -DLINECLOUD_BUILD_BENCH=OFF >/dev/null
 cmake --build build-fuzz -j2
 corpus=build-fuzz/corpus
-rm -rf "$corpus" && mkdir -p "$corpus"/{lcm,bin,txt,json,db}
+rm -rf "$corpus" && mkdir -p "$corpus"/{lcm,bin,txt,json,db,image,cache}
 ./build-fuzz/linecloud demo --out "$corpus/demo" --points 300 --images 4 --queries 1 >/dev/null
 cp "$corpus/demo/map.lcm" "$corpus/lcm/full.lcm"
 cp "$corpus/demo/map_compact.lcm" "$corpus/lcm/compact.lcm"
@@ -51,9 +51,17 @@ done
 if command -v colmap >/dev/null; then
   colmap database_creator --database_path "$corpus/db/empty.db" >/dev/null 2>&1 || true
 fi
+# Photos: two small JPEGs of the shared model and a bare PNG signature; the
+# index cache starts empty (its reader refuses all but authenticated files).
+if [ -d ../shared/data/colmap-maupertuis/images ]; then
+  cp ../shared/data/colmap-maupertuis/images/0[01].jpg "$corpus/image/"
+fi
+printf '\x89PNG\r\n\x1a\n' > "$corpus/image/signature.png"
 run lcm_fuzzer "$corpus/lcm"
 run colmap_binary_fuzzer "$corpus/bin"
 run colmap_text_fuzzer "$corpus/txt"
 run json_fuzzer "$corpus/json"
 run colmap_database_fuzzer "$corpus/db"
+run image_fuzzer "$corpus/image"
+run index_cache_fuzzer "$corpus/cache"
 echo "fuzzing finished: no crashes"

@@ -32,6 +32,10 @@ void AddAttackOptions(CLI::App* cmd, DensityAttackOptions& o) {
                   "use the two refinement sets' intersection when larger than this")
       ->capture_default_str();
   cmd->add_option("--threads", o.threads, "threads (0: all cores)")->capture_default_str();
+  cmd->add_option("--max-seconds", o.max_seconds,
+                  "stop (with an error giving the projected time) after this long; the cost "
+                  "grows as the square of the lines (0: no limit)")
+      ->capture_default_str();
 }
 
 void SetProgress(DensityAttackOptions& o, bool quiet) {

@@ -137,9 +137,12 @@ namespace {
 
 // What the correspondences say about a pose: the Gauss–Newton information
 // F = Σᵢ JᵢᵀJᵢ of their residuals at `pose` on its first `dim` parameters,
-// F⁻¹ (empty when F is singular), and the residuals' Σ r² and row count.
+// its pseudo-inverse F⁺ and null space N (the directions no residual sees,
+// e.g. the scale of a Sim3 pose seen by one camera: (s, t) → (e^ε s, e^ε t)
+// moves no projection), and the residuals' Σ r² and row count.
 struct PoseInformation {
-  Eigen::MatrixXd inverse;
+  Eigen::MatrixXd inverse;     // F⁺ (F⁻¹ when N is empty)
+  Eigen::MatrixXd null_space;  // dim x k, orthonormal columns
   double sum_sq = 0;
   int rows = 0;
 };
@@ -160,11 +163,24 @@ PoseInformation InformationAt(const PoseData& data, std::span<const int> indices
   const Eigen::MatrixXd f = fisher.topLeftCorner(dim, dim);
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(f);
   const Eigen::VectorXd& values = eigen.eigenvalues();  // ascending
-  if (values[0] > 1e-12 * values[dim - 1]) {
-    info.inverse = eigen.eigenvectors() * values.cwiseInverse().asDiagonal() *
-                   eigen.eigenvectors().transpose();
-  }
+  const double tolerance = 1e-12 * std::max(values[dim - 1], 0.0);
+  int null_dim = 0;
+  while (null_dim < dim && !(values[null_dim] > tolerance)) ++null_dim;
+  info.null_space = eigen.eigenvectors().leftCols(null_dim);
+  Eigen::VectorXd inverse_values = Eigen::VectorXd::Zero(dim);
+  for (int k = null_dim; k < dim; ++k) inverse_values[k] = 1.0 / values[k];
+  info.inverse =
+      eigen.eigenvectors() * inverse_values.asDiagonal() * eigen.eigenvectors().transpose();
   return info;
+}
+
+// Whether the quantity with Jacobian `jacobian` (rows) is determined by the
+// data: it does not change along any direction of the null space. Then its
+// covariance through F⁺ is the same whatever the gauge.
+bool Determined(const Eigen::MatrixXd& jacobian, const PoseInformation& info) {
+  if (info.null_space.cols() == 0) return true;
+  if (info.null_space.cols() == info.null_space.rows()) return false;
+  return (jacobian * info.null_space).norm() <= 1e-6 * std::max(1.0, jacobian.norm());
 }
 
 }  // namespace
@@ -177,25 +193,44 @@ PoseUncertainty EstimatePoseUncertainty(const PoseData& data, std::span<const in
   const PoseInformation info = InformationAt(data, indices, query_from_world, dim);
   PoseUncertainty u;
   u.rotation_deg = u.position = std::numeric_limits<double>::infinity();
-  if (info.rows <= dim) return u;
-  u.sigma_px = std::sqrt(info.sum_sq / (info.rows - dim));
-  if (info.inverse.size() == 0) return u;
+  const int free = dim - static_cast<int>(info.null_space.cols());
+  if (info.rows <= free) return u;
+  u.sigma_px = std::sqrt(info.sum_sq / (info.rows - free));
   const Eigen::MatrixXd covariance = u.sigma_px * u.sigma_px * info.inverse;
-  u.rotation_deg = std::sqrt(covariance.topLeftCorner<3, 3>().trace()) * 180.0 / std::numbers::pi;
-  // The centre's Jacobian by central differences of the perturbation.
-  const Eigen::Vector3d centre = query_from_world.Inverse().translation;
-  const double h = 1e-6 * std::max(1.0, centre.norm());
-  Eigen::MatrixXd jc(3, dim);
-  for (int k = 0; k < dim; ++k) {
-    Eigen::Matrix<double, 7, 1> d = Eigen::Matrix<double, 7, 1>::Zero();
-    const double step = k < 3 || k == 6 ? 1e-7 : h;
-    d[k] = step;
-    const Eigen::Vector3d plus = PerturbPose(query_from_world, d).Inverse().translation;
-    d[k] = -step;
-    const Eigen::Vector3d minus = PerturbPose(query_from_world, d).Inverse().translation;
-    jc.col(k) = (plus - minus) / (2 * step);
+  const Eigen::MatrixXd jr = Eigen::MatrixXd::Identity(3, dim);
+  if (Determined(jr, info)) {
+    u.rotation_deg = std::sqrt(covariance.topLeftCorner<3, 3>().trace()) * 180.0 / std::numbers::pi;
   }
-  u.position = std::sqrt((jc * covariance * jc.transpose()).trace());
+  // The position: of the query frame's origin (a rig's), or, when only the
+  // cameras are determined (one camera offset from the rig origin under an
+  // unknown scale: the scale moves the origin about the camera), of camera 0's
+  // centre. Jacobians by central differences of the perturbation.
+  const auto centre_jacobian = [&](const Rigid3d* cam_from_rig) {
+    const auto centre = [&](const Sim3d& pose) {
+      const Sim3d world_from_query = pose.Inverse();
+      return cam_from_rig
+                 ? Eigen::Vector3d(world_from_query * (cam_from_rig->Inverse().translation))
+                 : world_from_query.translation;
+    };
+    const double h = 1e-6 * std::max(1.0, centre(query_from_world).norm());
+    Eigen::MatrixXd jc(3, dim);
+    for (int k = 0; k < dim; ++k) {
+      Eigen::Matrix<double, 7, 1> d = Eigen::Matrix<double, 7, 1>::Zero();
+      const double step = k < 3 || k == 6 ? 1e-7 : h;
+      d[k] = step;
+      const Eigen::Vector3d plus = centre(PerturbPose(query_from_world, d));
+      d[k] = -step;
+      jc.col(k) = (plus - centre(PerturbPose(query_from_world, d))) / (2 * step);
+    }
+    return jc;
+  };
+  for (const Rigid3d* cam : {static_cast<const Rigid3d*>(nullptr), &data.cam_from_rig.at(0)}) {
+    const Eigen::MatrixXd jc = centre_jacobian(cam);
+    if (Determined(jc, info)) {
+      u.position = std::sqrt((jc * covariance * jc.transpose()).trace());
+      break;
+    }
+  }
   return u;
 }
 
@@ -203,8 +238,11 @@ double RotationErrorBound(const PoseData& data, std::span<const int> indices,
                           const Sim3d& query_from_world, double sigma_px, bool similarity) {
   data.Check("RotationErrorBound");
   CheckIndices(data, indices, "RotationErrorBound");
-  const PoseInformation info = InformationAt(data, indices, query_from_world, similarity ? 7 : 6);
-  if (info.inverse.size() == 0) return std::numeric_limits<double>::infinity();
+  const int dim = similarity ? 7 : 6;
+  const PoseInformation info = InformationAt(data, indices, query_from_world, dim);
+  if (!Determined(Eigen::MatrixXd::Identity(3, dim), info)) {
+    return std::numeric_limits<double>::infinity();
+  }
   return sigma_px * std::sqrt(info.inverse.topLeftCorner<3, 3>().trace());
 }
 

@@ -40,7 +40,10 @@ RefineSummary RefinePose(const PoseData& data, std::span<const int> indices,
 // observation's offset across its projection). Translation (and with
 // `similarity` the scale) are nuisance parameters, hence the inverse before
 // taking the block. Returns √trace σ²[F⁻¹]_ωω: the smallest RMS rotation error
-// (radians) any estimator can reach; +∞ when F is singular.
+// (radians) any estimator can reach; +∞ when the rotation is not determined.
+// A gauge freedom the rotation does not depend on (the scale of a Sim3 pose
+// seen by one camera) is left out: F⁺ instead of F⁻¹ (the same block for any
+// gauge).
 double RotationErrorBound(const PoseData& data, std::span<const int> indices,
                           const Sim3d& query_from_world, double sigma_px, bool similarity);
 
@@ -49,11 +52,15 @@ double RotationErrorBound(const PoseData& data, std::span<const int> indices,
 // at the estimate instead of the truth), with the noise σ̂ estimated from the
 // residuals themselves, σ̂² = Σ r² / (rows − parameters). A wrong calibration
 // raises σ̂, a weak geometry (few, clustered or nearly degenerate
-// correspondences) raises F⁻¹; either shows here.
+// correspondences) raises F⁻¹; either shows here. Rotation and centre are
+// reported when the data determine them even if the whole pose is not: one
+// camera fixes both but not a Sim3 pose's scale (F⁺, as in RotationErrorBound);
+// +∞ for what is undetermined.
 struct PoseUncertainty {
   double sigma_px = 0;  // estimated observation noise, px
   // RMS (√trace) 1-σ uncertainty of the rotation, degrees, and of the query's
-  // centre (camera or rig origin) in world units; +∞ when F is singular.
+  // centre (camera or rig origin; camera 0's centre when the data determine
+  // the cameras but not the rig origin) in world units; +∞ when undetermined.
   double rotation_deg = 0;
   double position = 0;
 };

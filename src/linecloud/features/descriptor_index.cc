@@ -114,7 +114,8 @@ DescriptorIndex::DescriptorIndex(std::span<const uint8_t> descriptors,
     ToFloat(descriptors.data() + i, &impl_->data[i]);
   if (impl_->data.empty()) return;
   flann::seed_random(kBuildSeed);
-  impl_->index = std::make_unique<KdTrees>(impl_->Matrix(), flann::KDTreeIndexParams(options.trees));
+  impl_->index =
+      std::make_unique<KdTrees>(impl_->Matrix(), flann::KDTreeIndexParams(options.trees));
   impl_->index->buildIndex();
 }
 

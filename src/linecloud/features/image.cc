@@ -52,6 +52,12 @@ FREE_IMAGE_FORMAT DetectFormat(std::span<const uint8_t> data, const std::string&
   if (format == FIF_UNKNOWN || !FreeImage_FIFSupportsReading(format)) {
     Fail("{}: not an image (FreeImage does not recognise its format)", source);
   }
+  // Photos come from strangers: only the two formats cameras write, whose
+  // decoders (libjpeg, libpng) are hardened; FreeImage's other plugins are not.
+  if (format != FIF_JPEG && format != FIF_PNG) {
+    Fail("{}: {} images are not read; convert it to JPEG or PNG", source,
+         FreeImage_GetFormatFromFIF(format));
+  }
   return format;
 }
 
@@ -144,8 +150,8 @@ GreyImage ReadGreyImage(const std::string& path, const ImageLimits& limits) {
   if (!FileExists(path)) Fail("{}: no such file", path);
   if (IsDirectory(path)) Fail("{}: is a directory, not an image", path);
   const std::string data = ReadFileToString(path);
-  return DecodeGreyImage(
-      std::span(reinterpret_cast<const uint8_t*>(data.data()), data.size()), path, limits);
+  return DecodeGreyImage(std::span(reinterpret_cast<const uint8_t*>(data.data()), data.size()),
+                         path, limits);
 }
 
 GreyImage DownscaleToMaxSize(const GreyImage& image, int max_size) {

@@ -38,7 +38,8 @@ struct ImageHeader {
 ImageHeader ReadImageHeader(std::span<const uint8_t> data, const std::string& source,
                             const ImageLimits& limits = {});
 
-// Decodes an encoded image (JPEG, PNG, ... as bytes, e.g. an HTTP body) after
+// Decodes an encoded JPEG or PNG image (bytes, e.g. an HTTP body; other
+// formats are refused: FreeImage's other decoders are not hardened) after
 // ReadImageHeader's checks. Throws Error naming `source` when it is not an
 // image FreeImage can read, corrupt, truncated (a JPEG that ends before its
 // last scan), empty, or refused by the limits.

@@ -68,7 +68,8 @@ ResolvedKey ResolveKey(const LiftModelOptions& o, const std::vector<uint64_t>& e
         o.model_dir, known->key_path, ToHex(known->key.Fingerprint()), o.key_file);
   }
   // --force: the new key replaces the old one for this model.
-  if (known && known->key.Fingerprint() != key.Fingerprint()) store.Retire(known->key.Fingerprint());
+  if (known && known->key.Fingerprint() != key.Fingerprint())
+    store.Retire(known->key.Fingerprint());
   store.Register(key, o.key_file, elements);
   return {key, o.key_file, create ? "new key file" : "key file"};
 }

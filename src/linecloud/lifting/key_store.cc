@@ -273,8 +273,8 @@ std::array<uint8_t, 32> KeyStore::CacheSecret() const {
   }
   const std::string text = ReadFileToString(path);
   std::array<uint8_t, 32> secret;
-  if (text.size() != 65 || text[64] != '\n' || !ParseHex(std::string_view(text).substr(0, 64),
-                                                          secret.data(), secret.size())) {
+  if (text.size() != 65 || text[64] != '\n' ||
+      !ParseHex(std::string_view(text).substr(0, 64), secret.data(), secret.size())) {
     Fail("{}: corrupt cache secret (expected 64 hex digits); delete it to make a new one", path);
   }
   return secret;

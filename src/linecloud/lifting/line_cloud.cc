@@ -91,9 +91,9 @@ void LineCloud::Check(std::string_view source) const {
   for (size_t i = 0; i < ids.size(); ++i) {
     // A line farther than this from the origin is no map's: squared distances
     // would overflow (the attacks and the solvers square moments).
-    if (lines[i].w.allFinite() && !(lines[i].w.norm() <= kMaxLineDistance)) {
+    if (lines[i].w.allFinite() && !(lines[i].w.stableNorm() <= kMaxLineDistance)) {
       Fail("{}: line {} (id {}) passes {:.3g} units from the origin (more than {:.0e}): not a map",
-           source, i, ids[i], lines[i].w.norm(), kMaxLineDistance);
+           source, i, ids[i], lines[i].w.stableNorm(), kMaxLineDistance);
     }
     if (!lines[i].IsValid(1e-6)) {
       Fail(

@@ -202,8 +202,8 @@ PhotoQuery QueryFromPhotos(const std::vector<std::string>& images,
   if (options.approximate_from > 0 && map.ids.size() >= options.approximate_from &&
       !options.matching.cross_check) {
     if (!options.index_cache.empty()) {
-      index = DescriptorIndex::Load(options.index_cache, map.descriptors, {},
-                                    options.index_cache_key);
+      index =
+          DescriptorIndex::Load(options.index_cache, map.descriptors, {}, options.index_cache_key);
     }
     if (!index) {
       if (options.progress) {

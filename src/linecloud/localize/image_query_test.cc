@@ -1,6 +1,8 @@
 #include "linecloud/localize/image_query.h"
 
+#include <atomic>
 #include <cstdint>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -69,6 +71,65 @@ TEST(ImageQuery, ExtractedOnceMatchesEachMapAsAFreshExtraction) {
   for (const QueryObservation& ob : fresh_half.query.observations) ids_half.push_back(ob.id);
   EXPECT_NE(ids_full, ids_half);
   ExpectSameQuery(once, fresh_half);
+}
+
+// [guard]: the library keeps no per-call global state (FreeImage's message
+// callback, SIFT, the matching index's random generator, RANSAC): photos
+// localized on 8 threads at once give exactly what one thread gives.
+TEST(ImageQuery, EightThreadsGiveWhatOneThreadGives) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
+  const Reconstruction model = ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
+  const MapDescriptors map =
+      MapDescriptorsFromModel(model, SharedDataPath("colmap-maupertuis/colmap.db"));
+  const DescriptorIndex index(map.descriptors, {});  // shared by every thread
+  const LocalizationMap points(PointMapFromModel(model));
+  const MethodInfo& method = FindMethod("p3P");
+  ImageQueryOptions o;
+  o.sift.max_image_size = 640;  // the test is about threads, not accuracy
+  struct Photo {
+    std::string path;
+    const Camera* camera;
+  };
+  std::vector<Photo> photos;
+  for (const auto& [id, im] : model.images) {
+    photos.push_back(
+        {SharedDataPath("colmap-maupertuis/images/" + im.name), &model.cameras.at(im.camera_id)});
+  }
+  ASSERT_GE(photos.size(), 4u);
+  struct Outcome {
+    ImageQuery query;
+    LocalizeResult result;
+  };
+  const auto localize = [&](const Photo& p, bool approximate) {
+    Outcome out;
+    out.query = QueryFromImage(p.path, *p.camera, map, o, approximate ? &index : nullptr);
+    LocalizeOptions lo;
+    lo.ransac.seed = 7;
+    out.result = Localize(method, out.query.query, points, lo);
+    return out;
+  };
+  const int jobs = testing::InstanceCount(16) >= 8 ? 16 : 8;
+  std::vector<Outcome> one(jobs), eight(jobs);
+  for (int j = 0; j < jobs; ++j) one[j] = localize(photos[j % photos.size()], j % 2);
+  std::vector<std::thread> threads;
+  std::atomic<int> next{0};
+  for (int t = 0; t < 8; ++t) {
+    threads.emplace_back([&] {
+      for (int j; (j = next++) < jobs;) eight[j] = localize(photos[j % photos.size()], j % 2);
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  for (int j = 0; j < jobs; ++j) {
+    SCOPED_TRACE(photos[j % photos.size()].path);
+    ASSERT_EQ(one[j].query.features.size(), eight[j].query.features.size());
+    ExpectSameQuery(one[j].query, eight[j].query);
+    EXPECT_EQ(one[j].result.success, eight[j].result.success);
+    EXPECT_EQ(one[j].result.inliers, eight[j].result.inliers);
+    EXPECT_EQ(one[j].result.query_from_world.rotation.coeffs(),
+              eight[j].result.query_from_world.rotation.coeffs());
+    EXPECT_EQ(one[j].result.query_from_world.translation,
+              eight[j].result.query_from_world.translation);
+  }
 }
 
 }  // namespace

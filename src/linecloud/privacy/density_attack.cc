@@ -1,6 +1,7 @@
 #include "linecloud/privacy/density_attack.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -68,6 +69,9 @@ void DensityAttackOptions::Check() const {
     Fail("attack: histogram bins must be in [2, 100000]");
   if (trimmed_votes < 0) Fail("attack: trimmed votes must be >= 0");
   if (!(min_excess >= 0 && min_excess <= 1)) Fail("attack: min excess must be in [0, 1]");
+  if (!(max_seconds >= 0 && std::isfinite(max_seconds))) {
+    Fail("attack: --max-seconds must be a finite number >= 0 (0: no limit)");
+  }
 }
 
 double VotePeak(std::vector<double>* votes, int bins, int trimmed, double min_excess,
@@ -142,10 +146,29 @@ DensityAttackResult RunDensityAttack(const LineCloud& cloud, const DensityAttack
     share[i] = static_cast<float>(sh);
   };
 
+  // The time budget: every row checks it (a row costs O(n), the check O(1)).
+  const int passes = 1 + 2 * options.refine_rounds;
+  std::atomic<size_t> rows_done{0};
+  const auto check_budget = [&](const char* stage) {
+    const size_t done = rows_done.fetch_add(1) + 1;
+    if (options.max_seconds <= 0) return;
+    const double elapsed =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (elapsed > options.max_seconds) {
+      const double projected =
+          elapsed * static_cast<double>(passes) * n / std::max<size_t>(done, 1);
+      Fail(
+          "attack: stopped at --max-seconds {:g} during {} ({} lines; the whole attack would take "
+          "about {:.0f} s on {} threads)",
+          options.max_seconds, stage, n, projected, threads);
+    }
+  };
+
   // Coarse: votes from the K nearest lines.
   ParallelFor(
       n, threads,
       [&](size_t i, int w) {
+        check_budget("the coarse estimates");
         Scratch& s = scratch[w];
         LineToLinesSq(a, i, s.d2.data());
         s.d2[i] = kInf;  // a line is never its own neighbour
@@ -163,6 +186,7 @@ DensityAttackResult RunDensityAttack(const LineCloud& cloud, const DensityAttack
     ParallelFor(
         n, threads,
         [&](size_t i, int w) {
+          check_budget("a refinement round");
           Scratch& s = scratch[w];
           LineToPointsSq(a, i, p, s.d2.data());
           s.d2[i] = kInf;

@@ -1,10 +1,14 @@
 #include "linecloud/util/file.h"
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <sys/file.h>
 #include <sys/stat.h>
+#include <utime.h>
 #include <unistd.h>
 
 #include <filesystem>
+#include <fstream>
 
 #include "linecloud/testing/test_util.h"
 #include "linecloud/util/error.h"
@@ -89,6 +93,53 @@ TEST(File, RefusesNonRegularInputsAndOutputsOverInputs) {
                Error);
   EXPECT_NO_THROW(RefuseOutputOverInputs(tmp.Path("new.ply"), {tmp.Path("model")}, "--ply"));
   EXPECT_NO_THROW(RefuseOutputOverInputs(tmp.Path("in.lcm"), {tmp.Path("model"), ""}, "--out"));
+}
+
+// [guard]: a writer killed during a write leaves a hidden temporary; the next
+// write into that folder removes it once it is a minute old and unlocked. A
+// live writer's temporary (locked) and a fresh one are left alone.
+TEST(File, TemporariesOfKilledWritersAreRemovedLiveOnesKept) {
+  TempDir tmp;
+  const auto make = [&](const std::string& name, int age_s) {
+    const std::string path = tmp.Path(name);
+    std::ofstream(path) << "partial";
+    struct utimbuf times;
+    times.actime = times.modtime = ::time(nullptr) - age_s;
+    ::utime(path.c_str(), &times);
+    return path;
+  };
+  const std::string stale = make(".linecloud-AAAAAA", 120);
+  const std::string live = make(".linecloud-BBBBBB", 120);
+  const std::string fresh = make(".linecloud-CCCCCC", 0);
+  const std::string other = make(".linecloud-DDDDDDD", 120);  // not our naming
+  const int live_fd = ::open(live.c_str(), O_RDONLY);
+  ASSERT_EQ(::flock(live_fd, LOCK_EX), 0);
+  Write(tmp.Path("out.txt"), "new");
+  ::close(live_fd);
+  EXPECT_FALSE(fs::exists(stale));
+  EXPECT_TRUE(fs::exists(live));
+  EXPECT_TRUE(fs::exists(fresh));
+  EXPECT_TRUE(fs::exists(other));
+}
+
+// [guard]: new files get the requested mode less the umask; a replaced file
+// keeps its own mode (never widened to the requested one).
+TEST(File, NewFilesFollowTheUmaskReplacedFilesKeepTheirMode) {
+  TempDir tmp;
+  const mode_t old = ::umask(077);
+  EXPECT_EQ(CurrentUmask(), 077u);
+  Write(tmp.Path("new.txt"), "x", 0644);
+  ::umask(old);
+  struct stat st;
+  ASSERT_EQ(::stat(tmp.Path("new.txt").c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  ::chmod(tmp.Path("new.txt").c_str(), 0640);
+  Write(tmp.Path("new.txt"), "y", 0644);
+  ASSERT_EQ(::stat(tmp.Path("new.txt").c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0640u);
+  Write(tmp.Path("new.txt"), "z", 0600);  // a secret narrows it
+  ASSERT_EQ(::stat(tmp.Path("new.txt").c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
 }
 
 }  // namespace
