@@ -232,6 +232,10 @@ void RegisterLocalizeCommand(CLI::App& app) {
                   "Photos with a larger side are downscaled before SIFT (COLMAP's "
                   "SiftExtraction.max_image_size)")
       ->capture_default_str();
+  cmd->add_option("--max-pixels", args->image.max_pixels,
+                  "Photos (JPEG or PNG) whose header announces more pixels are refused before "
+                  "decoding")
+      ->capture_default_str();
   cmd->add_option("--method", args->method,
                   "One of the 16 methods, e.g. p6L, p3P, m-P3P+l (default: p6L with --map, p3P "
                   "with --model)");
