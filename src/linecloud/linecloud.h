@@ -2,7 +2,8 @@
 // (Speciale et al., "Privacy Preserving Image-Based Localization", CVPR 2019),
 // the .lcm and COLMAP formats, the 16 pose estimators with RANSAC and
 // refinement, and seeded synthetic queries. Link linecloud::core.
-// linecloud::features adds linecloud/localize/image_query.h (a photo in),
+// linecloud::features adds linecloud/pipeline/localizer.h (a map loaded once,
+// photos, features and queries answered) and linecloud/localize/image_query.h,
 // linecloud::privacy the attacks and the audit (linecloud/privacy/*.h).
 #pragma once
 

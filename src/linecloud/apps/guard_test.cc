@@ -85,7 +85,8 @@ Finished Wait(const Process& p) {
   return f;
 }
 
-Finished RunScript(const std::string& script, const std::vector<std::string>& env, const TempDir& tmp) {
+Finished RunScript(const std::string& script, const std::vector<std::string>& env,
+                   const TempDir& tmp) {
   return Wait(Start(script, env, tmp));
 }
 
@@ -133,7 +134,8 @@ TEST(Guard, ConcurrentLiftsOfANewModelMakeOneKey) {
       fingerprints.insert(
           ToHex(ReadLineCloud(tmp.Path(fmt::format("m{}_{}.lcm", trial, k))).key_fingerprint));
     }
-    const size_t keys = StoreFiles(store, ".key").size(), models = StoreFiles(store, ".model").size();
+    const size_t keys = StoreFiles(store, ".key").size(),
+                 models = StoreFiles(store, ".model").size();
     double_keys += keys != 1 || models != 1 || fingerprints.size() != 1;
   }
   EXPECT_EQ(double_keys, 0) << "of " << trials << " concurrent lift pairs";
@@ -159,8 +161,8 @@ TEST(Guard, AKeyEditedInTheStoreIsRefused) {
   const std::string store = tmp.Path("store");
   const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + store};
   const std::string model = SharedDataPath(kMaupertuis);
-  ASSERT_EQ(RunScript(fmt::format("{} lift --model {} --out {}", Tool(), model, tmp.Path("a.lcm")), env,
-                tmp)
+  ASSERT_EQ(RunScript(fmt::format("{} lift --model {} --out {}", Tool(), model, tmp.Path("a.lcm")),
+                      env, tmp)
                 .code,
             0);
   const std::vector<std::string> keys = StoreFiles(store, ".key");
@@ -169,9 +171,10 @@ TEST(Guard, AKeyEditedInTheStoreIsRefused) {
   std::string text = ReadFileToString(key_path);
   const size_t digit = text.rfind('\n', text.size() - 2) + 1;  // the first digit of the key line
   text[digit] = text[digit] == '0' ? '1' : '0';
-  WriteFileAtomically(key_path, [&](std::ostream& os) { os << text; }, 0600);
-  const Finished f =
-      RunScript(fmt::format("{} lift --model {} --out {}", Tool(), model, tmp.Path("b.lcm")), env, tmp);
+  WriteFileAtomically(
+      key_path, [&](std::ostream& os) { os << text; }, 0600);
+  const Finished f = RunScript(
+      fmt::format("{} lift --model {} --out {}", Tool(), model, tmp.Path("b.lcm")), env, tmp);
   EXPECT_EQ(f.code, 1);
   EXPECT_NE(f.err.find("the key file was changed"), std::string::npos) << f.err;
   EXPECT_FALSE(FileExists(tmp.Path("b.lcm")));
@@ -219,9 +222,9 @@ TEST(Guard, KeyStoreParentsOwnerAndLinks) {
   TempDir tmp;
   const std::string model = SharedDataPath(kMaupertuis);
   const std::string store = tmp.Path("home/.local/share/linecloud/keys");
-  Finished f = RunScript(fmt::format("umask 000; {} lift --model {} --out {}", Tool(), model,
-                               tmp.Path("a.lcm")),
-                   {"LINECLOUD_KEY_STORE=" + store}, tmp);
+  Finished f = RunScript(
+      fmt::format("umask 000; {} lift --model {} --out {}", Tool(), model, tmp.Path("a.lcm")),
+      {"LINECLOUD_KEY_STORE=" + store}, tmp);
   ASSERT_EQ(f.code, 0) << f.err;
   for (const char* dir : {"home", "home/.local", "home/.local/share", "home/.local/share/linecloud",
                           "home/.local/share/linecloud/keys"}) {
@@ -230,7 +233,7 @@ TEST(Guard, KeyStoreParentsOwnerAndLinks) {
   // A link to a store: refused.
   fs::create_symlink(store, tmp.Path("link"));
   f = RunScript(fmt::format("{} lift --model {} --out {}", Tool(), model, tmp.Path("b.lcm")),
-          {"LINECLOUD_KEY_STORE=" + tmp.Path("link")}, tmp);
+                {"LINECLOUD_KEY_STORE=" + tmp.Path("link")}, tmp);
   EXPECT_EQ(f.code, 1);
   EXPECT_NE(f.err.find("symbolic link"), std::string::npos) << f.err;
   // Another user's store (as root, chown it to nobody).
@@ -251,8 +254,8 @@ TEST(Guard, LiftNeverWritesIntoTheKeyStore) {
   const std::string store = tmp.Path("store");
   const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + store};
   const std::string model = SharedDataPath(kMaupertuis);
-  ASSERT_EQ(RunScript(fmt::format("{} lift --model {} --out {}", Tool(), model, tmp.Path("a.lcm")), env,
-                tmp)
+  ASSERT_EQ(RunScript(fmt::format("{} lift --model {} --out {}", Tool(), model, tmp.Path("a.lcm")),
+                      env, tmp)
                 .code,
             0);
   const std::string key_path = store + "/" + StoreFiles(store, ".key").at(0);
@@ -273,10 +276,11 @@ TEST(Guard, ABadStoreEntryIsNamedAndSkipped) {
   TempDir tmp;
   const std::string store = tmp.Path("store");
   KeyStore{store};
-  WriteFileAtomically(store + "/x.model", [](std::ostream&) {}, 0600);
+  WriteFileAtomically(
+      store + "/x.model", [](std::ostream&) {}, 0600);
   const Finished f = RunScript(fmt::format("{} lift --model {} --out {}", Tool(),
-                                     SharedDataPath(kMaupertuis), tmp.Path("a.lcm")),
-                         {"LINECLOUD_KEY_STORE=" + store}, tmp);
+                                           SharedDataPath(kMaupertuis), tmp.Path("a.lcm")),
+                               {"LINECLOUD_KEY_STORE=" + store}, tmp);
   EXPECT_EQ(f.code, 0) << f.err;
   EXPECT_NE(f.err.find("warning: key store entry skipped"), std::string::npos) << f.err;
   EXPECT_NE(f.err.find("x.model"), std::string::npos) << f.err;
@@ -294,13 +298,15 @@ TEST(Guard, OutputsRespectTheUmaskAndReplacedFilesKeepTheirMode) {
                   Tool(), model, tmp.Path("points.ply"), tmp.Path("map.lcm"), tmp.Path("q.json")),
       {"LINECLOUD_KEY_STORE=" + tmp.Path("store")}, tmp);
   ASSERT_EQ(f.code, 0) << f.err;
-  for (const char* out : {"points.ply", "map.lcm", "q.json"}) EXPECT_EQ(Mode(tmp.Path(out)), 0600u) << out;
+  for (const char* out : {"points.ply", "map.lcm", "q.json"})
+    EXPECT_EQ(Mode(tmp.Path(out)), 0600u) << out;
   // Through a link, a 0600 file stays 0600 (was replaced by a 0644 one).
-  WriteFileAtomically(tmp.Path("secret.ply"), [](std::ostream& os) { os << "old"; }, 0600);
+  WriteFileAtomically(
+      tmp.Path("secret.ply"), [](std::ostream& os) { os << "old"; }, 0600);
   fs::create_symlink(tmp.Path("secret.ply"), tmp.Path("link.ply"));
-  const Finished g = RunScript(fmt::format("umask 022; {} export --model {} --ply {}", Tool(), model,
-                                     tmp.Path("link.ply")),
-                         {}, tmp);
+  const Finished g = RunScript(
+      fmt::format("umask 022; {} export --model {} --ply {}", Tool(), model, tmp.Path("link.ply")),
+      {}, tmp);
   ASSERT_EQ(g.code, 0) << g.err;
   EXPECT_EQ(Mode(tmp.Path("secret.ply")), 0600u);
   EXPECT_NE(ReadFileToString(tmp.Path("secret.ply")), "old");
@@ -313,8 +319,8 @@ TEST(Guard, AFifoOutputWithoutAReaderIsRefused) {
   ASSERT_EQ(::mkfifo(tmp.Path("fifo").c_str(), 0600), 0);
   // `timeout` turns a hang into exit code 124.
   const Finished f = RunScript(fmt::format("timeout 60 {} export --model {} --ply {}", Tool(),
-                                     SharedDataPath(kMaupertuis), tmp.Path("fifo")),
-                         {}, tmp);
+                                           SharedDataPath(kMaupertuis), tmp.Path("fifo")),
+                               {}, tmp);
   EXPECT_EQ(f.code, 1) << f.err;
   EXPECT_NE(f.err.find("nothing reads"), std::string::npos) << f.err;
   // With a reader, it is written through. (A FIFO read before any writer
@@ -377,13 +383,15 @@ TEST(Guard, ADecompressionBombIsRefusedFromItsHeader) {
   const ImageHeader header = ReadImageHeader(bytes, "bomb.png", {.max_pixels = ~uint64_t{0}});
   EXPECT_EQ(header.width, 60000u);
   EXPECT_EQ(header.height, 60000u);
-  EXPECT_NE(ErrorOf([&] { DecodeGreyImage(bytes, "bomb.png"); })
-                .find("bomb.png: the image header says 60000x60000 pixels, more than the limit"),
+  EXPECT_NE(ErrorOf([&] {
+              DecodeGreyImage(bytes, "bomb.png");
+            }).find("bomb.png: the image header says 60000x60000 pixels, more than the limit"),
             std::string::npos);
   // Within the pixel cap but not the camera's size: refused from the header too.
   EXPECT_NE(ErrorOf([&] {
-              DecodeGreyImage(bytes, "bomb.png",
-                              {.max_pixels = ~uint64_t{0}, .expected_width = 640, .expected_height = 480});
+              DecodeGreyImage(
+                  bytes, "bomb.png",
+                  {.max_pixels = ~uint64_t{0}, .expected_width = 640, .expected_height = 480});
             }).find("the image is 60000x60000 pixels but the camera is 640x480"),
             std::string::npos);
   // End to end: the CLI's peak memory stays small.
@@ -392,15 +400,17 @@ TEST(Guard, ADecompressionBombIsRefusedFromItsHeader) {
   WriteFileAtomically(tmp.Path("bomb.png"), [&](std::ostream& os) { os << png; });
   const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + tmp.Path("store")};
   const std::string m = SharedDataPath("colmap-maupertuis");
-  ASSERT_EQ(RunScript(fmt::format("{} lift --model {}/reconstruction --database {}/colmap.db --out {}",
+  ASSERT_EQ(
+      RunScript(fmt::format("{} lift --model {}/reconstruction --database {}/colmap.db --out {}",
                             Tool(), m, m, tmp.Path("m.lcm")),
                 env, tmp)
-                .code,
-            0);
-  const Finished f = RunScript(fmt::format("{} localize --map {} --image {} --camera 'PINHOLE 60000 60000 "
-                                     "50000 50000 30000 30000'",
-                                     Tool(), tmp.Path("m.lcm"), tmp.Path("bomb.png")),
-                         env, tmp);
+          .code,
+      0);
+  const Finished f =
+      RunScript(fmt::format("{} localize --map {} --image {} --camera 'PINHOLE 60000 60000 "
+                            "50000 50000 30000 30000'",
+                            Tool(), tmp.Path("m.lcm"), tmp.Path("bomb.png")),
+                env, tmp);
   EXPECT_EQ(f.code, 1);
   EXPECT_NE(f.err.find("more than the limit"), std::string::npos) << f.err;
   EXPECT_LT(f.max_rss_kb, 200 * 1024) << "peak memory of the refused photo";
@@ -412,14 +422,15 @@ TEST(Guard, ATruncatedJpegIsAnError) {
   const std::string jpeg = ReadFileToString(SharedDataPath("strecha/fountain-P11/images/0000.jpg"));
   const std::string head = jpeg.substr(0, 8000);
   const auto decode = [](const std::string& data) {
-    return DecodeGreyImage(
-        std::span(reinterpret_cast<const uint8_t*>(data.data()), data.size()), "photo.jpg");
+    return DecodeGreyImage(std::span(reinterpret_cast<const uint8_t*>(data.data()), data.size()),
+                           "photo.jpg");
   };
   EXPECT_NE(ErrorOf([&] { decode(head); }).find("photo.jpg: the image is truncated"),
             std::string::npos);
   // The whole file decodes, from bytes exactly as from the path.
   const GreyImage whole = decode(jpeg);
-  EXPECT_EQ(whole.pixels, ReadGreyImage(SharedDataPath("strecha/fountain-P11/images/0000.jpg")).pixels);
+  EXPECT_EQ(whole.pixels,
+            ReadGreyImage(SharedDataPath("strecha/fountain-P11/images/0000.jpg")).pixels);
 }
 
 // Row 11: NaN 2D points in a binary model are refused (as in text models).
@@ -429,8 +440,7 @@ TEST(Guard, NonFinite2DPointsInABinaryModelAreRefused) {
   Reconstruction rec = ReadColmapModel(SharedDataPath(kMaupertuis));
   rec.images.begin()->second.points2D.at(3).xy.x() = std::nan("");
   WriteColmapModel(rec, tmp.Path("model"), ModelFormat::kBinary);
-  EXPECT_NE(ErrorOf([&] { ReadColmapModel(tmp.Path("model")); })
-                .find("field 'points2D.x' at byte"),
+  EXPECT_NE(ErrorOf([&] { ReadColmapModel(tmp.Path("model")); }).find("field 'points2D.x' at byte"),
             std::string::npos);
 }
 
@@ -512,14 +522,14 @@ TEST(Guard, TheAttackStopsAtItsTimeBudget) {
   LINECLOUD_REQUIRE_DATA(kMaupertuis);
   TempDir tmp;
   const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + tmp.Path("store")};
-  ASSERT_EQ(RunScript(fmt::format("{} lift --model {} --out {}", Tool(), SharedDataPath(kMaupertuis),
-                            tmp.Path("m.lcm")),
-                env, tmp)
+  ASSERT_EQ(RunScript(fmt::format("{} lift --model {} --out {}", Tool(),
+                                  SharedDataPath(kMaupertuis), tmp.Path("m.lcm")),
+                      env, tmp)
                 .code,
             0);
   const Finished f = RunScript(fmt::format("{} attack --map {} --out {} --max-seconds 1e-6 --quiet",
-                                     Tool(), tmp.Path("m.lcm"), tmp.Path("rec.ply")),
-                         env, tmp);
+                                           Tool(), tmp.Path("m.lcm"), tmp.Path("rec.ply")),
+                               env, tmp);
   EXPECT_EQ(f.code, 1);
   EXPECT_NE(f.err.find("stopped at --max-seconds 1e-06"), std::string::npos) << f.err;
   EXPECT_NE(f.err.find("the whole attack would take about"), std::string::npos) << f.err;

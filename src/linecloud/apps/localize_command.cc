@@ -14,6 +14,7 @@
 #include "linecloud/localize/image_query.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/localize/query_json.h"
+#include "linecloud/pipeline/localizer.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
@@ -51,26 +52,18 @@ void PrintProgress(int iterations, int needed, int inliers, double seconds) {
             << std::flush;
 }
 
-void RunLocalize(LocalizeArgs args) {
-  // Default: the method without gravity for the map's kind and the photo count.
-  if (args.method.empty()) {
-    const bool several = args.image_paths.size() > 1;
-    args.method = args.map_path.empty() ? (several ? "m-p3P" : "p3P") : (several ? "m-p6L" : "p6L");
-  }
-  const MethodInfo& method = FindMethod(args.method);
+void CheckArgs(const LocalizeArgs& args) {
   if (args.map_path.empty() == args.model_dir.empty()) {
     Fail("give exactly one of --map MAP.lcm (line cloud) or --model DIR (point model)");
   }
-  {
-    std::vector<std::string> inputs = {args.map_path, args.model_dir, args.query_path,
-                                       args.database, args.rig};
-    inputs.insert(inputs.end(), args.image_paths.begin(), args.image_paths.end());
-    for (const auto& [option, output] :
-         {std::pair<const char*, const std::string&>{"--out", args.out},
-          {"--ply", args.ply},
-          {"--overlay", args.overlay}}) {
-      if (!output.empty()) RefuseOutputOverInputs(output, inputs, option);
-    }
+  std::vector<std::string> inputs = {args.map_path, args.model_dir, args.query_path, args.database,
+                                     args.rig};
+  inputs.insert(inputs.end(), args.image_paths.begin(), args.image_paths.end());
+  for (const auto& [option, output] :
+       {std::pair<const char*, const std::string&>{"--out", args.out},
+        {"--ply", args.ply},
+        {"--overlay", args.overlay}}) {
+    if (!output.empty()) RefuseOutputOverInputs(output, inputs, option);
   }
   if (!args.overlay.empty() && args.image_paths.size() != 1) {
     Fail("--overlay draws on one photo: it needs exactly one --image");
@@ -80,112 +73,136 @@ void RunLocalize(LocalizeArgs args) {
         "give exactly one of --query QUERY.json (correspondences) or --image PHOTO (with "
         "--camera)");
   }
+  if (!args.image_paths.empty() && !args.model_dir.empty() && args.database.empty()) {
+    Fail("--image with --model needs the model's --database colmap.db for descriptors");
+  }
+}
+
+// The Localizer's options from the command line: matching, the index cache
+// beside the map (authenticated with this user's secret; no key store, no
+// cache), defaults of every request, the map gravity.
+LocalizerOptions MakeLocalizerOptions(LocalizeArgs& args) {
+  LocalizerOptions o;
+  o.image = args.image;
+  if (args.exact_matching) o.image.approximate_from = 0;
+  if (!args.map_path.empty() && !args.exact_matching && !args.image_paths.empty()) {
+    try {
+      o.index_cache_key = KeyStore(KeyStore::DefaultDirectory()).CacheSecret();
+      o.index_cache = args.map_path + ".flann";
+    } catch (const Error& e) {
+      if (!args.quiet) std::cerr << "descriptor index not cached: " << e.what() << "\n";
+    }
+  }
+  o.localize = args.options;
+  o.localize.ransac.max_error = args.threshold;
+  o.localize.ransac.seed = args.seed;
+  o.localize.refine = !args.no_refine;
+  if (args.min_inliers >= 0) {
+    o.localize.success.min_inliers_points = o.localize.success.min_inliers_lines = args.min_inliers;
+  }
+  if (!args.map_gravity.empty()) o.map_gravity = ParseDirection(args.map_gravity, "--map-gravity");
+  if (!args.quiet) o.progress = [](const std::string& what) { std::cerr << what << "\n"; };
+  return o;
+}
+
+// The photos of --image with their --camera strings and --rig poses.
+std::vector<QueryPhoto> ReadPhotos(const LocalizeArgs& args, const MethodInfo& method,
+                                   std::vector<std::string>* bytes) {
+  const size_t n = args.image_paths.size();
+  if (args.cameras.empty()) Fail("--image needs --camera \"MODEL WIDTH HEIGHT PARAMS...\"");
+  if (args.cameras.size() != 1 && args.cameras.size() != n) {
+    Fail("{} photos but {} --camera strings (give one for all, or one per photo)", n,
+         args.cameras.size());
+  }
+  if (n > 1 && args.rig.empty())
+    Fail("{} photos need --rig RIG.json (their cam_from_rig poses)", n);
+  if (n > 1 && !method.multi) {
+    Fail("{} photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not {}", n,
+         method.name);
+  }
+  const std::vector<Rigid3d> rig = n > 1 ? ReadRigJson(args.rig) : std::vector<Rigid3d>(1);
+  if (rig.size() != n) Fail("{} photos but {} cam_from_rig poses in the rig", n, rig.size());
+  std::vector<QueryPhoto> photos(n);
+  bytes->resize(n);
+  for (size_t k = 0; k < n; ++k) {
+    photos[k].camera = ParseCameraString(args.cameras[args.cameras.size() == 1 ? 0 : k]);
+    photos[k].cam_from_rig = rig[k];
+    photos[k].name = args.image_paths[k];
+  }
+  for (size_t k = 0; k < n; ++k) {
+    (*bytes)[k] = ReadFileToString(args.image_paths[k]);
+    photos[k].encoded =
+        std::span(reinterpret_cast<const uint8_t*>((*bytes)[k].data()), (*bytes)[k].size());
+  }
+  return photos;
+}
+
+std::string FormatResult(const LocalizeArgs& args, const MethodInfo& method,
+                         const LocalizerResult& r) {
+  if (args.format == "colmap") {
+    if (r.query.cameras.size() != 1) {
+      Fail("--format colmap writes one image's pose; this query has {} cameras (use JSON)",
+           r.query.cameras.size());
+    }
+    const std::string name =
+        r.photos.empty() ? "query" : std::filesystem::path(args.image_paths[0]).filename().string();
+    return r.success() ? LocalizeResultToColmapImagesTxt(r.pose, name)
+                       : "# no pose: " + r.reason + "\n";
+  }
+  nlohmann::ordered_json j = LocalizeResultToJson(method, r.pose, args.with_inliers);
+  if (!r.photos.empty()) {
+    AddPhotoStats(r.num_features(), r.num_matches(), r.times.decode_ms, r.times.extract_ms,
+                  r.times.match_ms, r.pose, &j);
+  }
+  return j.dump(2) + "\n";
+}
+
+void RunLocalize(LocalizeArgs args) {
+  CheckArgs(args);
   std::optional<LineCloud> cloud;
   std::optional<Reconstruction> model;
-  if (args.map_path.empty()) {
-    model = ReadColmapModel(args.model_dir);
-  } else {
-    cloud = ReadLineCloud(args.map_path);
-  }
-  Query query;
-  std::optional<PhotoQuery> photos;
-  if (!args.image_paths.empty()) {
-    if (!args.quiet) {
-      args.image.progress = [](const std::string& what) { std::cerr << what << "\n"; };
-    }
-    if (model && args.database.empty()) {
-      Fail("--image with --model needs the model's --database colmap.db for descriptors");
-    }
-    if (cloud && !args.exact_matching) {
-      // The cache beside the map is authenticated with this user's secret: one
-      // planted by someone else is rebuilt, never parsed. No key store: no cache.
-      try {
-        args.image.index_cache_key = KeyStore(KeyStore::DefaultDirectory()).CacheSecret();
-        args.image.index_cache = args.map_path + ".flann";
-      } catch (const Error& e) {
-        if (!args.quiet) std::cerr << "descriptor index not cached: " << e.what() << "\n";
-      }
-    }
-    if (args.exact_matching) args.image.approximate_from = 0;
-    photos = QueryFromPhotos(args.image_paths, args.cameras, args.rig, method,
-                             cloud ? MapDescriptorsFromCloud(*cloud, args.map_path)
-                                   : MapDescriptorsFromModel(*model, args.database),
-                             args.image);
-    query = photos->query;
-  } else {
-    query = ReadQueryJson(args.query_path);
-  }
-  const std::string source = photos ? args.image_paths[0] : args.query_path;
-  // Gravity: the query's from --gravity, the map's from the .lcm (lift
-  // --gravity) or --map-gravity; QUERY.json fields win when present.
-  if (!args.gravity.empty() && !query.gravity_query) {
-    query.gravity_query = ParseDirection(args.gravity, "--gravity");
-  }
-  if (!query.gravity_map) {
-    if (!args.map_gravity.empty()) {
-      query.gravity_map = ParseDirection(args.map_gravity, "--map-gravity");
-    } else if (cloud && cloud->gravity) {
-      query.gravity_map = cloud->gravity;
-    }
-  }
-  const LocalizationMap map = model ? LocalizationMap(PointMapFromModel(*model))
-                                    : LocalizationMap(LineMapFromCloud(*cloud));
-  LocalizeOptions& options = args.options;
-  options.ransac.max_error = args.threshold;
-  options.ransac.seed = args.seed;
-  options.refine = !args.no_refine;
-  if (args.min_inliers >= 0) {
-    options.success.min_inliers_points = options.success.min_inliers_lines = args.min_inliers;
-  }
+  if (args.map_path.empty()) model = ReadColmapModel(args.model_dir);
+  if (!args.map_path.empty()) cloud = ReadLineCloud(args.map_path);
+  const LocalizerOptions options = MakeLocalizerOptions(args);
+  const Localizer localizer = cloud
+                                  ? Localizer(*cloud, options, args.map_path)
+                                  : Localizer(*model, args.image_paths.empty() ? "" : args.database,
+                                              options, args.model_dir);
+  LocalizeRequest request;
+  request.method = args.method;
+  request.keep_images = !args.overlay.empty();
+  if (!args.gravity.empty()) request.gravity = ParseDirection(args.gravity, "--gravity");
   bool progress_shown = false;
   if (!args.quiet) {
-    options.ransac.progress = [&](int iterations, int needed, int inliers, double seconds) {
+    request.progress = options.progress;
+    request.ransac_progress = [&](int iterations, int needed, int inliers, double seconds) {
       PrintProgress(iterations, needed, inliers, seconds);
       progress_shown = true;
     };
   }
-  LocalizeResult result;
-  if (photos && query.observations.size() < static_cast<size_t>(method.sample_size)) {
-    result.num_correspondences = static_cast<int>(query.observations.size());
-    result.failure = fmt::format("{} matches, fewer than the {} the method's sample needs",
-                                 query.observations.size(), method.sample_size);
-  } else {
-    result = Localize(method, query, map, options, source);
-  }
+  std::vector<std::string> bytes;
+  const MethodInfo& method =
+      args.method.empty() ? localizer.DefaultMethod(std::max<size_t>(args.image_paths.size(), 1))
+                          : FindMethod(args.method);
+  const LocalizerResult r =
+      args.image_paths.empty()
+          ? localizer.LocalizeQuery(ReadQueryJson(args.query_path), request, args.query_path)
+          : localizer.LocalizePhotos(ReadPhotos(args, method, &bytes), request);
   if (progress_shown) std::cerr << "\n";
-
-  std::string text;
-  if (args.format == "colmap") {
-    if (query.cameras.size() != 1) {
-      Fail("--format colmap writes one image's pose; this query has {} cameras (use JSON)",
-           query.cameras.size());
-    }
-    const std::string name =
-        photos ? std::filesystem::path(args.image_paths[0]).filename().string() : "query";
-    text = result.success ? LocalizeResultToColmapImagesTxt(result, name)
-                          : "# no pose: " + result.failure + "\n";
-  } else {
-    nlohmann::ordered_json j = LocalizeResultToJson(method, result, args.with_inliers);
-    if (photos) {
-      const ImageQueryTimes t = photos->times();
-      AddPhotoStats(photos->num_features(), photos->num_matches(), t.decode_ms, t.extract_ms,
-                    t.match_ms, result, &j);
-    }
-    text = j.dump(2) + "\n";
+  const std::string text = FormatResult(args, FindMethod(r.method), r);
+  if (!args.overlay.empty()) {
+    WriteLocalizationOverlay(args.overlay, r.photos[0].image, r.query, r.pose, localizer.map());
   }
-  if (photos && !args.overlay.empty()) {
-    WriteLocalizationOverlay(args.overlay, photos->photos[0].image, query, result, map);
-  }
-  if (!args.ply.empty() && result.has_pose) {
+  if (!args.ply.empty() && r.pose.has_pose) {
     WriteLocalizationPly(args.ply, cloud ? &*cloud : nullptr, model ? &*model : nullptr,
-                         LocalizedCameras(query, result), 0);
+                         LocalizedCameras(r.query, r.pose), 0);
   }
   if (args.out.empty()) {
     std::cout << text;
   } else {
     WriteFileAtomically(args.out, [&](std::ostream& os) { os << text; });
   }
-  if (!args.quiet && !result.success) std::cerr << "no pose: " << result.failure << "\n";
+  if (!args.quiet && !r.success()) std::cerr << "no pose: " << r.reason << "\n";
 }
 
 }  // namespace

@@ -1,0 +1,306 @@
+#include "linecloud/pipeline/localizer.h"
+
+#include <chrono>
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include "linecloud/util/error.h"
+
+namespace linecloud {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double NowMs() {
+  return 1e3 * std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
+}
+
+// Client features: finite keypoints inside the camera's image, 128 bytes each.
+void CheckFeatures(const SiftFeatures& f, const Camera& camera, const std::string& name) {
+  if (f.descriptors.size() != 128 * f.keypoints.size()) {
+    Fail("{}: {} keypoints but {} descriptor bytes (expected {} x 128)", name, f.keypoints.size(),
+         f.descriptors.size(), f.keypoints.size());
+  }
+  for (size_t i = 0; i < f.keypoints.size(); ++i) {
+    const SiftKeypoint& k = f.keypoints[i];
+    if (!std::isfinite(k.x) || !std::isfinite(k.y) || k.x < 0 || k.y < 0 ||
+        k.x > static_cast<double>(camera.width) || k.y > static_cast<double>(camera.height)) {
+      Fail("{}: keypoints[{}] = ({}, {}) is not a pixel of the {}x{} camera", name, i, k.x, k.y,
+           camera.width, camera.height);
+    }
+  }
+}
+
+}  // namespace
+
+struct Localizer::State {
+  std::string source;
+  bool lines = true;
+  LocalizationMap map;
+  std::optional<MapDescriptors> descriptors;
+  std::string no_descriptors;  // why photos cannot be matched, when no descriptors
+  std::unique_ptr<DescriptorIndex> index;
+  std::optional<Eigen::Vector3d> gravity;
+  LocalizerOptions options;
+
+  // The approximate index of large maps: loaded from the cache when it is this
+  // user's and current, else built (and cached when a cache path is given).
+  void BuildIndex() {
+    const ImageQueryOptions& o = options.image;
+    if (!descriptors || o.approximate_from == 0 || descriptors->ids.size() < o.approximate_from ||
+        o.matching.cross_check) {
+      return;
+    }
+    if (!options.index_cache.empty()) {
+      index = DescriptorIndex::Load(options.index_cache, descriptors->descriptors, {},
+                                    options.index_cache_key);
+      if (index) return;
+    }
+    if (options.progress) {
+      options.progress(fmt::format("building the descriptor index of {} map descriptors",
+                                   descriptors->ids.size()));
+    }
+    index = std::make_unique<DescriptorIndex>(descriptors->descriptors, DescriptorIndexOptions{});
+    if (options.index_cache.empty()) return;
+    try {
+      index->Save(options.index_cache, options.index_cache_key);
+    } catch (const Error& e) {
+      if (options.progress) options.progress(std::string("index not cached: ") + e.what());
+    }
+  }
+};
+
+void LocalizerOptions::Check() const {
+  image.sift.Check();
+  image.matching.Check();
+  localize.Check();
+  if (map_gravity && !(map_gravity->allFinite() && map_gravity->norm() > 0)) {
+    Fail("map gravity must be a finite non-zero direction");
+  }
+}
+
+size_t LocalizerResult::num_features() const {
+  size_t n = 0;
+  for (const ImageQuery& p : photos) n += p.features.size();
+  return n;
+}
+
+size_t LocalizerResult::num_matches() const {
+  size_t n = 0;
+  for (const ImageQuery& p : photos) n += p.matches.size();
+  return n;
+}
+
+Localizer::Localizer(const LineCloud& cloud, const LocalizerOptions& options,
+                     const std::string& source) {
+  options.Check();
+  auto state = std::make_shared<State>();
+  state->source = source;
+  state->options = options;
+  state->map = LineMapFromCloud(cloud);
+  if (cloud.has_descriptors()) {
+    state->descriptors = MapDescriptorsFromCloud(cloud, source);
+  } else {
+    state->no_descriptors = fmt::format(
+        "{}: the map has no descriptors to match a photo to; lift it with --database colmap.db",
+        source);
+  }
+  state->gravity = options.map_gravity ? options.map_gravity->normalized() : cloud.gravity;
+  state->BuildIndex();
+  state_ = std::move(state);
+}
+
+Localizer::Localizer(const Reconstruction& model, const std::string& database,
+                     const LocalizerOptions& options, const std::string& source) {
+  options.Check();
+  auto state = std::make_shared<State>();
+  state->source = source;
+  state->lines = false;
+  state->options = options;
+  state->map = PointMapFromModel(model);
+  if (!database.empty()) {
+    state->descriptors = MapDescriptorsFromModel(model, database);
+  } else {
+    state->no_descriptors =
+        fmt::format("{}: photos need the model's COLMAP database (--database colmap.db)", source);
+  }
+  if (options.map_gravity) state->gravity = options.map_gravity->normalized();
+  state->BuildIndex();
+  state_ = std::move(state);
+}
+
+bool Localizer::lines() const { return state_->lines; }
+
+size_t Localizer::size() const {
+  return std::visit(
+      [](const auto& m) -> size_t {
+        if constexpr (std::is_same_v<std::decay_t<decltype(m)>, LineMap>) {
+          return m.lines.size();
+        } else {
+          return m.points.size();
+        }
+      },
+      state_->map);
+}
+
+bool Localizer::has_descriptors() const { return state_->descriptors.has_value(); }
+
+const std::optional<Eigen::Vector3d>& Localizer::map_gravity() const { return state_->gravity; }
+
+const LocalizationMap& Localizer::map() const { return state_->map; }
+
+const MethodInfo& Localizer::DefaultMethod(size_t num_cameras) const {
+  const bool several = num_cameras > 1;
+  return FindMethod(state_->lines ? (several ? "m-p6L" : "p6L") : (several ? "m-p3P" : "p3P"));
+}
+
+LocalizerResult Localizer::LocalizeQuery(const Query& query, const LocalizeRequest& request,
+                                         std::string_view source) const {
+  const double start = NowMs();
+  LocalizerResult result;
+  result.query = query;
+  const MethodInfo& method =
+      request.method.empty() ? DefaultMethod(query.cameras.size()) : FindMethod(request.method);
+  return Finish(method, std::move(result), request, source, start);
+}
+
+ImageQuery Localizer::ExtractAndMatch(const QueryPhoto& photo,
+                                      const LocalizeRequest& request) const {
+  const int sources =
+      int{!photo.encoded.empty()} + int{photo.image != nullptr} + int{photo.features != nullptr};
+  if (sources != 1) {
+    Fail("{}: give exactly one of the encoded photo, a decoded image or its features", photo.name);
+  }
+  photo.camera.Check(photo.name + ": camera");
+  ImageQueryOptions o = state_->options.image;
+  o.progress = request.progress;
+  ImageQuery q;
+  if (photo.features) {
+    CheckFeatures(*photo.features, photo.camera, photo.name);
+    q.features = *photo.features;
+  } else {
+    double start = NowMs();
+    const GreyImage* grey = photo.image;
+    if (!grey) {
+      // The header is checked against the camera and the pixel cap first.
+      q.image = DecodeGreyImage(photo.encoded, photo.name,
+                                {.max_pixels = o.max_pixels,
+                                 .expected_width = photo.camera.width,
+                                 .expected_height = photo.camera.height});
+      grey = &q.image;
+      q.times.decode_ms = NowMs() - start;
+    } else if (static_cast<uint64_t>(grey->width) != photo.camera.width ||
+               static_cast<uint64_t>(grey->height) != photo.camera.height ||
+               grey->pixels.size() != static_cast<size_t>(grey->width) * grey->height) {
+      Fail("{}: the image is {}x{} pixels but the camera is {}x{}", photo.name, grey->width,
+           grey->height, photo.camera.width, photo.camera.height);
+    }
+    if (o.progress) {
+      o.progress(
+          fmt::format("extracting SIFT from {} ({}x{})", photo.name, grey->width, grey->height));
+    }
+    start = NowMs();
+    q.features = ExtractSift(*grey, o.sift);
+    q.times.extract_ms = NowMs() - start;
+    if (request.keep_images && photo.image) q.image = *photo.image;
+    if (!request.keep_images) q.image = GreyImage{};
+  }
+  MatchImageQuery(q, photo.camera, *state_->descriptors, o, state_->index.get());
+  return q;
+}
+
+LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
+                                          const LocalizeRequest& request) const {
+  const double start = NowMs();
+  if (photos.empty()) Fail("no photo given");
+  const MethodInfo& method =
+      request.method.empty() ? DefaultMethod(photos.size()) : FindMethod(request.method);
+  if (photos.size() > 1 && !method.multi) {
+    Fail("{} photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not {}",
+         photos.size(), method.name);
+  }
+  if (!state_->descriptors) Fail("{}", state_->no_descriptors);
+  LocalizerResult result;
+  std::vector<Rigid3d> rig;
+  for (const QueryPhoto& photo : photos) {
+    result.photos.push_back(ExtractAndMatch(photo, request));
+    rig.push_back(photo.cam_from_rig);
+    const ImageQueryTimes& t = result.photos.back().times;
+    result.times.decode_ms += t.decode_ms;
+    result.times.extract_ms += t.extract_ms;
+    result.times.match_ms += t.match_ms;
+  }
+  result.query =
+      photos.size() == 1 ? result.photos[0].query : CombineImageQueries(result.photos, rig);
+  return Finish(method, std::move(result), request, photos[0].name, start);
+}
+
+LocalizerResult Localizer::LocalizeEncodedImage(std::span<const uint8_t> encoded,
+                                                const Camera& camera,
+                                                const LocalizeRequest& request,
+                                                const std::string& name) const {
+  if (encoded.empty()) Fail("{}: empty file, not an image", name);
+  QueryPhoto photo;
+  photo.encoded = encoded;
+  photo.camera = camera;
+  photo.name = name;
+  return LocalizePhotos(std::span(&photo, 1), request);
+}
+
+LocalizerResult Localizer::LocalizeImage(const GreyImage& image, const Camera& camera,
+                                         const LocalizeRequest& request) const {
+  QueryPhoto photo;
+  photo.image = &image;
+  photo.camera = camera;
+  photo.name = "image";
+  return LocalizePhotos(std::span(&photo, 1), request);
+}
+
+LocalizerResult Localizer::LocalizeFeatures(const SiftFeatures& features, const Camera& camera,
+                                            const LocalizeRequest& request) const {
+  QueryPhoto photo;
+  photo.features = &features;
+  photo.camera = camera;
+  photo.name = "features";
+  return LocalizePhotos(std::span(&photo, 1), request);
+}
+
+LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult result,
+                                  const LocalizeRequest& request, std::string_view source,
+                                  double start_ms) const {
+  result.method = method.name;
+  Query& query = result.query;
+  // Gravity: the request's for the query frame (a query file's own wins), the
+  // map's from the .lcm or the options.
+  if (request.gravity && !query.gravity_query) {
+    if (!(request.gravity->allFinite() && request.gravity->norm() > 0)) {
+      Fail("gravity must be a finite non-zero direction x,y,z");
+    }
+    query.gravity_query = request.gravity->normalized();
+  }
+  if (!query.gravity_map && state_->gravity) query.gravity_map = state_->gravity;
+  LocalizeOptions options = state_->options.localize;
+  if (request.threshold_px) options.ransac.max_error = *request.threshold_px;
+  if (request.seed) options.ransac.seed = *request.seed;
+  if (request.max_seconds) options.ransac.max_seconds = *request.max_seconds;
+  if (request.refine_focal) options.refine_focal = *request.refine_focal;
+  if (request.ransac_progress) options.ransac.progress = request.ransac_progress;
+  if (!result.photos.empty() &&
+      query.observations.size() < static_cast<size_t>(method.sample_size)) {
+    // Too few matches for one sample: no pose (a photo of something else).
+    result.pose.num_correspondences = static_cast<int>(query.observations.size());
+    result.pose.failure = fmt::format("{} matches, fewer than the {} the method's sample needs",
+                                      query.observations.size(), method.sample_size);
+  } else {
+    result.pose = Localize(method, query, state_->map, options, source);
+  }
+  result.status = result.pose.success ? LocalizerStatus::kSuccess : LocalizerStatus::kNoPose;
+  result.reason = result.pose.failure;
+  result.times.ransac_ms = result.pose.stats.ransac_ms;
+  result.times.refine_ms = result.pose.refine_ms;
+  result.times.total_ms = NowMs() - start_ms;
+  return result;
+}
+
+}  // namespace linecloud

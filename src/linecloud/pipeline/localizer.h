@@ -1,0 +1,142 @@
+// The Localizer: a map loaded once, many requests answered. It owns what
+// every request needs — the lines (or, for comparison, a point model's
+// points), their descriptors, the matching index and the map's gravity — and
+// runs the photo path of Speciale et al. (CVPR 2019): decode (header checked
+// first) → SIFT as COLMAP → match to the map's descriptors (ratio test) →
+// RANSAC with the method's minimal solver → LM → success criteria.
+//
+// Every request method is const and safe to call from many threads at once;
+// results do not depend on the thread count (fixed seeds, no global state).
+// Bad input throws Error naming the photo, field or option; "no pose" is a
+// result (status kNoPose with a reason), not an exception.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "linecloud/features/descriptor_index.h"
+#include "linecloud/features/image.h"
+#include "linecloud/features/sift.h"
+#include "linecloud/geometry/camera.h"
+#include "linecloud/geometry/rigid3.h"
+#include "linecloud/io/colmap_model.h"
+#include "linecloud/lifting/line_cloud.h"
+#include "linecloud/localize/image_query.h"
+#include "linecloud/localize/localize.h"
+
+namespace linecloud {
+
+struct LocalizerOptions {
+  // SIFT, matching (ratio test), the approximate-index threshold, the pixel cap.
+  ImageQueryOptions image;
+  // Defaults of every request (RANSAC threshold, seed, success criteria, ...).
+  LocalizeOptions localize;
+  // Optional cache of the approximate index (e.g. MAP.lcm.flann), authenticated
+  // with `index_cache_key` (KeyStore::CacheSecret()); empty: built in memory.
+  std::string index_cache;
+  std::array<uint8_t, 32> index_cache_key{};
+  // The map frame's gravity when the map does not store one (lift --gravity).
+  std::optional<Eigen::Vector3d> map_gravity;
+  std::function<void(const std::string&)> progress;  // index building
+
+  void Check() const;
+};
+
+// One photo of a request: exactly one source — the encoded file (JPEG or PNG
+// bytes, as an HTTP body brings it), a decoded grey image, or features the
+// caller extracted (keypoints in COLMAP's pixel convention, descriptors N×128
+// in COLMAP's SIFT normalisation) — with its camera and, in a rig, its pose.
+struct QueryPhoto {
+  std::span<const uint8_t> encoded;
+  const GreyImage* image = nullptr;
+  const SiftFeatures* features = nullptr;
+  Camera camera;
+  Rigid3d cam_from_rig;        // rigs (several photos): this camera in the rig frame
+  std::string name = "photo";  // names the photo in errors
+};
+
+// Per-request settings; unset ones take the Localizer's defaults.
+struct LocalizeRequest {
+  std::string method;                      // empty: p6L / p3P, m-p6L / m-p3P for rigs
+  std::optional<Eigen::Vector3d> gravity;  // gravity direction in the query (rig) frame
+  std::optional<double> threshold_px;
+  std::optional<double> max_seconds;  // RANSAC's time budget
+  std::optional<bool> refine_focal;
+  std::optional<uint64_t> seed;
+  bool keep_images = false;  // keep each decoded photo in the result (overlays)
+  // RANSAC progress (iterations, needed, best inliers, seconds) and stage messages.
+  std::function<void(int, int, int, double)> ransac_progress;
+  std::function<void(const std::string&)> progress;
+};
+
+enum class LocalizerStatus { kSuccess, kNoPose };
+
+struct StageTimes {
+  double decode_ms = 0, extract_ms = 0, match_ms = 0, ransac_ms = 0, refine_ms = 0, total_ms = 0;
+};
+
+struct LocalizerResult {
+  LocalizerStatus status = LocalizerStatus::kNoPose;
+  std::string reason;  // why there is no pose
+  std::string method;
+  LocalizeResult pose;  // the pose (cam_from_world / rig_from_world), inliers, statistics
+  Query query;          // the correspondences localized (photos: one per match)
+  std::vector<ImageQuery> photos;  // per photo: features, matches, times (pixels if kept)
+  StageTimes times;
+
+  bool success() const { return status == LocalizerStatus::kSuccess; }
+  size_t num_features() const;
+  size_t num_matches() const;
+};
+
+class Localizer {
+ public:
+  // A line cloud; photos need its descriptors (lift --database). `source`
+  // names the map in errors.
+  Localizer(const LineCloud& cloud, const LocalizerOptions& options = {},
+            const std::string& source = "map");
+  // A point model, for comparison; photos need its COLMAP database.
+  Localizer(const Reconstruction& model, const std::string& database,
+            const LocalizerOptions& options = {}, const std::string& source = "model");
+
+  bool lines() const;
+  size_t size() const;  // lines or points
+  bool has_descriptors() const;
+  const std::optional<Eigen::Vector3d>& map_gravity() const;
+  const LocalizationMap& map() const;
+  // The default method for `num_cameras` cameras on this map.
+  const MethodInfo& DefaultMethod(size_t num_cameras) const;
+
+  // Correspondences already made (QUERY.json).
+  LocalizerResult LocalizeQuery(const Query& query, const LocalizeRequest& request = {},
+                                std::string_view source = "query") const;
+  // One photo (any source), or several photos of a rig (an m- method).
+  LocalizerResult LocalizePhotos(std::span<const QueryPhoto> photos,
+                                 const LocalizeRequest& request = {}) const;
+  LocalizerResult LocalizeEncodedImage(std::span<const uint8_t> encoded, const Camera& camera,
+                                       const LocalizeRequest& request = {},
+                                       const std::string& name = "photo") const;
+  LocalizerResult LocalizeImage(const GreyImage& image, const Camera& camera,
+                                const LocalizeRequest& request = {}) const;
+  LocalizerResult LocalizeFeatures(const SiftFeatures& features, const Camera& camera,
+                                   const LocalizeRequest& request = {}) const;
+
+ private:
+  struct State;
+  std::shared_ptr<const State> state_;  // shared, immutable: copies are cheap
+
+  ImageQuery ExtractAndMatch(const QueryPhoto& photo, const LocalizeRequest& request) const;
+  LocalizerResult Finish(const MethodInfo& method, LocalizerResult result,
+                         const LocalizeRequest& request, std::string_view source,
+                         double start_ms) const;
+};
+
+}  // namespace linecloud
