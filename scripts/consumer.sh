@@ -16,5 +16,32 @@ cmake --build build/consumer/installed
 cmake -S tests/consumer -B build/consumer/subdirectory -G Ninja -DLINECLOUD_SOURCE_DIR="$PWD" >/dev/null
 cmake --build build/consumer/subdirectory -j2
 ./build/consumer/subdirectory/consumer
+# The README's Localizer example (tests/consumer/photos.cc): a map loaded once,
+# photos from memory and from features. On the shared model's photo (a fixed
+# key, a throwaway key store; its heavily compressed photos give no pose), and
+# when CI's evaluation left its fountain-P11 work, on a group's held-out photos
+# against that group's map (each must be localized).
+keys="$PWD/build/consumer/keys"
+key="$PWD/build/consumer/fixed.key"
+(umask 077; printf 'directions sphere\n%s\n' "$(printf '3c%.0s' $(seq 32))" > "$key")
+shared="${LINECLOUD_SHARED:-../shared}"
+maupertuis="$shared/data/colmap-maupertuis"
+if [ -d "$maupertuis" ]; then
+  LINECLOUD_KEY_STORE="$keys" ./build/linecloud lift --model "$maupertuis/reconstruction" \
+    --database "$maupertuis/colmap.db" --key-file "$key" --out build/consumer/maupertuis.lcm >/dev/null
+  ./build/consumer/installed/photos build/consumer/maupertuis.lcm \
+    "SIMPLE_PINHOLE 1919 1079 1847.53 959.5 539.5" "$maupertuis/images/00.jpg"
+else
+  echo "real data absent: $maupertuis (the photo example skipped)"
+fi
+work=build/eval/fountain-P11
+if [ -f "$work/prepared.json" ] && [ -f "$work/lifting.key" ]; then
+  LINECLOUD_KEY_STORE="$keys" ./build/linecloud lift --model "$work/groups/g00/map" \
+    --database "$work/colmap/database.db" --key-file "$work/lifting.key" \
+    --out build/consumer/fountain-g00.lcm >/dev/null
+  ./build/consumer/installed/photos --expect-success build/consumer/fountain-g00.lcm \
+    "PINHOLE 1536 1024 1379.74 1382.08 760.095 503.155" \
+    "$shared/data/strecha/fountain-P11/images/0000.jpg" "$shared/data/strecha/fountain-P11/images/0001.jpg"
+fi
 # The pkg-config file names the installed core library.
 PKG_CONFIG_PATH="$prefix/lib/pkgconfig" pkg-config --modversion linecloud

@@ -7,7 +7,7 @@
 
 #include "linecloud/apps/commands.h"
 #include "linecloud/lifting/key_store.h"
-#include "linecloud/eval/overlay.h"
+#include "linecloud/draw/overlay.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/io/ply.h"

@@ -10,6 +10,7 @@
 #include "linecloud/eval/statistics.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/lifting/lifting.h"
+#include "linecloud/pipeline/localizer.h"
 #include "linecloud/privacy/map_lifting.h"
 #include "linecloud/synthetic/localization_instances.h"
 #include "linecloud/util/error.h"
@@ -20,10 +21,12 @@ namespace {
 
 using json = nlohmann::json;
 
+// A group's map as `localize --image` answers it: one Localizer on its lines
+// and one on its points, both matching the same descriptors (their ids are
+// point ids: the lines are the owner's view, keyed by point id).
 struct GroupMap {
-  MapDescriptors descriptors;  // ids are point ids
-  PointMap points;
-  LineMap lines;  // keyed by point id (the owner's view)
+  std::optional<Localizer> lines, points;
+  const Localizer& For(const MethodInfo& method) const { return method.lines ? *lines : *points; }
 };
 
 GroupMap LoadGroupMap(const std::string& work_dir, const EvalGroup& g, const LiftingKey& key,
@@ -31,7 +34,6 @@ GroupMap LoadGroupMap(const std::string& work_dir, const EvalGroup& g, const Lif
   const Reconstruction model = ReadColmapModel(JoinPaths(work_dir, g.map_dir));
   std::vector<std::string> names;
   for (const EvalImage& im : g.images) names.push_back(im.name);
-  GroupMap m;
   const MapDescriptors all =
       MapDescriptorsExcluding(model, JoinPaths(work_dir, "colmap/database.db"), names);
   // The map `lift --database` would write with these options: the kept
@@ -41,16 +43,24 @@ GroupMap LoadGroupMap(const std::string& work_dir, const EvalGroup& g, const Lif
   const LiftingKey lines_key = MapLiftingKey(key, options.lifting);
   const LineMap all_lines =
       LineMapByPointId(LiftMap(key, model_ids, model_xyz, options.lifting), lines_key);
+  MapDescriptors descriptors;
+  PointMap points;
+  LineMap lines;
   for (size_t k = 0; k < all.ids.size(); ++k) {
     const auto line = all_lines.lines.find(all.ids[k]);
     if (line == all_lines.lines.end()) continue;
-    m.descriptors.ids.push_back(all.ids[k]);
-    m.descriptors.descriptors.insert(m.descriptors.descriptors.end(),
-                                     all.descriptors.begin() + k * 128,
-                                     all.descriptors.begin() + (k + 1) * 128);
-    m.lines.lines.emplace(line->first, line->second);
-    m.points.points[all.ids[k]] = model.points3D.at(all.ids[k]).xyz;
+    descriptors.ids.push_back(all.ids[k]);
+    descriptors.descriptors.insert(descriptors.descriptors.end(), all.descriptors.begin() + k * 128,
+                                   all.descriptors.begin() + (k + 1) * 128);
+    lines.lines.emplace(line->first, line->second);
+    points.points[all.ids[k]] = model.points3D.at(all.ids[k]).xyz;
   }
+  LocalizerOptions o;
+  o.localize.ransac.max_error = options.threshold_px;
+  o.localize.ransac.seed = options.seed;
+  GroupMap m;
+  m.lines.emplace(std::move(lines), descriptors, o, g.name);
+  m.points.emplace(std::move(points), std::move(descriptors), o, g.name);
   return m;
 }
 
@@ -74,7 +84,7 @@ MapDescriptors MapDescriptorsExcluding(const Reconstruction& map, const std::str
 namespace {
 
 // The photo's features: extracted now, or once into `cache` and copied from
-// it.
+// it (without its pixels).
 ImageQuery ExtractOnce(const std::string& path, const Camera& camera, ExtractedPhotos* cache) {
   if (!cache) return ExtractImageQuery(path, camera, {});
   auto it = cache->find(path);
@@ -84,6 +94,20 @@ ImageQuery ExtractOnce(const std::string& path, const Camera& camera, ExtractedP
     it = cache->emplace(path, std::move(q)).first;
   }
   return it->second;
+}
+
+// The photo's features matched through the group's Localizer, as `localize
+// --image` matches them (the same index rules); its extraction time kept.
+ImageQuery MatchPhoto(const GroupMap& map, const ImageQuery& extracted, const Camera& camera,
+                      const std::string& name) {
+  QueryPhoto photo;
+  photo.features = &extracted.features;
+  photo.camera = camera;
+  photo.name = name;
+  ImageQuery q = map.lines->MatchPhoto(photo);
+  q.times.decode_ms = extracted.times.decode_ms;
+  q.times.extract_ms = extracted.times.extract_ms;
+  return q;
 }
 
 constexpr double kDeg = 180.0 / std::numbers::pi;
@@ -101,15 +125,12 @@ struct Tally {
 void LocalizeQuery(const MethodInfo& method, const Query& query, const GroupMap& map,
                    const Sim3d& truth, double extract_ms, double match_ms, std::string_view source,
                    const DirectMatchingOptions& options, Tally* t, json* row) {
-  LocalizeOptions lo;
-  lo.ransac.max_error = options.threshold_px;
-  lo.ransac.seed = options.seed;
   double rot = 180, trans = 1e9;
   std::string failure;
   if (query.observations.size() >= static_cast<size_t>(method.sample_size)) {
-    const LocalizationMap lm =
-        method.lines ? LocalizationMap(map.lines) : LocalizationMap(map.points);
-    const LocalizeResult r = Localize(method, query, lm, lo, source);
+    LocalizeRequest request;
+    request.method = method.name;
+    const LocalizeResult r = map.For(method).LocalizeQuery(query, request, source).pose;
     t->ransac_ms += r.stats.ransac_ms;
     t->solver_ms += r.stats.solver_ms;
     t->scoring_ms += r.stats.scoring_ms;
@@ -198,8 +219,8 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
     for (const EvalImage& im : g.images) {
       const std::string path = JoinPaths(JoinPaths(work.dataset_dir, "images"), im.name);
       const Camera& camera = work.cameras.at(im.camera_id);
-      ImageQuery q = ExtractOnce(path, camera, options.extracted.get());
-      MatchImageQuery(q, camera, map.descriptors, {});
+      ImageQuery q =
+          MatchPhoto(map, ExtractOnce(path, camera, options.extracted.get()), camera, path);
       json row = {{"group", g.name},
                   {"image", im.name},
                   {"features", q.features.size()},

@@ -1,10 +1,9 @@
 // The deployable protocol: each query image's own SIFT features (as COLMAP
 // computes them) matched straight to the map's descriptors — the line cloud's
-// for p6L, the point model's for p3P — through the code path of
-// `localize --image` (QueryFromImage, Localize with the default success
-// criteria). The map's descriptors come from the map images only: the query
-// group's images are not in its map (checked), so no query descriptor can
-// reach the map it is localized against.
+// for p6L, the point model's for p3P — through the Localizer that
+// `localize --image` uses (the same matching rules and success criteria). The map's descriptors
+// come from the map images only: the query group's images are not in its map (checked), so no query
+// descriptor can reach the map it is localized against.
 #pragma once
 
 #include <map>

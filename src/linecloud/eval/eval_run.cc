@@ -16,7 +16,7 @@
 #include "linecloud/estimation/refine_pose.h"
 #include "linecloud/eval/localization_bench.h"
 #include "linecloud/eval/paper_table2.h"
-#include "linecloud/eval/plot.h"
+#include "linecloud/draw/plot.h"
 #include "linecloud/eval/scene_localization.h"
 #include "linecloud/eval/statistics.h"
 #include "linecloud/io/colmap_model.h"

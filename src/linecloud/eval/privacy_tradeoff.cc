@@ -6,7 +6,7 @@
 #include <fmt/format.h>
 
 #include "linecloud/eval/eval_run.h"
-#include "linecloud/eval/plot.h"
+#include "linecloud/draw/plot.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/lifting/lifting.h"
 #include "linecloud/privacy/recovery_score.h"

@@ -130,6 +130,25 @@ Localizer::Localizer(const Reconstruction& model, const std::string& database,
   state_ = std::move(state);
 }
 
+Localizer::Localizer(LocalizationMap map, std::optional<MapDescriptors> descriptors,
+                     const LocalizerOptions& options, const std::string& source) {
+  options.Check();
+  auto state = std::make_shared<State>();
+  state->source = source;
+  state->lines = std::holds_alternative<LineMap>(map);
+  state->options = options;
+  state->map = std::move(map);
+  if (descriptors && descriptors->descriptors.size() != 128 * descriptors->ids.size()) {
+    Fail("{}: {} descriptor ids but {} descriptor bytes (expected 128 each)", source,
+         descriptors->ids.size(), descriptors->descriptors.size());
+  }
+  state->descriptors = std::move(descriptors);
+  if (!state->descriptors) state->no_descriptors = source + ": the map has no descriptors";
+  if (options.map_gravity) state->gravity = options.map_gravity->normalized();
+  state->BuildIndex();
+  state_ = std::move(state);
+}
+
 bool Localizer::lines() const { return state_->lines; }
 
 size_t Localizer::size() const {
@@ -165,13 +184,13 @@ LocalizerResult Localizer::LocalizeQuery(const Query& query, const LocalizeReque
   return Finish(method, std::move(result), request, source, start);
 }
 
-ImageQuery Localizer::ExtractAndMatch(const QueryPhoto& photo,
-                                      const LocalizeRequest& request) const {
+ImageQuery Localizer::MatchPhoto(const QueryPhoto& photo, const LocalizeRequest& request) const {
   const int sources =
       int{!photo.encoded.empty()} + int{photo.image != nullptr} + int{photo.features != nullptr};
   if (sources != 1) {
     Fail("{}: give exactly one of the encoded photo, a decoded image or its features", photo.name);
   }
+  if (!state_->descriptors) Fail("{}", state_->no_descriptors);
   photo.camera.Check(photo.name + ": camera");
   ImageQueryOptions o = state_->options.image;
   o.progress = request.progress;
@@ -224,7 +243,7 @@ LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
   LocalizerResult result;
   std::vector<Rigid3d> rig;
   for (const QueryPhoto& photo : photos) {
-    result.photos.push_back(ExtractAndMatch(photo, request));
+    result.photos.push_back(MatchPhoto(photo, request));
     rig.push_back(photo.cam_from_rig);
     const ImageQueryTimes& t = result.photos.back().times;
     result.times.decode_ms += t.decode_ms;

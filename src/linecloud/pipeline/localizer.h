@@ -106,6 +106,10 @@ class Localizer {
   // A point model, for comparison; photos need its COLMAP database.
   Localizer(const Reconstruction& model, const std::string& database,
             const LocalizerOptions& options = {}, const std::string& source = "model");
+  // Any map with the descriptors its ids are matched by (none: queries only);
+  // e.g. the evaluation's maps, whose lines its owner keys by point id.
+  Localizer(LocalizationMap map, std::optional<MapDescriptors> descriptors,
+            const LocalizerOptions& options = {}, const std::string& source = "map");
 
   bool lines() const;
   size_t size() const;  // lines or points
@@ -129,11 +133,14 @@ class Localizer {
   LocalizerResult LocalizeFeatures(const SiftFeatures& features, const Camera& camera,
                                    const LocalizeRequest& request = {}) const;
 
+  // A photo's features matched to the map (no pose): its query of
+  // correspondences, with decode / extract / match times.
+  ImageQuery MatchPhoto(const QueryPhoto& photo, const LocalizeRequest& request = {}) const;
+
  private:
   struct State;
   std::shared_ptr<const State> state_;  // shared, immutable: copies are cheap
 
-  ImageQuery ExtractAndMatch(const QueryPhoto& photo, const LocalizeRequest& request) const;
   LocalizerResult Finish(const MethodInfo& method, LocalizerResult result,
                          const LocalizeRequest& request, std::string_view source,
                          double start_ms) const;

@@ -10,7 +10,7 @@
 #include "linecloud/io/lift_model.h"
 #include "linecloud/io/ply.h"
 #include "linecloud/lifting/lifting.h"
-#include "linecloud/privacy/audit_figure.h"
+#include "linecloud/draw/audit_figure.h"
 #include "linecloud/privacy/recovery_score.h"
 #include "linecloud/privacy/two_key_attack.h"
 #include "linecloud/util/error.h"

@@ -1,4 +1,4 @@
-#include "linecloud/privacy/audit_figure.h"
+#include "linecloud/draw/audit_figure.h"
 
 #include <algorithm>
 #include <array>

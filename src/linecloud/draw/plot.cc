@@ -1,4 +1,4 @@
-#include "linecloud/eval/plot.h"
+#include "linecloud/draw/plot.h"
 
 #include <algorithm>
 #include <cmath>

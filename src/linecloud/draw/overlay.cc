@@ -1,4 +1,4 @@
-#include "linecloud/eval/overlay.h"
+#include "linecloud/draw/overlay.h"
 
 #include <cairo.h>
 
