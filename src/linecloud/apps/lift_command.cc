@@ -7,7 +7,7 @@
 #include "linecloud/io/lift_model.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/localize/image_query.h"
-#include "linecloud/privacy/resist.h"
+#include "linecloud/privacy/map_lifting.h"
 
 namespace linecloud {
 namespace {
@@ -26,26 +26,19 @@ void RunLift(LiftArgs args) {
                          {args.options.model_dir, args.options.database, args.options.key_file},
                          "--out");
   args.options.aggregation = DescriptorAggregationFromName(args.descriptor);
-  args.options.sparsify_mode = SparsifyModeFromName(args.sparsify_mode, "--sparsify-mode");
-  if (args.resist_attack >= 0) {
-    ResistOptions resist;
-    resist.max_recovered = args.resist_attack;
-    resist.Check();
-    const bool quiet = args.quiet;
-    args.options.select_points = [resist, quiet](const LiftingKey& key,
-                                                 std::span<const uint64_t> ids,
-                                                 std::span<const Eigen::Vector3d> points) {
-      const ResistResult r = SelectAttackResistantPoints(key, ids, points, resist);
-      if (!quiet) {
-        for (size_t k = 0; k < r.recovered_share.size(); ++k) {
-          std::cerr << fmt::format(
-              "resist: round {}: the attack recovers {:.1f} % of the points kept\n", k + 1,
-              100 * r.recovered_share[k]);
-        }
-      }
-      return r.kept;
-    };
-  }
+  // One description of a lifting, as `eval` takes it (privacy/map_lifting.h).
+  MapLifting lifting;
+  lifting.sparsify = args.options.sparsify;
+  lifting.sparsify_mode = SparsifyModeFromName(args.sparsify_mode, "--sparsify-mode");
+  lifting.resist_attack = args.resist_attack;
+  lifting.compact = args.options.compact;
+  ApplyMapLifting(lifting, &args.options, [quiet = args.quiet](size_t round, double recovered) {
+    if (!quiet) {
+      std::cerr << fmt::format(
+          "resist: round {}: the attack recovers {:.1f} % of the points kept\n", round,
+          100 * recovered);
+    }
+  });
   if (!args.gravity.empty()) args.options.gravity = ParseDirection(args.gravity, "--gravity");
   const LiftModelResult r = LiftModel(args.options);
   const LineCloud& cloud = r.cloud;

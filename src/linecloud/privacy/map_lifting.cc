@@ -72,6 +72,27 @@ LiftingKey MapLiftingKey(const LiftingKey& key, const MapLifting& lifting) {
                     DirectionSet::kCompact256);
 }
 
+void ApplyMapLifting(const MapLifting& lifting, LiftModelOptions* options,
+                     std::function<void(size_t, double)> progress) {
+  lifting.Check();
+  options->sparsify = lifting.sparsify;
+  options->sparsify_mode = lifting.sparsify_mode;
+  options->compact = lifting.compact;
+  options->select_points = nullptr;
+  if (lifting.resist_attack < 0) return;
+  ResistOptions resist;
+  resist.max_recovered = lifting.resist_attack;
+  resist.Check();
+  options->select_points = [resist, progress](const LiftingKey& key, std::span<const uint64_t> ids,
+                                              std::span<const Eigen::Vector3d> points) {
+    const ResistResult r = SelectAttackResistantPoints(key, ids, points, resist);
+    if (progress) {
+      for (size_t k = 0; k < r.recovered_share.size(); ++k) progress(k + 1, r.recovered_share[k]);
+    }
+    return r.kept;
+  };
+}
+
 LineCloud LiftMap(const LiftingKey& key, std::span<const uint64_t> ids,
                   std::span<const Eigen::Vector3d> points, const MapLifting& lifting) {
   lifting.Check();

@@ -4,11 +4,13 @@
 // take the same value so that what is measured is what `lift` writes.
 #pragma once
 
+#include <functional>
 #include <span>
 #include <string>
 
 #include <Eigen/Core>
 
+#include "linecloud/io/lift_model.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/lifting/line_cloud.h"
 #include "linecloud/lifting/sparsify.h"
@@ -35,6 +37,12 @@ MapLifting ParseMapLifting(const std::string& spec, const std::string& source);
 // The key whose lines the map holds (the compact variant's derived key when
 // `compact` and `key` is a sphere key).
 LiftingKey MapLiftingKey(const LiftingKey& key, const MapLifting& lifting);
+
+// `lift`'s options for this lifting (LiftModel: the keyed sparsification,
+// the attack-aware selection, the encoding); `progress` gets each resist
+// round's share of the kept points the attack still recovers.
+void ApplyMapLifting(const MapLifting& lifting, LiftModelOptions* options,
+                     std::function<void(size_t round, double recovered)> progress = nullptr);
 
 // The map of (ids, points): the kept points lifted under MapLiftingKey.
 LineCloud LiftMap(const LiftingKey& key, std::span<const uint64_t> ids,
