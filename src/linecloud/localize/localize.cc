@@ -1,5 +1,8 @@
 #include "linecloud/localize/localize.h"
 
+#include "linecloud/io/colmap_model.h"
+#include "linecloud/io/ply.h"
+
 #include <chrono>
 #include <cmath>
 #include <numeric>

@@ -21,13 +21,14 @@
 #include "linecloud/geometry/camera.h"
 #include "linecloud/geometry/plucker.h"
 #include "linecloud/geometry/rigid3.h"
-#include "linecloud/io/colmap_model.h"
-#include "linecloud/io/ply.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/lifting/line_cloud.h"
 #include "linecloud/solvers/minimal_problem.h"
 
 namespace linecloud {
+
+struct Reconstruction;  // io/colmap_model.h
+struct PlyCamera;       // io/ply.h
 
 struct QueryObservation {
   int camera = 0;

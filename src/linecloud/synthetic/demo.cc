@@ -55,8 +55,8 @@ double MaxRelativeDistance(const LineMap& m, const std::vector<uint64_t>& ids,
                            const std::vector<Eigen::Vector3d>& points) {
   double worst = 0;
   for (size_t i = 0; i < ids.size(); ++i) {
-    worst = std::max(worst,
-                     m.lines.at(ids[i]).DistanceTo(points[i]) / std::max(1.0, points[i].norm()));
+    worst =
+        std::max(worst, m.lines.at(ids[i]).DistanceTo(points[i]) / std::max(1.0, points[i].norm()));
   }
   return worst;
 }
@@ -118,7 +118,8 @@ DemoFiles WriteDemoFiles(const SyntheticScene& scene, const SceneQueryOptions& q
   // Rig queries (3 consecutive query images, local points with depth noise,
   // metric): for the m- and +l methods.
   CreateDirectories(d.rig_dir);
-  const std::vector<SceneQuery> rigs = SceneQueriesForMethod(scene, FindMethod("m-P3P+l+s"), queries);
+  const std::vector<SceneQuery> rigs =
+      SceneQueriesForMethod(scene, FindMethod("m-P3P+l+s"), queries);
   for (size_t k = 0; k < rigs.size(); ++k) {
     Query rig_query = rigs[k].query;
     AddLineIds(key, &rig_query);
