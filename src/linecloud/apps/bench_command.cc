@@ -25,17 +25,7 @@ void RunBenchSolvers(const BenchArgs& args) {
       args.options, [&](const std::string& what) { std::cerr << "bench: " << what << "\n"; });
   if (args.json) {
     nlohmann::json j = nlohmann::json::array();
-    for (const SolverBenchRow& r : rows) {
-      nlohmann::json row = {{"method", r.method},
-                            {"solver", r.solver},
-                            {"us_per_call", r.us_per_call},
-                            {"mean_solutions", r.mean_solutions},
-                            {"found_percent", r.found_percent},
-                            {"median_log10_rotation_error", r.median_log10_rotation_error},
-                            {"instances", r.instances}};
-      if (r.api_us_per_call > 0) row["api_us_per_call"] = r.api_us_per_call;
-      j.push_back(std::move(row));
-    }
+    for (const SolverBenchRow& r : rows) j.push_back(r.ToJson());
     std::cout << nlohmann::json{{"seed", args.options.seed}, {"rows", j}}.dump(2) << "\n";
     return;
   }
@@ -74,32 +64,7 @@ void RunBenchLocalize(const LocalizeBenchArgs& args) {
       o, [&](const std::string& what) { std::cerr << "bench localize: " << what << "\n"; });
   if (args.json) {
     nlohmann::json j = nlohmann::json::array();
-    for (const LocalizationBenchRow& r : rows) {
-      j.push_back({{"method", r.method},
-                   {"queries", r.queries},
-                   {"localized", r.localized},
-                   {"median_rotation_deg",
-                    {{"initial", r.median_rotation_deg[0]}, {"refined", r.median_rotation_deg[1]}}},
-                   {"median_position_rel",
-                    {{"initial", r.median_position[0]}, {"refined", r.median_position[1]}}},
-                   {"iterations", r.iterations},
-                   {"inlier_ratio", r.inlier_ratio},
-                   {"mean_solutions", r.solutions},
-                   {"solver_us", r.solver_us},
-                   {"ransac_ms", r.ransac_ms},
-                   {"refine_ms", r.refine_ms},
-                   {"refine_iterations", r.refine_iterations},
-                   {"total_ms", r.total_ms},
-                   {"median_total_ms", r.median_total_ms},
-                   {"time_ms",
-                    {{"solver", r.solver_ms},
-                     {"scoring", r.scoring_ms},
-                     {"local_optimization", r.lo_ms},
-                     {"refinement", r.refine_ms}}},
-                   {"counterpart", r.counterpart},
-                   {"rotation_bound_deg", r.rotation_bound_deg},
-                   {"counterpart_rotation_bound_deg", r.counterpart_rotation_bound_deg}});
-    }
+    for (const LocalizationBenchRow& r : rows) j.push_back(r.ToJson());
     std::cout << nlohmann::json{{"seed", o.seed},
                                 {"inlier_ratio", o.instance.inlier_ratio},
                                 {"match_scores", o.instance.match_scores},

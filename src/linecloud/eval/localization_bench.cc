@@ -99,4 +99,31 @@ std::vector<LocalizationBenchRow> RunLocalizationBench(
   return rows;
 }
 
+nlohmann::json LocalizationBenchRow::ToJson() const {
+  return {
+      {"method", method},
+      {"queries", queries},
+      {"localized", localized},
+      {"median_rotation_deg",
+       {{"initial", median_rotation_deg[0]}, {"refined", median_rotation_deg[1]}}},
+      {"median_position_rel", {{"initial", median_position[0]}, {"refined", median_position[1]}}},
+      {"iterations", iterations},
+      {"inlier_ratio", inlier_ratio},
+      {"mean_solutions", solutions},
+      {"solver_us", solver_us},
+      {"ransac_ms", ransac_ms},
+      {"refine_ms", refine_ms},
+      {"refine_iterations", refine_iterations},
+      {"total_ms", total_ms},
+      {"median_total_ms", median_total_ms},
+      {"time_ms",
+       {{"solver", solver_ms},
+        {"scoring", scoring_ms},
+        {"local_optimization", lo_ms},
+        {"refinement", refine_ms}}},
+      {"counterpart", counterpart},
+      {"rotation_bound_deg", rotation_bound_deg},
+      {"counterpart_rotation_bound_deg", counterpart_rotation_bound_deg}};
+}
+
 }  // namespace linecloud

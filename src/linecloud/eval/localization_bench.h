@@ -5,6 +5,8 @@
 // counterpart (Speciale et al., CVPR 2019, Table 1 pairs).
 #pragma once
 
+#include <nlohmann/json.hpp>
+
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -38,6 +40,8 @@ struct LocalizationBenchRow : LocalizationSummary {
   // trail the other, whatever the estimator.
   double rotation_bound_deg = 0;
   double counterpart_rotation_bound_deg = 0;
+
+  nlohmann::json ToJson() const;  // a row of `bench localize --json`
 };
 
 // The method with the same query data and model but the other map kind.

@@ -163,4 +163,16 @@ std::vector<SolverBenchRow> RunSolverBench(
   return rows;
 }
 
+nlohmann::json SolverBenchRow::ToJson() const {
+  nlohmann::json row = {{"method", method},
+                        {"solver", solver},
+                        {"us_per_call", us_per_call},
+                        {"mean_solutions", mean_solutions},
+                        {"found_percent", found_percent},
+                        {"median_log10_rotation_error", median_log10_rotation_error},
+                        {"instances", instances}};
+  if (api_us_per_call > 0) row["api_us_per_call"] = api_us_per_call;
+  return row;
+}
+
 }  // namespace linecloud

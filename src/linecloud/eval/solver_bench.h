@@ -3,6 +3,8 @@
 // random instances, single thread.
 #pragma once
 
+#include <nlohmann/json.hpp>
+
 #include <functional>
 #include <string>
 #include <vector>
@@ -28,6 +30,8 @@ struct SolverBenchRow {
   double found_percent = 0;                // true pose among the solutions
   double median_log10_rotation_error = 0;  // best solution per instance
   int instances = 0;
+
+  nlohmann::json ToJson() const;  // a row of `bench solvers --json`
 };
 
 // A peer: solves a method's instance, returning query_from_world poses.
