@@ -6,11 +6,11 @@
 
 #include "linecloud/apps/commands.h"
 #include "linecloud/privacy/attack_bench.h"
-#include "linecloud/eval/feature_bench.h"
-#include "linecloud/eval/match_bench.h"
+#include "linecloud/benchmarks/feature_bench.h"
+#include "linecloud/benchmarks/match_bench.h"
 #include "linecloud/util/file.h"
-#include "linecloud/eval/localization_bench.h"
-#include "linecloud/eval/solver_bench.h"
+#include "linecloud/benchmarks/localization_bench.h"
+#include "linecloud/benchmarks/solver_bench.h"
 
 namespace linecloud {
 namespace {

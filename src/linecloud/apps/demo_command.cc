@@ -6,7 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "linecloud/apps/commands.h"
-#include "linecloud/eval/scene_localization.h"
+#include "linecloud/benchmarks/scene_localization.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/io/json_util.h"
 #include "linecloud/io/lcm_format.h"

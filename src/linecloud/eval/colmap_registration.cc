@@ -10,7 +10,7 @@
 #include <fmt/format.h>
 
 #include "linecloud/eval/eval_run.h"
-#include "linecloud/eval/statistics.h"
+#include "linecloud/util/statistics.h"
 #include "linecloud/io/json_util.h"
 #include "linecloud/synthetic/localization_instances.h"
 #include "linecloud/util/clock.h"

@@ -7,7 +7,7 @@
 
 #include <fmt/format.h>
 
-#include "linecloud/eval/statistics.h"
+#include "linecloud/util/statistics.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/lifting/lifting.h"
 #include "linecloud/pipeline/localizer.h"

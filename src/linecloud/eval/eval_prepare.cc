@@ -12,7 +12,7 @@
 #include <fmt/core.h>
 
 #include "linecloud/eval/dataset.h"
-#include "linecloud/eval/statistics.h"
+#include "linecloud/util/statistics.h"
 #include "linecloud/io/colmap_database.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"

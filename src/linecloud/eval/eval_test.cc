@@ -15,7 +15,7 @@
 #include "linecloud/eval/eval_prepare.h"
 #include "linecloud/eval/eval_run.h"
 #include "linecloud/eval/eval_work.h"
-#include "linecloud/eval/localization_bench.h"
+#include "linecloud/benchmarks/localization_bench.h"
 #include "linecloud/draw/plot.h"
 #include "linecloud/io/json_util.h"
 #include "linecloud/solvers/minimal_problem.h"

@@ -7,7 +7,7 @@
 
 #include <gtest/gtest.h>
 
-#include "linecloud/eval/feature_bench.h"
+#include "linecloud/benchmarks/feature_bench.h"
 #include "linecloud/testing/test_util.h"
 #include "linecloud/util/error.h"
 

@@ -9,7 +9,7 @@
 #include "linecloud/lifting/key.h"
 #include "linecloud/lifting/lifting.h"
 #include "linecloud/estimation/pose_estimator.h"
-#include "linecloud/eval/scene_localization.h"
+#include "linecloud/benchmarks/scene_localization.h"
 #include "linecloud/synthetic/localization_instances.h"
 #include "linecloud/synthetic/scene.h"
 #include "linecloud/testing/test_util.h"

@@ -1,4 +1,4 @@
-#include "linecloud/eval/feature_bench.h"
+#include "linecloud/benchmarks/feature_bench.h"
 
 #include <chrono>
 #include <cmath>

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "linecloud/eval/localization_summary.h"
+#include "linecloud/benchmarks/localization_summary.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/synthetic/scene.h"
 #include "linecloud/synthetic/scene_queries.h"

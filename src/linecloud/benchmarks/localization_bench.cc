@@ -1,4 +1,4 @@
-#include "linecloud/eval/localization_bench.h"
+#include "linecloud/benchmarks/localization_bench.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,7 +8,7 @@
 #include <fmt/format.h>
 
 #include "linecloud/estimation/refine_pose.h"
-#include "linecloud/eval/statistics.h"
+#include "linecloud/util/statistics.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {

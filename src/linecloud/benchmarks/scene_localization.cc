@@ -1,4 +1,4 @@
-#include "linecloud/eval/scene_localization.h"
+#include "linecloud/benchmarks/scene_localization.h"
 
 #include <algorithm>
 #include <random>

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "linecloud/eval/localization_summary.h"
+#include "linecloud/benchmarks/localization_summary.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/synthetic/localization_instances.h"
 

@@ -1,4 +1,4 @@
-#include "linecloud/eval/match_bench.h"
+#include "linecloud/benchmarks/match_bench.h"
 
 #include <algorithm>
 #include <chrono>

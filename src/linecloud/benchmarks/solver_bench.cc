@@ -1,4 +1,4 @@
-#include "linecloud/eval/solver_bench.h"
+#include "linecloud/benchmarks/solver_bench.h"
 
 #include <algorithm>
 #include <chrono>
@@ -7,7 +7,7 @@
 
 #include <Eigen/Geometry>
 
-#include "linecloud/eval/statistics.h"
+#include "linecloud/util/statistics.h"
 #include "linecloud/synthetic/minimal_instances.h"
 #include "linecloud/util/error.h"
 

@@ -1,9 +1,9 @@
-#include "linecloud/eval/localization_summary.h"
+#include "linecloud/benchmarks/localization_summary.h"
 
 #include <algorithm>
 #include <numbers>
 
-#include "linecloud/eval/statistics.h"
+#include "linecloud/util/statistics.h"
 #include "linecloud/synthetic/localization_instances.h"
 
 namespace linecloud {

@@ -2,7 +2,7 @@
 // when CMake finds OpenGV. Conventions converted to query_from_world:
 // absolute pose returns [R | c] with R = world_from_cam rotation and c the
 // viewpoint's position; threept_arun returns frame 1 from frame 2.
-#include "linecloud/eval/solver_bench.h"
+#include "linecloud/benchmarks/solver_bench.h"
 
 #ifdef LINECLOUD_WITH_OPENGV
 #include <opengv/absolute_pose/CentralAbsoluteAdapter.hpp>
