@@ -15,7 +15,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "linecloud/eval/colmap_runner.h"
+#include "linecloud/colmap/colmap_runner.h"
 
 namespace linecloud {
 

@@ -11,7 +11,7 @@
 #include <Eigen/Geometry>
 #include <fmt/core.h>
 
-#include "linecloud/eval/dataset.h"
+#include "linecloud/colmap/dataset.h"
 #include "linecloud/util/statistics.h"
 #include "linecloud/io/colmap_database.h"
 #include "linecloud/util/error.h"

@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <string>
 
-#include "linecloud/eval/colmap_runner.h"
+#include "linecloud/colmap/colmap_runner.h"
 #include "linecloud/eval/eval_work.h"
 #include "linecloud/io/colmap_model.h"
 

@@ -10,7 +10,7 @@
 
 #include <gtest/gtest.h>
 
-#include "linecloud/eval/dataset.h"
+#include "linecloud/colmap/dataset.h"
 #include "linecloud/eval/direct_matching.h"
 #include "linecloud/eval/eval_prepare.h"
 #include "linecloud/eval/eval_run.h"

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "linecloud/eval/dataset.h"
+#include "linecloud/colmap/dataset.h"
 #include "linecloud/io/colmap_model.h"
 
 namespace linecloud {

@@ -1,4 +1,4 @@
-#include "linecloud/eval/colmap_runner.h"
+#include "linecloud/colmap/colmap_runner.h"
 
 #include <fcntl.h>
 #include <spawn.h>

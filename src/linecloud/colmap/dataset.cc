@@ -1,4 +1,4 @@
-#include "linecloud/eval/dataset.h"
+#include "linecloud/colmap/dataset.h"
 
 #include <algorithm>
 #include <filesystem>
