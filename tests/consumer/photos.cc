@@ -33,17 +33,16 @@ int main(int argc, char** argv) {
       const Sim3d& cam_from_world = r.pose.query_from_world;
       // The time outside the photo's own stages: what the Localizer adds per request.
       const StageTimes& t = r.times;
-      const double overhead =
-          t.total_ms - t.decode_ms - t.extract_ms - t.match_ms - t.ransac_ms - t.refine_ms;
       std::printf(
           "%s: %s, %d inliers, q = (%.6f %.6f %.6f %.6f), t = (%.4f %.4f %.4f), %.0f ms (decode "
-          "%.0f, extract %.0f, match %.0f, ransac %.1f, refine %.1f, other %.2f)\n",
+          "%.0f, extract %.0f, match %.0f, prepare %.1f, ransac %.1f, refine %.1f, checks %.1f, "
+          "other %.2f)\n",
           argv[i], r.success() ? "localized" : r.reason.c_str(),
           static_cast<int>(r.pose.inliers.size()), cam_from_world.rotation.w(),
           cam_from_world.rotation.x(), cam_from_world.rotation.y(), cam_from_world.rotation.z(),
           cam_from_world.translation.x(), cam_from_world.translation.y(),
           cam_from_world.translation.z(), t.total_ms, t.decode_ms, t.extract_ms, t.match_ms,
-          t.ransac_ms, t.refine_ms, overhead);
+          t.prepare_ms, t.ransac_ms, t.refine_ms, t.check_ms, t.other_ms());
       // --- the check: the same photo from its features ---
       const SiftFeatures features = ExtractSift(DecodeGreyImage(bytes, argv[i]), {});
       const LocalizerResult f = localizer.LocalizeFeatures(features, camera);

@@ -18,6 +18,10 @@
 namespace linecloud {
 namespace {
 
+double MsSince(std::chrono::steady_clock::time_point start) {
+  return 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 using Clock = std::chrono::steady_clock;
 
 void CheckQuery(const MethodInfo& method, const Query& q, std::string_view source) {
@@ -371,8 +375,10 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
     Fail("{}: refining the focal length needs a query with one camera, got {}", source,
          query.cameras.size());
   }
+  const auto prepare_start = std::chrono::steady_clock::now();
   PreparedQuery prepared = PrepareCheckedQuery(method, query, map, source, kept);
   LocalizeResult result;
+  result.prepare_ms = MsSince(prepare_start);
   result.num_correspondences = static_cast<int>(query.observations.size());
   PoseEstimator estimator(method, prepared.data, options.local_refinement);
   const RansacResult<Sim3d> ransac = Ransac(estimator, options.ransac, prepared.data.ranking);
@@ -411,10 +417,12 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
   } else if (options.success.max_focal_discrepancy > 0 && query.cameras.size() == 1 &&
              ransac_inliers.size() > static_cast<size_t>(method.sample_size) + 1) {
     // The calibration check: the focal length the inliers fit best.
+    const auto check_start = std::chrono::steady_clock::now();
     double unused_ms = 0;
     result.best_fit_focal =
         result.given_focal *
         RefineFocalFactor(method, query, map, ransac_inliers, pose, options, &unused_ms);
+    result.check_ms += MsSince(check_start);
   }
   result.refine_iterations = RefineStage(method, prepared.data, ransac_inliers, options, &pose,
                                          &result.refine_ms, nullptr);
@@ -439,8 +447,10 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
   result.query_from_world = prepared.ToQueryFromWorld(pose);
   result.initial = prepared.ToQueryFromWorld(ransac.model);
   result.has_pose = true;
+  const auto uncertainty_start = std::chrono::steady_clock::now();
   result.uncertainty =
       EstimatePoseUncertainty(prepared.data, result.inliers, pose, method.similarity());
+  result.check_ms += MsSince(uncertainty_start);
   return result;
 }
 

@@ -134,6 +134,9 @@ struct LocalizeResult {
   std::vector<int> inliers;  // observation indices
   RansacStats stats;
   double refine_ms = 0;
+  // Checking and preparing the query (undistortion, map look-ups), and the
+  // success checks after the refinement (calibration check, uncertainty).
+  double prepare_ms = 0, check_ms = 0;
   int refine_iterations = 0;
   // Mean reprojection errors (px) over RANSAC's inliers, at `initial` and at
   // `query_from_world`; an inlier the refined pose puts behind its camera is

@@ -316,8 +316,10 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
   }
   result.status = result.pose.success ? LocalizerStatus::kSuccess : LocalizerStatus::kNoPose;
   result.reason = result.pose.failure;
+  result.times.prepare_ms = result.pose.prepare_ms;
   result.times.ransac_ms = result.pose.stats.ransac_ms;
   result.times.refine_ms = result.pose.refine_ms;
+  result.times.check_ms = result.pose.check_ms;
   result.times.total_ms = NowMs() - start_ms;
   return result;
 }

@@ -80,7 +80,17 @@ struct LocalizeRequest {
 enum class LocalizerStatus { kSuccess, kNoPose };
 
 struct StageTimes {
-  double decode_ms = 0, extract_ms = 0, match_ms = 0, ransac_ms = 0, refine_ms = 0, total_ms = 0;
+  double decode_ms = 0, extract_ms = 0, match_ms = 0;
+  double prepare_ms = 0;  // the correspondences checked, undistorted, looked up in the map
+  double ransac_ms = 0, refine_ms = 0;
+  double check_ms = 0;  // success checks: calibration check, uncertainty
+  double total_ms = 0;  // the whole request
+
+  // What the request spent outside its stages (the Localizer's own overhead).
+  double other_ms() const {
+    return total_ms - decode_ms - extract_ms - match_ms - prepare_ms - ransac_ms - refine_ms -
+           check_ms;
+  }
 };
 
 struct LocalizerResult {
