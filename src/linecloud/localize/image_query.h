@@ -47,12 +47,9 @@ struct ImageQueryOptions {
   SiftOptions sift;
   DescriptorMatchOptions matching;
   // Maps with at least this many descriptors are matched through the
-  // approximate index (DescriptorIndex), smaller ones exactly; 0: always
-  // exact. The index is loaded from / saved to `index_cache` when given,
-  // authenticated with `index_cache_key` (KeyStore::CacheSecret()).
+  // approximate index (DescriptorIndex; the Localizer builds it once), smaller
+  // ones exactly; 0: always exact.
   size_t approximate_from = 20000;
-  std::string index_cache;
-  std::array<uint8_t, 32> index_cache_key{};
   // Photos whose header announces more pixels are refused before decoding.
   uint64_t max_pixels = 50'000'000;
   std::function<void(const std::string&)> progress;  // stage messages
@@ -84,25 +81,6 @@ void MatchImageQuery(ImageQuery& q, const Camera& camera, const MapDescriptors& 
 ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
                           const MapDescriptors& map, const ImageQueryOptions& options,
                           const DescriptorIndex* index = nullptr);
-
-// One query from photos: one photo with its camera, or several (one camera
-// string for all or one each) with their rig (RIG.json, ReadRigJson) for an
-// m- method. `map` gives the descriptors: a line cloud, or a point model with
-// its COLMAP database. Throws Error on inconsistent counts, a single-image
-// method for several photos, a map without descriptors.
-struct PhotoQuery {
-  Query query;
-  std::vector<ImageQuery> photos;
-
-  // Totals over the photos (num_features, num_matches, stage times).
-  size_t num_features() const;
-  size_t num_matches() const;
-  ImageQueryTimes times() const;
-};
-PhotoQuery QueryFromPhotos(const std::vector<std::string>& images,
-                           const std::vector<std::string>& cameras, const std::string& rig_json,
-                           const MethodInfo& method, const MapDescriptors& map,
-                           const ImageQueryOptions& options);
 
 // Several photos of a calibrated rig (or of a short trajectory whose relative
 // poses are known) as one query for the m- methods: camera k is photo k, with
