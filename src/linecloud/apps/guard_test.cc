@@ -154,6 +154,14 @@ std::string CopyModel(const TempDir& tmp, const std::string& name,
   return dir;
 }
 
+// Lifts the shared model to OUT with the key store STORE (a real process).
+void LiftIntoStore(const std::string& store, const std::string& out, const TempDir& tmp) {
+  const Finished f = RunScript(
+      fmt::format("{} lift --model {} --out {}", Tool(), SharedDataPath(kMaupertuis), out),
+      {"LINECLOUD_KEY_STORE=" + store}, tmp);
+  ASSERT_EQ(f.code, 0) << f.err;
+}
+
 // Row 2: a key file of the store edited (other hex digits), then lift again.
 TEST(Guard, AKeyEditedInTheStoreIsRefused) {
   LINECLOUD_REQUIRE_DATA(kMaupertuis);
@@ -161,10 +169,7 @@ TEST(Guard, AKeyEditedInTheStoreIsRefused) {
   const std::string store = tmp.Path("store");
   const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + store};
   const std::string model = SharedDataPath(kMaupertuis);
-  ASSERT_EQ(RunScript(fmt::format("{} lift --model {} --out {}", Tool(), model, tmp.Path("a.lcm")),
-                      env, tmp)
-                .code,
-            0);
+  LiftIntoStore(store, tmp.Path("a.lcm"), tmp);
   const std::vector<std::string> keys = StoreFiles(store, ".key");
   ASSERT_EQ(keys.size(), 1u);
   const std::string key_path = store + "/" + keys[0];
@@ -254,10 +259,7 @@ TEST(Guard, LiftNeverWritesIntoTheKeyStore) {
   const std::string store = tmp.Path("store");
   const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + store};
   const std::string model = SharedDataPath(kMaupertuis);
-  ASSERT_EQ(RunScript(fmt::format("{} lift --model {} --out {}", Tool(), model, tmp.Path("a.lcm")),
-                      env, tmp)
-                .code,
-            0);
+  LiftIntoStore(store, tmp.Path("a.lcm"), tmp);
   const std::string key_path = store + "/" + StoreFiles(store, ".key").at(0);
   const std::string key_text = ReadFileToString(key_path);
   for (const std::string& out : {key_path, store + "/new.lcm"}) {

@@ -32,6 +32,14 @@ void CheckFeatures(const SiftFeatures& f, const Camera& camera, const std::strin
   }
 }
 
+// A single photo of a request, its source still to be set.
+QueryPhoto OnePhoto(const Camera& camera, const std::string& name) {
+  QueryPhoto photo;
+  photo.camera = camera;
+  photo.name = name;
+  return photo;
+}
+
 }  // namespace
 
 struct Localizer::State {
@@ -260,28 +268,22 @@ LocalizerResult Localizer::LocalizeEncodedImage(std::span<const uint8_t> encoded
                                                 const LocalizeRequest& request,
                                                 const std::string& name) const {
   if (encoded.empty()) Fail("{}: empty file, not an image", name);
-  QueryPhoto photo;
+  QueryPhoto photo = OnePhoto(camera, name);
   photo.encoded = encoded;
-  photo.camera = camera;
-  photo.name = name;
   return LocalizePhotos(std::span(&photo, 1), request);
 }
 
 LocalizerResult Localizer::LocalizeImage(const GreyImage& image, const Camera& camera,
                                          const LocalizeRequest& request) const {
-  QueryPhoto photo;
+  QueryPhoto photo = OnePhoto(camera, "image");
   photo.image = &image;
-  photo.camera = camera;
-  photo.name = "image";
   return LocalizePhotos(std::span(&photo, 1), request);
 }
 
 LocalizerResult Localizer::LocalizeFeatures(const SiftFeatures& features, const Camera& camera,
                                             const LocalizeRequest& request) const {
-  QueryPhoto photo;
+  QueryPhoto photo = OnePhoto(camera, "features");
   photo.features = &features;
-  photo.camera = camera;
-  photo.name = "features";
   return LocalizePhotos(std::span(&photo, 1), request);
 }
 
