@@ -134,25 +134,13 @@ LiftingKey ReadKeyFile(const std::string& path, bool allow_shared) {
 }
 
 void WriteKeyFile(const std::string& path, const LiftingKey& key) {
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW, 0600);
-  if (fd < 0) {
-    if (errno == EEXIST) {
-      Fail("{}: key file already exists; pass it with --key-file to reuse it", path);
-    }
-    Fail("{}: cannot create key file ({})", path, std::strerror(errno));
-  }
-  ::fchmod(fd, 0600);
   const std::string text =
       "# linecloud lifting key: keep it secret, and reuse it for every lifting "
       "of this model\n"
       "directions " +
       std::string(DirectionSetName(key.directions())) + "\n" + ToHex(key.bytes()) + "\n";
-  const ssize_t written = ::write(fd, text.data(), text.size());
-  const bool ok = written == static_cast<ssize_t>(text.size()) && ::fsync(fd) == 0;
-  ::close(fd);
-  if (!ok) {
-    ::unlink(path.c_str());
-    Fail("{}: cannot write key file", path);
+  if (!WriteNewFile(path, text, 0600, "key file")) {
+    Fail("{}: key file already exists; pass it with --key-file to reuse it", path);
   }
 }
 

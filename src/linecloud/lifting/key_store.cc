@@ -260,16 +260,7 @@ std::array<uint8_t, 32> KeyStore::CacheSecret() const {
     std::array<uint8_t, 32> fresh;
     EnsureSodiumInitialized();
     randombytes_buf(fresh.data(), fresh.size());
-    const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, 0600);
-    if (fd < 0) Fail("{}: cannot create the cache secret ({})", path, std::strerror(errno));
-    const std::string text = ToHex(fresh) + "\n";
-    const bool ok = ::write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size()) &&
-                    ::fsync(fd) == 0;
-    ::close(fd);
-    if (!ok) {
-      ::unlink(path.c_str());
-      Fail("{}: cannot write the cache secret", path);
-    }
+    WriteNewFile(path, ToHex(fresh) + "\n", 0600, "the cache secret");
   }
   const std::string text = ReadFileToString(path);
   std::array<uint8_t, 32> secret;

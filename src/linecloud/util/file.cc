@@ -190,6 +190,20 @@ void WriteFileAtomically(const std::string& path, const std::function<void(std::
   }
 }
 
+bool WriteNewFile(const std::string& path, std::string_view text, unsigned mode,
+                  std::string_view what) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, mode);
+  if (fd < 0 && errno == EEXIST) return false;
+  if (fd < 0) Fail("{}: cannot create {} ({})", path, what, std::strerror(errno));
+  const bool ok = ::fchmod(fd, mode) == 0 && WriteAll(fd, std::string(text)) && ::fsync(fd) == 0;
+  ::close(fd);
+  if (!ok) {
+    ::unlink(path.c_str());
+    Fail("{}: cannot write {}", path, what);
+  }
+  return true;
+}
+
 void RefuseOutputOverInputs(const std::string& output, const std::vector<std::string>& inputs,
                             const std::string& option) {
   std::error_code ec;

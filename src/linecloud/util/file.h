@@ -7,6 +7,7 @@
 #include <functional>
 #include <ostream>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace linecloud {
@@ -42,6 +43,14 @@ bool IsDirectory(const std::string& path);
 // Throws Error naming the path on any failure, leaving no file.
 void WriteFileAtomically(const std::string& path, const std::function<void(std::ostream&)>& write,
                          unsigned mode = 0644);
+
+// Creates `path` exclusively (O_EXCL; a link at its name is not followed) with
+// exactly `mode`, writes `text` and syncs it: for secrets that must never
+// replace a file. Returns false, touching nothing, when something exists at
+// `path`; throws Error ("PATH: cannot create/write WHAT") on any other failure,
+// leaving no file.
+bool WriteNewFile(const std::string& path, std::string_view text, unsigned mode,
+                  std::string_view what);
 
 // Throws Error when `output` exists and is one of `inputs` (the same file by
 // any path or link) or a file directly inside an input folder. `option` names
