@@ -90,6 +90,13 @@ struct DescriptorIndex::Impl {
   std::unique_ptr<KdTrees> index;
   DescriptorIndexOptions options;
 
+  // Keeps `descriptors` by reference and their float copy, for a built or a
+  // loaded index.
+  Impl(std::span<const uint8_t> d, const DescriptorIndexOptions& o)
+      : descriptors(d), data(d.size()), options(o) {
+    for (size_t i = 0; i < d.size(); i += kDim) ToFloat(d.data() + i, &data[i]);
+  }
+
   flann::Matrix<float> Matrix() {
     return flann::Matrix<float>(data.data(), data.size() / kDim, kDim);
   }
@@ -103,15 +110,10 @@ void DescriptorIndexOptions::Check() const {
 }
 
 DescriptorIndex::DescriptorIndex(std::span<const uint8_t> descriptors,
-                                 const DescriptorIndexOptions& options)
-    : impl_(std::make_unique<Impl>()) {
+                                 const DescriptorIndexOptions& options) {
   options.Check();
   if (descriptors.size() % kDim != 0) Fail("descriptor index: rows of {} bytes expected", kDim);
-  impl_->descriptors = descriptors;
-  impl_->options = options;
-  impl_->data.resize(descriptors.size());
-  for (size_t i = 0; i < descriptors.size(); i += kDim)
-    ToFloat(descriptors.data() + i, &impl_->data[i]);
+  impl_ = std::make_unique<Impl>(descriptors, options);
   if (impl_->data.empty()) return;
   flann::seed_random(kBuildSeed);
   impl_->index =
@@ -171,13 +173,8 @@ std::unique_ptr<DescriptorIndex> DescriptorIndex::Load(const std::string& path,
   const Hash hash = DescriptorsHash(descriptors);
   if (std::memcmp(data.data() + magic, hash.data(), kHashBytes) != 0) return nullptr;  // stale
   std::unique_ptr<DescriptorIndex> index(new DescriptorIndex());
-  index->impl_ = std::make_unique<Impl>();
+  index->impl_ = std::make_unique<Impl>(descriptors, options);
   Impl& impl = *index->impl_;
-  impl.descriptors = descriptors;
-  impl.options = options;
-  impl.data.resize(descriptors.size());
-  for (size_t i = 0; i < descriptors.size(); i += kDim)
-    ToFloat(descriptors.data() + i, &impl.data[i]);
   const size_t start = magic + kHashBytes;
   FILE* stream = ::fmemopen(data.data() + start, signed_part.size() - start, "rb");
   if (stream == nullptr) return nullptr;
