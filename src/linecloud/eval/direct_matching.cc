@@ -21,9 +21,10 @@ namespace {
 
 using json = nlohmann::json;
 
-// A group's map as `localize --image` answers it: one Localizer on its lines
-// and one on its points, both matching the same descriptors (their ids are
-// point ids: the lines are the owner's view, keyed by point id).
+// A group's map as `localize --image` answers it: one Localizer on its lines,
+// which matches the photos to the map's descriptors (ids are point ids: the
+// lines are the owner's view, keyed by point id), and one on its points,
+// which localizes those same correspondences.
 struct GroupMap {
   std::optional<Localizer> lines, points;
   const Localizer& For(const MethodInfo& method) const { return method.lines ? *lines : *points; }
@@ -59,8 +60,10 @@ GroupMap LoadGroupMap(const std::string& work_dir, const EvalGroup& g, const Lif
   o.localize.ransac.max_error = options.threshold_px;
   o.localize.ransac.seed = options.seed;
   GroupMap m;
-  m.lines.emplace(std::move(lines), descriptors, o, g.name);
-  m.points.emplace(std::move(points), std::move(descriptors), o, g.name);
+  m.lines.emplace(std::move(lines), std::move(descriptors), o, g.name);
+  // Photos are matched once, on the lines' Localizer: the points' only takes
+  // those queries (no second copy of the descriptors, no second index).
+  m.points.emplace(std::move(points), std::nullopt, o, g.name);
   return m;
 }
 
