@@ -116,6 +116,7 @@ std::vector<QueryPhoto> ReadPhotos(const LocalizeArgs& args, const MethodInfo& m
   }
   if (n > 1 && args.rig.empty())
     Fail("{} photos need --rig RIG.json (their cam_from_rig poses)", n);
+  // The method before the rig's size (as before the Localizer): the more basic mistake first.
   if (n > 1 && !method.multi) {
     Fail("{} photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not {}", n,
          method.name);
@@ -161,8 +162,11 @@ void RunLocalize(LocalizeArgs args) {
   CheckArgs(args);
   std::optional<LineCloud> cloud;
   std::optional<Reconstruction> model;
-  if (args.map_path.empty()) model = ReadColmapModel(args.model_dir);
-  if (!args.map_path.empty()) cloud = ReadLineCloud(args.map_path);
+  if (args.map_path.empty()) {
+    model = ReadColmapModel(args.model_dir);
+  } else {
+    cloud = ReadLineCloud(args.map_path);
+  }
   const LocalizerOptions options = MakeLocalizerOptions(args);
   const Localizer localizer = cloud
                                   ? Localizer(*cloud, options, args.map_path)

@@ -9,6 +9,7 @@
 #include "linecloud/io/colmap_database.h"
 #include "linecloud/io/track_descriptors.h"
 #include "linecloud/localize/query_json.h"
+#include "linecloud/util/clock.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/text_parser.h"
 
@@ -16,10 +17,6 @@ namespace linecloud {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double MsSince(Clock::time_point start) {
-  return 1e3 * std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 }  // namespace
 
@@ -104,23 +101,31 @@ Eigen::Vector3d ParseDirection(const std::string& text, const std::string& optio
   return v.normalized();
 }
 
+ImageLimits PhotoLimits(const Camera& camera, const ImageQueryOptions& options) {
+  return {.max_pixels = options.max_pixels,
+          .expected_width = camera.width,
+          .expected_height = camera.height};
+}
+
+void ExtractImageFeatures(const GreyImage& image, const std::string& name,
+                          const ImageQueryOptions& options, ImageQuery* q) {
+  if (options.progress) {
+    options.progress(
+        fmt::format("extracting SIFT from {} ({}x{})", name, image.width, image.height));
+  }
+  const auto start = Clock::now();
+  q->features = ExtractSift(image, options.sift);
+  q->times.extract_ms = MsSince(start);
+}
+
 ImageQuery ExtractImageQuery(const std::string& image_path, const Camera& camera,
                              const ImageQueryOptions& options) {
   ImageQuery out;
-  auto start = Clock::now();
+  const auto start = Clock::now();
   // The header is checked against the camera and the pixel cap before decoding.
-  out.image = ReadGreyImage(image_path, {.max_pixels = options.max_pixels,
-                                         .expected_width = camera.width,
-                                         .expected_height = camera.height});
-  const GreyImage& image = out.image;
+  out.image = ReadGreyImage(image_path, PhotoLimits(camera, options));
   out.times.decode_ms = MsSince(start);
-  if (options.progress) {
-    options.progress(
-        fmt::format("extracting SIFT from {} ({}x{})", image_path, image.width, image.height));
-  }
-  start = Clock::now();
-  out.features = ExtractSift(image, options.sift);
-  out.times.extract_ms = MsSince(start);
+  ExtractImageFeatures(out.image, image_path, options, &out);
   return out;
 }
 

@@ -74,6 +74,13 @@ struct ImageQuery {
 // caller that matches one photo to several maps extract it once.
 ImageQuery ExtractImageQuery(const std::string& image_path, const Camera& camera,
                              const ImageQueryOptions& options);
+// The limits a photo for `camera` is decoded under: the camera's size and
+// the pixel cap, both checked on the header (ReadImageHeader).
+ImageLimits PhotoLimits(const Camera& camera, const ImageQueryOptions& options);
+// SIFT of a decoded photo into q->features, timed (extract_ms), with a
+// progress message naming `name`.
+void ExtractImageFeatures(const GreyImage& image, const std::string& name,
+                          const ImageQueryOptions& options, ImageQuery* q);
 // Matches `q`'s features to `map` and sets its matches, query and match time
 // (any earlier ones are replaced).
 void MatchImageQuery(ImageQuery& q, const Camera& camera, const MapDescriptors& map,

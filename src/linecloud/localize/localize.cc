@@ -13,14 +13,11 @@
 #include "linecloud/estimation/pose_data.h"
 #include "linecloud/estimation/pose_estimator.h"
 #include "linecloud/lifting/lifting.h"
+#include "linecloud/util/clock.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
 namespace {
-
-double MsSince(std::chrono::steady_clock::time_point start) {
-  return 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-}
 
 using Clock = std::chrono::steady_clock;
 
@@ -305,7 +302,7 @@ int RefineStage(const MethodInfo& method, const PoseData& data, const std::vecto
   RefineOptions refinement = options.refinement;
   refinement.similarity = method.similarity();
   const RefineSummary summary = RefinePose(data, inliers, refinement, pose);
-  *ms += 1e3 * std::chrono::duration<double>(Clock::now() - start).count();
+  *ms += MsSince(start);
   if (final_cost) *final_cost = summary.final_cost;
   return summary.iterations;
 }

@@ -5,16 +5,13 @@
 
 #include <fmt/format.h>
 
+#include "linecloud/util/clock.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-
-double NowMs() {
-  return 1e3 * std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
-}
 
 // Client features: finite keypoints inside the camera's image, 128 bytes each.
 void CheckFeatures(const SiftFeatures& f, const Camera& camera, const std::string& name) {
@@ -44,7 +41,6 @@ QueryPhoto OnePhoto(const Camera& camera, const std::string& name) {
 
 struct Localizer::State {
   std::string source;
-  bool lines = true;
   LocalizationMap map;
   std::optional<MapDescriptors> descriptors;
   std::string no_descriptors;  // why photos cannot be matched, when no descriptors
@@ -100,64 +96,57 @@ size_t LocalizerResult::num_matches() const {
   return n;
 }
 
-Localizer::Localizer(const LineCloud& cloud, const LocalizerOptions& options,
-                     const std::string& source) {
-  options.Check();
+std::shared_ptr<const Localizer::State> Localizer::MakeState(
+    LocalizationMap map, std::optional<MapDescriptors> descriptors, std::string no_descriptors,
+    std::optional<Eigen::Vector3d> map_gravity, const LocalizerOptions& options,
+    const std::string& source) {
+  if (descriptors && descriptors->descriptors.size() != 128 * descriptors->ids.size()) {
+    Fail("{}: {} descriptor ids but {} descriptor bytes (expected 128 each)", source,
+         descriptors->ids.size(), descriptors->descriptors.size());
+  }
   auto state = std::make_shared<State>();
   state->source = source;
   state->options = options;
-  state->map = LineMapFromCloud(cloud);
-  if (cloud.has_descriptors()) {
-    state->descriptors = MapDescriptorsFromCloud(cloud, source);
-  } else {
-    state->no_descriptors = fmt::format(
-        "{}: the map has no descriptors to match a photo to; lift it with --database colmap.db",
-        source);
-  }
-  state->gravity = options.map_gravity ? options.map_gravity->normalized() : cloud.gravity;
+  state->map = std::move(map);
+  state->descriptors = std::move(descriptors);
+  if (!state->descriptors) state->no_descriptors = std::move(no_descriptors);
+  // The options' gravity wins over the one the map stores.
+  state->gravity = options.map_gravity ? options.map_gravity->normalized() : map_gravity;
   state->BuildIndex();
-  state_ = std::move(state);
+  return state;
+}
+
+Localizer::Localizer(const LineCloud& cloud, const LocalizerOptions& options,
+                     const std::string& source) {
+  options.Check();
+  state_ = MakeState(
+      LineMapFromCloud(cloud),
+      cloud.has_descriptors() ? std::optional(MapDescriptorsFromCloud(cloud, source))
+                              : std::nullopt,
+      fmt::format(
+          "{}: the map has no descriptors to match a photo to; lift it with --database colmap.db",
+          source),
+      cloud.gravity, options, source);
 }
 
 Localizer::Localizer(const Reconstruction& model, const std::string& database,
                      const LocalizerOptions& options, const std::string& source) {
   options.Check();
-  auto state = std::make_shared<State>();
-  state->source = source;
-  state->lines = false;
-  state->options = options;
-  state->map = PointMapFromModel(model);
-  if (!database.empty()) {
-    state->descriptors = MapDescriptorsFromModel(model, database);
-  } else {
-    state->no_descriptors =
-        fmt::format("{}: photos need the model's COLMAP database (--database colmap.db)", source);
-  }
-  if (options.map_gravity) state->gravity = options.map_gravity->normalized();
-  state->BuildIndex();
-  state_ = std::move(state);
+  state_ = MakeState(
+      PointMapFromModel(model),
+      database.empty() ? std::nullopt : std::optional(MapDescriptorsFromModel(model, database)),
+      fmt::format("{}: photos need the model's COLMAP database (--database colmap.db)", source),
+      std::nullopt, options, source);
 }
 
 Localizer::Localizer(LocalizationMap map, std::optional<MapDescriptors> descriptors,
                      const LocalizerOptions& options, const std::string& source) {
   options.Check();
-  auto state = std::make_shared<State>();
-  state->source = source;
-  state->lines = std::holds_alternative<LineMap>(map);
-  state->options = options;
-  state->map = std::move(map);
-  if (descriptors && descriptors->descriptors.size() != 128 * descriptors->ids.size()) {
-    Fail("{}: {} descriptor ids but {} descriptor bytes (expected 128 each)", source,
-         descriptors->ids.size(), descriptors->descriptors.size());
-  }
-  state->descriptors = std::move(descriptors);
-  if (!state->descriptors) state->no_descriptors = source + ": the map has no descriptors";
-  if (options.map_gravity) state->gravity = options.map_gravity->normalized();
-  state->BuildIndex();
-  state_ = std::move(state);
+  state_ = MakeState(std::move(map), std::move(descriptors),
+                     source + ": the map has no descriptors", std::nullopt, options, source);
 }
 
-bool Localizer::lines() const { return state_->lines; }
+bool Localizer::lines() const { return std::holds_alternative<LineMap>(state_->map); }
 
 size_t Localizer::size() const {
   return std::visit(
@@ -179,12 +168,12 @@ const LocalizationMap& Localizer::map() const { return state_->map; }
 
 const MethodInfo& Localizer::DefaultMethod(size_t num_cameras) const {
   const bool several = num_cameras > 1;
-  return FindMethod(state_->lines ? (several ? "m-p6L" : "p6L") : (several ? "m-p3P" : "p3P"));
+  return FindMethod(lines() ? (several ? "m-p6L" : "p6L") : (several ? "m-p3P" : "p3P"));
 }
 
 LocalizerResult Localizer::LocalizeQuery(const Query& query, const LocalizeRequest& request,
                                          std::string_view source) const {
-  const double start = NowMs();
+  const auto start = Clock::now();
   LocalizerResult result;
   result.query = query;
   const MethodInfo& method =
@@ -207,29 +196,19 @@ ImageQuery Localizer::MatchPhoto(const QueryPhoto& photo, const LocalizeRequest&
     CheckFeatures(*photo.features, photo.camera, photo.name);
     q.features = *photo.features;
   } else {
-    double start = NowMs();
     const GreyImage* grey = photo.image;
     if (!grey) {
-      // The header is checked against the camera and the pixel cap first.
-      q.image = DecodeGreyImage(photo.encoded, photo.name,
-                                {.max_pixels = o.max_pixels,
-                                 .expected_width = photo.camera.width,
-                                 .expected_height = photo.camera.height});
+      const auto start = Clock::now();
+      q.image = DecodeGreyImage(photo.encoded, photo.name, PhotoLimits(photo.camera, o));
+      q.times.decode_ms = MsSince(start);
       grey = &q.image;
-      q.times.decode_ms = NowMs() - start;
     } else if (static_cast<uint64_t>(grey->width) != photo.camera.width ||
                static_cast<uint64_t>(grey->height) != photo.camera.height ||
                grey->pixels.size() != static_cast<size_t>(grey->width) * grey->height) {
       Fail("{}: the image is {}x{} pixels but the camera is {}x{}", photo.name, grey->width,
            grey->height, photo.camera.width, photo.camera.height);
     }
-    if (o.progress) {
-      o.progress(
-          fmt::format("extracting SIFT from {} ({}x{})", photo.name, grey->width, grey->height));
-    }
-    start = NowMs();
-    q.features = ExtractSift(*grey, o.sift);
-    q.times.extract_ms = NowMs() - start;
+    ExtractImageFeatures(*grey, photo.name, o, &q);
     if (request.keep_images && photo.image) q.image = *photo.image;
     if (!request.keep_images) q.image = GreyImage{};
   }
@@ -239,7 +218,7 @@ ImageQuery Localizer::MatchPhoto(const QueryPhoto& photo, const LocalizeRequest&
 
 LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
                                           const LocalizeRequest& request) const {
-  const double start = NowMs();
+  const auto start = Clock::now();
   if (photos.empty()) Fail("no photo given");
   const MethodInfo& method =
       request.method.empty() ? DefaultMethod(photos.size()) : FindMethod(request.method);
@@ -247,7 +226,6 @@ LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
     Fail("{} photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not {}",
          photos.size(), method.name);
   }
-  if (!state_->descriptors) Fail("{}", state_->no_descriptors);
   LocalizerResult result;
   std::vector<Rigid3d> rig;
   for (const QueryPhoto& photo : photos) {
@@ -289,7 +267,7 @@ LocalizerResult Localizer::LocalizeFeatures(const SiftFeatures& features, const 
 
 LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult result,
                                   const LocalizeRequest& request, std::string_view source,
-                                  double start_ms) const {
+                                  Clock::time_point start) const {
   result.method = method.name;
   Query& query = result.query;
   // Gravity: the request's for the query frame (a query file's own wins), the
@@ -322,7 +300,7 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
   result.times.ransac_ms = result.pose.stats.ransac_ms;
   result.times.refine_ms = result.pose.refine_ms;
   result.times.check_ms = result.pose.check_ms;
-  result.times.total_ms = NowMs() - start_ms;
+  result.times.total_ms = MsSince(start);
   return result;
 }
 

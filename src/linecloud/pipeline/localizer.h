@@ -12,6 +12,7 @@
 #pragma once
 
 #include <array>
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -151,9 +152,16 @@ class Localizer {
   struct State;
   std::shared_ptr<const State> state_;  // shared, immutable: copies are cheap
 
+  static std::shared_ptr<const State> MakeState(LocalizationMap map,
+                                                std::optional<MapDescriptors> descriptors,
+                                                std::string no_descriptors,
+                                                std::optional<Eigen::Vector3d> map_gravity,
+                                                const LocalizerOptions& options,
+                                                const std::string& source);
+
   LocalizerResult Finish(const MethodInfo& method, LocalizerResult result,
                          const LocalizeRequest& request, std::string_view source,
-                         double start_ms) const;
+                         std::chrono::steady_clock::time_point start) const;
 };
 
 }  // namespace linecloud
