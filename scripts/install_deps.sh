@@ -12,6 +12,8 @@ packages=(
   libcairo2-dev  # eval: PNG plots
   libvlfeat-dev libfreeimage-dev  # features: SIFT as COLMAP's CPU extractor, image decoding
   libflann-dev liblz4-dev  # features: approximate nearest neighbours for large maps
+  libopencv-features2d-dev  # features: OpenCV's SIFT, the fast extractor
+  libfaiss-dev libhnswlib-dev  # features: the matching index (FAISS), a peer (hnswlib)
   colmap         # eval: structure from motion (its command line)
   "$@"
 )

@@ -171,37 +171,66 @@ void RegisterBenchCommand(CLI::App& app) {
 
   auto match = std::make_shared<MatchBenchOptions>();
   auto match_json = std::make_shared<bool>(false);
+  auto match_kinds =
+      std::make_shared<std::vector<std::string>>(std::vector<std::string>{"faiss-ivf", "flann"});
+  auto match_real = std::make_shared<std::string>();
   CLI::App* m = bench->add_subcommand(
       "match",
-      "Descriptor matching on seeded SIFT-like bytes: the approximate index (FLANN kd-trees) "
-      "against exact matching, time and recall of the exact ratio-test matches");
+      "Descriptor matching: the approximate indexes (FAISS IVF / HNSW, hnswlib, FLANN) against "
+      "exact matching on real SIFT descriptors (--real) or seeded SIFT-like bytes: build time, "
+      "memory, time on 1 and 2 threads, recall of the exact ratio-test matches");
   m->add_option("--map-sizes", match->map_sizes, "Map descriptor counts")->capture_default_str();
   m->add_option("--queries", match->queries, "Query descriptors")->capture_default_str();
   m->add_option("--recall-queries", match->recall_queries, "Queries also matched exactly (recall)")
       ->capture_default_str();
-  m->add_option("--checks", match->index.checks, "kd-tree leaves visited per query")
+  m->add_option("--index", *match_kinds, "Indexes: faiss-ivf, faiss-hnsw, hnswlib, flann")
       ->capture_default_str();
-  m->add_option("--trees", match->index.trees, "Randomised kd-trees")->capture_default_str();
-  m->add_option("--seed", match->seed, "Random seed")->capture_default_str();
+  m->add_option("--threads", match->threads, "Thread counts to time")->capture_default_str();
+  m->add_option("--real", *match_real,
+                "Real descriptors from the photos under this folder (../shared/data)");
+  m->add_option("--nprobe", match->index.nprobe, "FAISS IVF: cells scanned per query")
+      ->capture_default_str();
+  m->add_option("--nlist", match->index.nlist, "FAISS IVF: cells (0: 4 sqrt(n))")
+      ->capture_default_str();
+  m->add_option("--ef-search", match->index.ef_search, "HNSW: candidate list when searching")
+      ->capture_default_str();
+  m->add_option("--checks", match->index.checks, "FLANN: kd-tree leaves visited per query")
+      ->capture_default_str();
+  m->add_option("--trees", match->index.trees, "FLANN: randomised kd-trees")->capture_default_str();
+  m->add_option("--seed", match->seed, "Random seed (synthetic descriptors)")
+      ->capture_default_str();
   m->add_flag("--json", *match_json, "Print JSON");
-  m->callback([match, match_json] {
+  m->callback([match, match_json, match_kinds, match_real] {
+    match->kinds.clear();
+    for (const std::string& k : *match_kinds) {
+      match->kinds.push_back(ParseDescriptorIndexKind(k, "--index"));
+    }
+    if (!match_real->empty()) match->real_images = RealBenchImages(*match_real);
+    match->progress = [](const std::string& s) { std::cerr << s << "\n"; };
     const nlohmann::json rows = RunMatchBench(*match);
     if (*match_json) {
       std::cout << rows.dump(2) << "\n";
       return;
     }
     std::cout << fmt::format(
-        "bench match: {} query descriptors (half noisy copies of map descriptors), ratio 0.8; "
-        "one thread\n"
-        "| map size | index build s | ANN ms (all queries) | exact ms (extrapolated) | recall of "
-        "exact matches |\n|---|---|---|---|---|\n",
-        match->queries);
+        "bench match: {} query descriptors ({}), ratio 0.8\n"
+        "| map size | index | build s | memory MB | ms, 1 thread | ms, 2 threads | exact ms "
+        "(extrapolated) | recall of exact matches |\n|---|---|---|---|---|---|---|---|\n",
+        match->queries,
+        match_real->empty() ? "synthetic: half noisy copies of map descriptors"
+                            : "real SIFT of fountain-P11 0000.jpg; map: the other photos");
     for (const auto& r : rows) {
-      std::cout << fmt::format("| {} | {:.1f} | {:.0f} | {:.0f} | {:.3f} ({} of {} queries) |\n",
-                               r["map_size"].get<size_t>(), r["index_build_s"].get<double>(),
-                               r["ann_ms"].get<double>(), r["exact_ms_extrapolated"].get<double>(),
-                               r["recall"].get<double>(), r["recall_queries"].get<size_t>(),
-                               r["queries"].get<size_t>());
+      const auto& ms = r["ms_by_threads"];
+      auto at = [&](const char* t) {
+        return ms.contains(t) ? fmt::format("{:.0f}", ms[t].get<double>()) : std::string("-");
+      };
+      std::cout << fmt::format(
+          "| {} | {} | {:.1f} | {:.0f} | {} | {} | {:.0f} | {:.3f} ({} exact matches of {} "
+          "queries) |\n",
+          r["map_size"].get<size_t>(), r["index"].get<std::string>(),
+          r["index_build_s"].get<double>(), r["memory_mb"].get<double>(), at("1"), at("2"),
+          r["exact_ms_extrapolated"].get<double>(), r["recall"].get<double>(),
+          r["exact_matches"].get<size_t>(), r["recall_queries"].get<size_t>());
     }
   });
 

@@ -8,6 +8,7 @@
 #include "linecloud/apps/commands.h"
 #include "linecloud/lifting/key_store.h"
 #include "linecloud/draw/overlay.h"
+#include "linecloud/features/sift_opencv.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/io/ply.h"
@@ -29,6 +30,7 @@ struct LocalizeArgs {
   std::vector<std::string> cameras;
   std::string rig;
   bool exact_matching = false;
+  std::string features = "opencv", index = "ivf";
   std::string database;
   ImageQueryOptions image;
   std::string method;
@@ -84,11 +86,15 @@ void CheckArgs(const LocalizeArgs& args) {
 LocalizerOptions MakeLocalizerOptions(LocalizeArgs& args) {
   LocalizerOptions o;
   o.image = args.image;
+  o.image.sift.extractor = ParseSiftExtractor(args.features, "--features");
+  o.image.index.kind = ParseDescriptorIndexKind(args.index, "--index");
+  o.image.index.threads = o.image.threads;
+  SetOpenCVThreads(o.image.threads);
   if (args.exact_matching) o.image.approximate_from = 0;
   if (!args.map_path.empty() && !args.exact_matching && !args.image_paths.empty()) {
     try {
       o.index_cache_key = KeyStore(KeyStore::DefaultDirectory()).CacheSecret();
-      o.index_cache = args.map_path + ".flann";
+      o.index_cache = args.map_path + ".index";
     } catch (const Error& e) {
       if (!args.quiet) std::cerr << "descriptor index not cached: " << e.what() << "\n";
     }
@@ -242,8 +248,20 @@ void RegisterLocalizeCommand(CLI::App& app) {
                   "Maps with at least this many descriptors use the approximate index")
       ->capture_default_str();
   cmd->add_flag("--exact-matching", args->exact_matching,
-                "Match exactly even on large maps (default: maps of 20 000 descriptors or more "
-                "use the approximate index, cached as MAP.lcm.flann)");
+                "Match exactly even on large maps (default: maps of 4 096 descriptors or more "
+                "use the approximate index, cached as MAP.lcm.index)");
+  cmd->add_option("--features", args->features,
+                  "SIFT extractor: opencv (fast) or colmap (identical to COLMAP 3.8's CPU "
+                  "extractor)")
+      ->capture_default_str();
+  cmd->add_option("--index", args->index,
+                  "Approximate index: ivf, faiss-ivf, faiss-hnsw, hnswlib or flann")
+      ->capture_default_str();
+  cmd->add_option("--nprobe", args->image.index.nprobe, "IVF cells scanned per query descriptor")
+      ->capture_default_str();
+  cmd->add_option("--threads", args->image.threads,
+                  "Threads for extraction and matching (results do not depend on it)")
+      ->capture_default_str();
   cmd->add_option("--gravity", args->gravity,
                   "Gravity direction x,y,z in the query's (camera or rig) frame, for +u methods");
   cmd->add_option("--map-gravity", args->map_gravity,

@@ -52,7 +52,7 @@ SiftAgreement CompareSiftWithColmap(const std::string& image_dir, const std::str
   const FeatureDescriptors desc = database.ReadDescriptors(id);
   t = Clock::now();
   const GreyImage image = ReadGreyImage(JoinPaths(image_dir, name));
-  const SiftFeatures ours = ExtractSift(image);
+  const SiftFeatures ours = ExtractSiftColmap(image);
   a.ours_ms = 1e3 * std::chrono::duration<double>(Clock::now() - t).count();
   a.width = image.width;
   a.height = image.height;

@@ -4,11 +4,17 @@
 #include <chrono>
 #include <cmath>
 #include <random>
+#include <malloc.h>
+
+#include <filesystem>
 #include <set>
+#include <string>
 
 #include <fmt/format.h>
 
+#include "linecloud/features/image.h"
 #include "linecloud/features/matching.h"
+#include "linecloud/features/sift.h"
 #include "linecloud/util/clock.h"
 #include "linecloud/util/error.h"
 
@@ -46,7 +52,97 @@ void NoisyCopy(std::mt19937_64& rng, const uint8_t* in, uint8_t* out) {
     out[i] = static_cast<uint8_t>(std::clamp(std::round(v[i] * s), 0.0, 255.0));
 }
 
+// Bytes allocated on the heap now (glibc's allocator statistics): the
+// growth across building an index is the memory the index holds.
+size_t HeapBytes() { return mallinfo2().uordblks + mallinfo2().hblkhd; }
+
+GreyImage Mirrored(const GreyImage& in) {
+  GreyImage out = in;
+  for (int y = 0; y < in.height; ++y) {
+    std::reverse(out.pixels.begin() + size_t(y) * in.width,
+                 out.pixels.begin() + size_t(y + 1) * in.width);
+  }
+  return out;
+}
+
+void Synthetic(const MatchBenchOptions& o, size_t n, std::vector<uint8_t>* map,
+               std::vector<uint8_t>* query) {
+  std::mt19937_64 rng(o.seed);
+  map->assign(n * 128, 0);
+  query->assign(o.queries * 128, 0);
+  for (size_t i = 0; i < n; ++i) RandomDescriptor(rng, map->data() + i * 128);
+  for (size_t i = 0; i < o.queries; ++i) {
+    if (i % 2 == 0) {
+      NoisyCopy(rng, map->data() + (rng() % n) * 128, query->data() + i * 128);
+    } else {
+      RandomDescriptor(rng, query->data() + i * 128);
+    }
+  }
+}
+
 }  // namespace
+
+std::vector<std::string> RealBenchImages(const std::string& data_dir) {
+  namespace fs = std::filesystem;
+  const fs::path first = fs::path(data_dir) / "strecha/fountain-P11/images/0000.jpg";
+  if (!fs::exists(first)) Fail("bench match --real: {} is missing", first.string());
+  std::vector<std::string> others;
+  for (const auto& e : fs::recursive_directory_iterator(data_dir)) {
+    const std::string ext = e.path().extension().string();
+    if (e.is_regular_file() && (ext == ".jpg" || ext == ".png") && e.path() != first) {
+      others.push_back(e.path().string());
+    }
+  }
+  // The query's own scene first (its true matches), then the other Strecha
+  // scenes, then the rest.
+  auto rank = [](const std::string& p) {
+    return p.find("fountain-P11") != std::string::npos ? 0
+           : p.find("strecha") != std::string::npos    ? 1
+                                                       : 2;
+  };
+  std::sort(others.begin(), others.end(), [&](const std::string& a, const std::string& b) {
+    return std::make_pair(rank(a), a) < std::make_pair(rank(b), b);
+  });
+  others.insert(others.begin(), first.string());
+  return others;
+}
+
+RealDescriptors RealSiftDescriptors(const std::vector<std::string>& images, size_t queries,
+                                    size_t map_size,
+                                    const std::function<void(const std::string&)>& progress) {
+  if (images.size() < 2) Fail("bench match: real descriptors need at least two photos");
+  RealDescriptors out;
+  SiftOptions query_sift;
+  query_sift.max_num_features = static_cast<int>(queries);
+  out.query = ExtractSift(ReadGreyImage(images[0]), query_sift).descriptors;
+  if (out.query.size() < queries * 128) {
+    Fail("bench match: {} gives {} features, fewer than the {} queries asked", images[0],
+         out.query.size() / 128, queries);
+  }
+  SiftOptions map_sift;
+  map_sift.max_num_features = 32768;
+  for (int variant = 0; variant < 4 && out.map.size() < map_size * 128; ++variant) {
+    for (size_t i = 1; i < images.size() && out.map.size() < map_size * 128; ++i) {
+      GreyImage image = ReadGreyImage(images[i]);
+      if (variant >= 2) {
+        image =
+            DownscaleToMaxSize(image, std::max(8, int(0.7 * std::max(image.width, image.height))));
+      }
+      if (variant % 2 == 1) image = Mirrored(image);
+      const SiftFeatures f = ExtractSift(image, map_sift);
+      const size_t take = std::min(f.descriptors.size(), map_size * 128 - out.map.size());
+      out.map.insert(out.map.end(), f.descriptors.begin(), f.descriptors.begin() + take);
+      if (progress) {
+        progress(fmt::format("real descriptors: {} of {}", out.map.size() / 128, map_size));
+      }
+    }
+  }
+  if (out.map.size() < map_size * 128) {
+    Fail("bench match: the {} photos give {} map descriptors, fewer than {}", images.size() - 1,
+         out.map.size() / 128, map_size);
+  }
+  return out;
+}
 
 void MatchBenchOptions::Check() const {
   if (map_sizes.empty()) Fail("bench match: no map size");
@@ -56,50 +152,72 @@ void MatchBenchOptions::Check() const {
   if (queries < 1 || recall_queries < 1 || recall_queries > queries) {
     Fail("bench match: need 1 <= recall queries ({}) <= queries ({})", recall_queries, queries);
   }
+  if (kinds.empty()) Fail("bench match: no index kind");
+  for (const int t : threads) {
+    if (t < 1 || t > 256) Fail("bench match: threads {} out of range [1, 256]", t);
+  }
   index.Check();
 }
 
 nlohmann::json RunMatchBench(const MatchBenchOptions& o) {
   o.Check();
   nlohmann::json rows = nlohmann::json::array();
+  const DescriptorMatchOptions match;
   for (const size_t n : o.map_sizes) {
-    std::mt19937_64 rng(o.seed);
-    std::vector<uint8_t> map(n * 128), query(o.queries * 128);
-    for (size_t i = 0; i < n; ++i) RandomDescriptor(rng, map.data() + i * 128);
-    for (size_t i = 0; i < o.queries; ++i) {
-      if (i % 2 == 0) {
-        NoisyCopy(rng, map.data() + (rng() % n) * 128, query.data() + i * 128);
-      } else {
-        RandomDescriptor(rng, query.data() + i * 128);
-      }
+    std::vector<uint8_t> map, query;
+    if (o.real_images.empty()) {
+      Synthetic(o, n, &map, &query);
+    } else {
+      RealDescriptors real = RealSiftDescriptors(o.real_images, o.queries, n, o.progress);
+      map = std::move(real.map);
+      query = std::move(real.query);
+      query.resize(o.queries * 128);
     }
-    const DescriptorMatchOptions match;
-    auto t = Clock::now();
-    const DescriptorIndex index(map, o.index);
-    const double build_s = SecondsSince(t);
-    t = Clock::now();
-    const std::vector<DescriptorMatch> approx = index.Match(query, match);
-    const double ann_ms = 1e3 * SecondsSince(t);
     const std::span<const uint8_t> recall_part(query.data(), o.recall_queries * 128);
-    t = Clock::now();
+    if (o.progress) o.progress(fmt::format("exact matching of {} queries", o.recall_queries));
+    auto t = Clock::now();
     const std::vector<DescriptorMatch> exact = MatchDescriptors(recall_part, map, match);
     const double exact_ms = 1e3 * SecondsSince(t);
-    std::set<std::pair<int, int>> found;
-    for (const DescriptorMatch& m : approx) found.insert({m.query, m.map});
-    size_t hits = 0;
-    for (const DescriptorMatch& m : exact) hits += found.count({m.query, m.map});
-    size_t approx_on_recall = 0;
-    for (const DescriptorMatch& m : approx) approx_on_recall += m.query < int(o.recall_queries);
-    rows.push_back({{"map_size", n},
-                    {"queries", o.queries},
-                    {"index_build_s", build_s},
-                    {"ann_ms", ann_ms},
-                    {"exact_ms_per_query", exact_ms / o.recall_queries},
-                    {"exact_ms_extrapolated", exact_ms / o.recall_queries * o.queries},
-                    {"recall_queries", o.recall_queries},
-                    {"exact_matches", exact.size()},
-                    {"approx_matches", approx_on_recall},
-                    {"recall", exact.empty() ? 1.0 : double(hits) / exact.size()}});
+    for (const DescriptorIndexKind kind : o.kinds) {
+      if (o.progress) {
+        o.progress(
+            fmt::format("{}: building over {} descriptors", DescriptorIndexKindName(kind), n));
+      }
+      DescriptorIndexOptions index_options = o.index;
+      index_options.kind = kind;
+      index_options.threads = 1;
+      const size_t rss_before = HeapBytes();
+      t = Clock::now();
+      const DescriptorIndex index(map, index_options);
+      const double build_s = SecondsSince(t);
+      const double memory_mb = (double(HeapBytes()) - double(rss_before)) / 1e6;
+      nlohmann::json ms = nlohmann::json::object();
+      std::vector<DescriptorMatch> approx;
+      for (const int threads : o.threads) {
+        t = Clock::now();
+        approx = index.Match(query, match, threads);
+        ms[std::to_string(threads)] = 1e3 * SecondsSince(t);
+      }
+      std::set<std::pair<int, int>> found;
+      for (const DescriptorMatch& m : approx) found.insert({m.query, m.map});
+      size_t hits = 0;
+      for (const DescriptorMatch& m : exact) hits += found.count({m.query, m.map});
+      size_t approx_on_recall = 0;
+      for (const DescriptorMatch& m : approx) approx_on_recall += m.query < int(o.recall_queries);
+      rows.push_back({{"map_size", n},
+                      {"descriptors", o.real_images.empty() ? "synthetic" : "real"},
+                      {"index", DescriptorIndexKindName(kind)},
+                      {"queries", o.queries},
+                      {"index_build_s", build_s},
+                      {"memory_mb", memory_mb},
+                      {"ms_by_threads", ms},
+                      {"exact_ms_per_query", exact_ms / o.recall_queries},
+                      {"exact_ms_extrapolated", exact_ms / o.recall_queries * o.queries},
+                      {"recall_queries", o.recall_queries},
+                      {"exact_matches", exact.size()},
+                      {"approx_matches", approx_on_recall},
+                      {"recall", exact.empty() ? 1.0 : double(hits) / exact.size()}});
+    }
   }
   return rows;
 }

@@ -1,12 +1,20 @@
 // `linecloud bench match`: matching query descriptors to a map's, exact
-// (MatchDescriptors) against the approximate index (DescriptorIndex), on
-// seeded SIFT-like bytes: RootSIFT of gamma-distributed gradient histograms
-// for the map; queries half noisy copies of map descriptors (each bin scaled
-// by exp(N(0, 0.2)) plus N(0, 3), renormalised) and half unrelated ones. One
-// thread.
+// (MatchDescriptors) against the approximate indexes (DescriptorIndex: FAISS
+// IVF and HNSW, hnswlib, FLANN), measured side by side in one run: index build
+// time and memory, time for all queries on 1 and 2 threads, recall of the
+// exact ratio-test matches.
+// Descriptors are either
+//   - real (`real_images`): SIFT (OpenCV's extractor, COLMAP's normalisation)
+//     of real photos; the queries are the first photo's features, the map the
+//     others' — each photo also mirrored and at 0.7x, whose descriptors differ,
+//     until the map size is reached; or
+//   - synthetic: seeded SIFT-like bytes (RootSIFT of gamma-distributed
+//     histograms; queries half noisy copies of map descriptors, half unrelated).
 #pragma once
 
 #include <cstdint>
+#include <functional>
+#include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -20,13 +28,34 @@ struct MatchBenchOptions {
   size_t queries = 8000;
   size_t recall_queries = 1000;  // queries also matched exactly, for the recall
   uint64_t seed = 1;
-  DescriptorIndexOptions index;
+  std::vector<DescriptorIndexKind> kinds = {DescriptorIndexKind::kFaissIvf,
+                                            DescriptorIndexKind::kFlann};
+  DescriptorIndexOptions index;  // kind ignored: each of `kinds`
+  std::vector<int> threads = {1, 2};
+  // Photos for real descriptors (the first gives the queries); empty: synthetic.
+  std::vector<std::string> real_images;
+  std::function<void(const std::string&)> progress;
 
   void Check() const;
 };
 
-// Rows per map size: build_s, ann_ms (all queries), exact_ms_per_query,
-// exact and approximate matches on the recall queries, recall.
+// The photos of ../shared/data for real descriptors: fountain-P11's 0000.jpg
+// first (the queries), then fountain-P11's others, the other Strecha scenes,
+// and every other JPEG / PNG under `data_dir`.
+std::vector<std::string> RealBenchImages(const std::string& data_dir);
+
+// Real SIFT descriptors: `queries` rows from the first photo, then up to
+// `map_size` rows from the others (originals, then mirrored, then at 0.7x).
+struct RealDescriptors {
+  std::vector<uint8_t> query, map;
+};
+RealDescriptors RealSiftDescriptors(const std::vector<std::string>& images, size_t queries,
+                                    size_t map_size,
+                                    const std::function<void(const std::string&)>& progress);
+
+// Rows per map size and index kind: map_size, index, build_s, memory_mb,
+// ms (all queries) per thread count, exact ms per query, exact and
+// approximate matches on the recall queries, recall.
 nlohmann::json RunMatchBench(const MatchBenchOptions& options);
 
 }  // namespace linecloud

@@ -1,13 +1,19 @@
 // An approximate nearest-neighbour index of a map's descriptors for maps too
-// large for exact matching: FLANN's randomised kd-trees (Muja & Lowe, VISAPP
-// 2009 / TPAMI 2014; Debian's libflann-dev), chosen over hnswlib by a measured
-// comparison (docs/image.md: at 100 000 descriptors FLANN found 0.99 of the
-// exact ratio-test matches in 0.4 s for 8 000 queries, hnswlib 0.90 in 2.1 s).
-// The index is built from a fixed seed (the same trees, and so the same
-// matches, on every run and thread) without touching the program's rand().
-// The index only proposes the two nearest neighbours; their descriptor angles
-// are computed exactly and the same ratio and distance tests as
-// MatchDescriptors decide.
+// large for exact matching. Four kinds, compared on real SIFT descriptors by
+// `linecloud bench match --real` (docs/fast_photo.md) — the default is the
+// measured winner:
+//   - our inverted file of the bytes with AVX2 / AVX-512 scans (ivf_index.h);
+//   - FAISS's inverted file (Jégou, Douze & Schmid, TPAMI 2011; Johnson, Douze
+//     & Jégou, "Billion-scale similarity search with GPUs", 2019): k-means
+//     cells, the descriptors stored as their own bytes (8-bit direct), the
+//     query scanned against the nprobe nearest cells by inner product;
+//   - FAISS's and hnswlib's HNSW graphs (Malkov & Yashunin, TPAMI 2020);
+//   - FLANN's randomised kd-trees (Muja & Lowe, VISAPP 2009 / TPAMI 2014).
+// Every kind is built from fixed seeds (the same index, and so the same
+// matches, on every run; searches are per query, so any thread count gives
+// the same matches) without touching the program's rand(). The index only
+// proposes the two nearest neighbours; their descriptor angles are computed
+// exactly and the same ratio and distance tests as MatchDescriptors decide.
 #pragma once
 
 #include <cstdint>
@@ -20,10 +26,28 @@
 
 namespace linecloud {
 
+enum class DescriptorIndexKind { kIvf, kFaissIvf, kFaissHnsw, kHnswlib, kFlann };
+
+// "ivf", "faiss-ivf", "faiss-hnsw", "hnswlib", "flann"; throws Error naming `option`.
+DescriptorIndexKind ParseDescriptorIndexKind(const std::string& name, const std::string& option);
+const char* DescriptorIndexKindName(DescriptorIndexKind kind);
+
 struct DescriptorIndexOptions {
-  int trees = 4;    // randomised kd-trees
-  int checks = 64;  // leaves visited per query (more: higher recall, slower)
-  int threads = 1;  // reserved (FLANN builds on one thread)
+  DescriptorIndexKind kind = DescriptorIndexKind::kIvf;
+  // IVF (ours, FAISS's): cells (0: 4 sqrt(n), at most n / 32) and cells
+  // scanned per query.
+  int nlist = 0;
+  int nprobe = 8;
+  // HNSW (FAISS and hnswlib): links per node, candidate lists when building
+  // and searching.
+  int hnsw_m = 16;
+  int ef_construction = 100;
+  int ef_search = 64;
+  // FLANN: randomised kd-trees and leaves visited per query.
+  int trees = 4;
+  int checks = 64;
+  // Threads of a search (and of FAISS IVF's build); results do not depend on it.
+  int threads = 1;
 
   void Check() const;
 };
@@ -52,9 +76,12 @@ class DescriptorIndex {
 
   size_t size() const;
 
-  // Like MatchDescriptors (cross_check is not supported here).
+  DescriptorIndexKind kind() const;
+
+  // Like MatchDescriptors (cross_check is not supported here). `threads`
+  // overrides the options' when positive.
   std::vector<DescriptorMatch> Match(std::span<const uint8_t> query,
-                                     const DescriptorMatchOptions& options) const;
+                                     const DescriptorMatchOptions& options, int threads = 0) const;
 
  private:
   DescriptorIndex() = default;

@@ -1,6 +1,9 @@
 #include "linecloud/features/descriptor_index.h"
 
+#include <algorithm>
 #include <array>
+#include <cstring>
+#include <iostream>
 #include <atomic>
 #include <cstdlib>
 #include <filesystem>
@@ -10,6 +13,7 @@
 
 #include <gtest/gtest.h>
 
+#include "linecloud/features/ivf_index.h"
 #include "linecloud/features/matching.h"
 #include "linecloud/testing/test_util.h"
 #include "linecloud/util/error.h"
@@ -43,6 +47,130 @@ void MakeData(size_t n, size_t nq, std::vector<uint8_t>* map, std::vector<uint8_
     for (int k = 0; k < 128; ++k) v[k] = std::max(0.0, src[k] + noise(rng));
     put(v, query->data() + i * 128);
   }
+}
+
+// Every kind finds the exact ratio-test matches (recall >= 0.95 here), gives
+// the same matches on 1 and 3 threads, and, where it caches, the same after a
+// save and a load.
+TEST(DescriptorIndex, EveryKindFindsTheExactMatchesOnAnyThreadCount) {
+  std::vector<uint8_t> map, query;
+  MakeData(3000, 400, &map, &query);
+  const DescriptorMatchOptions options;
+  const auto exact = MatchDescriptors(query, map, options);
+  ASSERT_GT(exact.size(), 300u);
+  testing::TempDir tmp;
+  const std::array<uint8_t, 32> key{7};
+  for (const DescriptorIndexKind kind :
+       {DescriptorIndexKind::kIvf, DescriptorIndexKind::kFaissIvf, DescriptorIndexKind::kFaissHnsw,
+        DescriptorIndexKind::kHnswlib, DescriptorIndexKind::kFlann}) {
+    SCOPED_TRACE(DescriptorIndexKindName(kind));
+    DescriptorIndexOptions o;
+    o.kind = kind;
+    o.threads = 2;  // builds (FAISS IVF's k-means) on two threads
+    const DescriptorIndex index(map, o);
+    EXPECT_EQ(index.kind(), kind);
+    const auto one = index.Match(query, options, 1);
+    std::set<std::pair<int, int>> found;
+    for (const auto& m : one) found.insert({m.query, m.map});
+    size_t hits = 0;
+    for (const auto& m : exact) hits += found.count({m.query, m.map});
+    EXPECT_GE(hits, 0.95 * exact.size());
+    const auto three = index.Match(query, options, 3);
+    ASSERT_EQ(one.size(), three.size());
+    for (size_t i = 0; i < one.size(); ++i) {
+      EXPECT_EQ(one[i].query, three[i].query);
+      EXPECT_EQ(one[i].map, three[i].map);
+    }
+    if (kind == DescriptorIndexKind::kHnswlib) {
+      try {
+        index.Save(tmp.Path("h.index"), key);
+        ADD_FAILURE() << "hnswlib saved";
+      } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("not cached"), std::string::npos) << e.what();
+      }
+      continue;
+    }
+    index.Save(tmp.Path("k.index"), key);
+    const auto loaded = DescriptorIndex::Load(tmp.Path("k.index"), map, o, key);
+    ASSERT_NE(loaded, nullptr);
+    EXPECT_EQ(loaded->Match(query, options).size(), one.size());
+    // A cache of another kind is not this kind's: rebuilt, never misread.
+    DescriptorIndexOptions other = o;
+    other.kind =
+        kind == DescriptorIndexKind::kIvf ? DescriptorIndexKind::kFlann : DescriptorIndexKind::kIvf;
+    EXPECT_EQ(DescriptorIndex::Load(tmp.Path("k.index"), map, other, key), nullptr);
+  }
+}
+
+// Our IVF scanning every cell is exact search: its two neighbours are the
+// exact two largest inner products (the SIMD kernels against plain sums).
+TEST(IvfIndex, ScanningEveryCellIsExactSearch) {
+  std::vector<uint8_t> map, query;
+  MakeData(2000, 100, &map, &query);
+  const auto index = IvfIndex::Build(map, 20, 1);
+  std::vector<int64_t> ids(2 * 100);
+  index->Search(query, index->nlist(), ids.data());
+  for (size_t i = 0; i < 100; ++i) {
+    std::vector<std::pair<int, int64_t>> dots;
+    for (size_t j = 0; j < 2000; ++j) {
+      int d = 0;
+      for (int k = 0; k < 128; ++k) d += int(query[i * 128 + k]) * int(map[j * 128 + k]);
+      dots.push_back({-d, int64_t(j)});
+    }
+    std::sort(dots.begin(), dots.end());
+    EXPECT_EQ(ids[2 * i], dots[0].second) << i;
+    EXPECT_EQ(ids[2 * i + 1], dots[1].second) << i;
+  }
+  std::cout << "[ IVF scan kernel ] " << IvfIndex::Kernel() << "\n";
+}
+
+// Every scan kernel this CPU runs gives the plain sums, extremes included.
+TEST(IvfIndex, EveryKernelGivesThePlainDotProducts) {
+  std::mt19937 rng(3);
+  std::vector<uint8_t> rows(37 * 128);
+  for (uint8_t& b : rows) b = static_cast<uint8_t>(rng());
+  std::fill(rows.begin(), rows.begin() + 128, 255);  // the largest sum: 128 x 255 x 255
+  std::vector<int16_t> q(128);
+  for (int16_t& v : q) v = static_cast<int16_t>(rng() % 256);
+  q[0] = 255;
+  std::vector<int32_t> expected(37), got(37);
+  IvfIndex::DotsWith("portable", q.data(), rows.data(), 37, expected.data());
+  for (size_t r = 0; r < 37; ++r) {
+    int32_t sum = 0;
+    for (int k = 0; k < 128; ++k) sum += q[k] * rows[r * 128 + k];
+    ASSERT_EQ(expected[r], sum);
+  }
+  int tested = 0;
+  for (const char* kernel : {"avx2", "avx512bw"}) {
+    try {
+      IvfIndex::DotsWith(kernel, q.data(), rows.data(), 37, got.data());
+    } catch (const Error&) {
+      continue;  // not on this CPU
+    }
+    EXPECT_EQ(got, expected) << kernel;
+    ++tested;
+  }
+  std::cout << "[ IVF kernels ] " << tested << " SIMD kernel(s) checked on this CPU\n";
+}
+
+// A serialised IVF that is inconsistent (after its MAC was checked) is
+// refused, never searched: cut, wrong size, rows listed twice.
+TEST(IvfIndex, RefusesInconsistentData) {
+  std::vector<uint8_t> map, query;
+  MakeData(500, 10, &map, &query);
+  const std::string good = IvfIndex::Build(map, 8, 1)->Serialize();
+  ASSERT_NE(IvfIndex::Deserialize(good, 500), nullptr);
+  EXPECT_EQ(IvfIndex::Deserialize(good, 499), nullptr);
+  EXPECT_EQ(IvfIndex::Deserialize(good.substr(0, good.size() - 1), 500), nullptr);
+  EXPECT_EQ(IvfIndex::Deserialize(good + "x", 500), nullptr);
+  // The ids follow the header (magic, 2 x 8 bytes), centroids and offsets.
+  const size_t ids_at = 20 + 16 + 8 * 128 * 4 + 9 * 4;
+  std::string twice = good;
+  std::memcpy(twice.data() + ids_at + 4, good.data() + ids_at, 4);
+  EXPECT_EQ(IvfIndex::Deserialize(twice, 500), nullptr);
+  std::string offsets = good;
+  offsets[ids_at - 4] = static_cast<char>(0xff);  // the last offset past the rows
+  EXPECT_EQ(IvfIndex::Deserialize(offsets, 500), nullptr);
 }
 
 TEST(DescriptorIndex, FindsTheExactRatioTestMatchesAndSurvivesASaveAndLoad) {

@@ -9,6 +9,7 @@ extern "C" {
 #include <cmath>
 #include <memory>
 
+#include "linecloud/features/sift_opencv.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
@@ -22,17 +23,6 @@ void VlFeatToUbc(const float* in, float* out) {
   }
 }
 
-// RootSIFT bytes: v / |v|₁, square root, × 512, rounded, clamped to [0, 255].
-void RootSiftBytes(const float* v, uint8_t* out) {
-  float l1 = 0;
-  for (int i = 0; i < 128; ++i) l1 += std::abs(v[i]);
-  for (int i = 0; i < 128; ++i) {
-    const float normalized = l1 > 0 ? std::sqrt(v[i] / l1) : 0.0f;
-    const float scaled = std::round(512.0f * normalized);
-    out[i] = static_cast<uint8_t>(std::clamp(scaled, 0.0f, 255.0f));
-  }
-}
-
 struct LevelFeatures {
   int detections = 0;  // keypoints before orientations
   std::vector<SiftKeypoint> keypoints;
@@ -40,6 +30,31 @@ struct LevelFeatures {
 };
 
 }  // namespace
+
+void RootSiftBytes(const float* v, uint8_t* out) {
+  float l1 = 0;
+  for (int i = 0; i < 128; ++i) l1 += std::abs(v[i]);
+  for (int i = 0; i < 128; ++i) {
+    const float normalized = l1 > 0 ? std::sqrt(std::abs(v[i]) / l1) : 0.0f;
+    const float scaled = std::round(512.0f * normalized);
+    out[i] = static_cast<uint8_t>(std::clamp(scaled, 0.0f, 255.0f));
+  }
+}
+
+SiftExtractor ParseSiftExtractor(const std::string& name, const std::string& option) {
+  if (name == "colmap") return SiftExtractor::kColmap;
+  if (name == "opencv") return SiftExtractor::kOpenCV;
+  Fail("{}: unknown feature extractor '{}' (colmap or opencv)", option, name);
+}
+
+const char* SiftExtractorName(SiftExtractor extractor) {
+  return extractor == SiftExtractor::kColmap ? "colmap" : "opencv";
+}
+
+SiftFeatures ExtractSift(const GreyImage& image, const SiftOptions& options) {
+  return options.extractor == SiftExtractor::kColmap ? ExtractSiftColmap(image, options)
+                                                     : ExtractSiftOpenCV(image, options);
+}
 
 void SiftOptions::Check() const {
   if (max_image_size <= 0) Fail("SIFT max_image_size must be positive, got {}", max_image_size);
@@ -58,7 +73,7 @@ void SiftOptions::Check() const {
   }
 }
 
-SiftFeatures ExtractSift(const GreyImage& input, const SiftOptions& options) {
+SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& options) {
   options.Check();
   if (input.width < 8 || input.height < 8) {
     Fail("image of {}x{} pixels is too small for SIFT", input.width, input.height);

@@ -11,16 +11,30 @@
 //   - descriptors reordered from VLFeat's bin order to the UBC / SiftGPU
 //     order, L1-normalised, square-rooted (RootSIFT), scaled by 512, rounded
 //     and clamped to bytes.
+// A faster extractor, OpenCV's SIFT (Lowe's detector and descriptor, OpenCV
+// 4.6 from Debian: SIMD, threaded), gives descriptors in the same layout and
+// normalisation (sift_opencv.h); `SiftOptions::extractor` chooses.
 #pragma once
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "linecloud/features/image.h"
 
 namespace linecloud {
 
+enum class SiftExtractor {
+  kColmap,  // VLFeat as COLMAP 3.8's CPU extractor: identical features (the reference)
+  kOpenCV,  // OpenCV's SIFT, same thresholds and octaves: ~10x faster (docs/fast_photo.md)
+};
+
+// "colmap" or "opencv"; throws Error naming `option` otherwise.
+SiftExtractor ParseSiftExtractor(const std::string& name, const std::string& option);
+const char* SiftExtractorName(SiftExtractor extractor);
+
 struct SiftOptions {
+  SiftExtractor extractor = SiftExtractor::kOpenCV;
   int max_image_size = 3200;  // larger images are downscaled first
   int max_num_features = 8192;
   int first_octave = -1;
@@ -48,6 +62,14 @@ struct SiftFeatures {
   const uint8_t* descriptor(size_t i) const { return descriptors.data() + 128 * i; }
 };
 
+// Features of `image` by `options.extractor`.
 SiftFeatures ExtractSift(const GreyImage& image, const SiftOptions& options = {});
+// The COLMAP-identical extractor (VLFeat), whatever options.extractor says.
+SiftFeatures ExtractSiftColmap(const GreyImage& image, const SiftOptions& options = {});
+
+// A SIFT descriptor of any positive scale in UBC bin order (VLFeat's after
+// reordering, OpenCV's, Lowe's) to COLMAP's bytes: L1-normalised,
+// square-rooted (RootSIFT), x 512, rounded, clamped to [0, 255].
+void RootSiftBytes(const float* descriptor, uint8_t* out);
 
 }  // namespace linecloud

@@ -137,7 +137,7 @@ void MatchImageQuery(ImageQuery& q, const Camera& camera, const MapDescriptors& 
   say(fmt::format("{} features in {:.0f} ms; matching to {} map descriptors", q.features.size(),
                   q.times.extract_ms, map.ids.size()));
   const auto start = Clock::now();
-  q.matches = index ? index->Match(q.features.descriptors, options.matching)
+  q.matches = index ? index->Match(q.features.descriptors, options.matching, options.threads)
                     : MatchDescriptors(q.features.descriptors, map.descriptors, options.matching);
   q.times.match_ms = MsSince(start);
   say(fmt::format("{} matches in {:.0f} ms", q.matches.size(), q.times.match_ms));

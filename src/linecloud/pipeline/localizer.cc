@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include "linecloud/features/sift_opencv.h"
 #include "linecloud/util/clock.h"
 #include "linecloud/util/error.h"
 
@@ -57,7 +58,7 @@ struct Localizer::State {
       return;
     }
     if (!options.index_cache.empty()) {
-      index = DescriptorIndex::Load(options.index_cache, descriptors->descriptors, {},
+      index = DescriptorIndex::Load(options.index_cache, descriptors->descriptors, o.index,
                                     options.index_cache_key);
       if (index) return;
     }
@@ -65,7 +66,7 @@ struct Localizer::State {
       options.progress(fmt::format("building the descriptor index of {} map descriptors",
                                    descriptors->ids.size()));
     }
-    index = std::make_unique<DescriptorIndex>(descriptors->descriptors, DescriptorIndexOptions{});
+    index = std::make_unique<DescriptorIndex>(descriptors->descriptors, o.index);
     if (options.index_cache.empty()) return;
     try {
       index->Save(options.index_cache, options.index_cache_key);
@@ -78,6 +79,8 @@ struct Localizer::State {
 void LocalizerOptions::Check() const {
   image.sift.Check();
   image.matching.Check();
+  image.index.Check();
+  if (image.threads < 1) Fail("threads must be at least 1, got {}", image.threads);
   localize.Check();
   if (map_gravity && !(map_gravity->allFinite() && map_gravity->norm() > 0)) {
     Fail("map gravity must be a finite non-zero direction");
@@ -104,6 +107,9 @@ std::shared_ptr<const Localizer::State> Localizer::MakeState(
     Fail("{}: {} descriptor ids but {} descriptor bytes (expected 128 each)", source,
          descriptors->ids.size(), descriptors->descriptors.size());
   }
+  // OpenCV's extraction threads are process-wide (sift_opencv.h).
+  if (options.image.sift.extractor == SiftExtractor::kOpenCV)
+    SetOpenCVThreads(options.image.threads);
   auto state = std::make_shared<State>();
   state->source = source;
   state->options = options;

@@ -36,11 +36,13 @@
 namespace linecloud {
 
 struct LocalizerOptions {
-  // SIFT, matching (ratio test), the approximate-index threshold, the pixel cap.
+  // SIFT, matching (ratio test), the approximate index, the pixel cap, threads
+  // (image.threads: a request's matching threads; OpenCV's extraction threads
+  // are process-wide, set to it when the Localizer is made).
   ImageQueryOptions image;
   // Defaults of every request (RANSAC threshold, seed, success criteria, ...).
   LocalizeOptions localize;
-  // Optional cache of the approximate index (e.g. MAP.lcm.flann), authenticated
+  // Optional cache of the approximate index (e.g. MAP.lcm.index), authenticated
   // with `index_cache_key` (KeyStore::CacheSecret()); empty: built in memory.
   std::string index_cache;
   std::array<uint8_t, 32> index_cache_key{};
