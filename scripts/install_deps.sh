@@ -14,6 +14,7 @@ packages=(
   libflann-dev liblz4-dev  # features: approximate nearest neighbours for large maps
   libopencv-features2d-dev  # features: OpenCV's SIFT, the fast extractor
   libfaiss-dev libhnswlib-dev  # features: the matching index (FAISS), a peer (hnswlib)
+  libopenblas0-openmp  # BLAS for FAISS's k-means and coarse search (Debian's default is slower)
   colmap         # eval: structure from motion (its command line)
   "$@"
 )

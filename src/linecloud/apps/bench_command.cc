@@ -8,6 +8,7 @@
 #include "linecloud/privacy/attack_bench.h"
 #include "linecloud/benchmarks/feature_bench.h"
 #include "linecloud/benchmarks/match_bench.h"
+#include "linecloud/eval/photo_bench.h"
 #include "linecloud/util/file.h"
 #include "linecloud/benchmarks/localization_bench.h"
 #include "linecloud/benchmarks/solver_bench.h"
@@ -232,6 +233,39 @@ void RegisterBenchCommand(CLI::App& app) {
           r["exact_ms_extrapolated"].get<double>(), r["recall"].get<double>(),
           r["exact_matches"].get<size_t>(), r["recall_queries"].get<size_t>());
     }
+  });
+
+  auto photo = std::make_shared<PhotoBenchOptions>();
+  auto photo_json = std::make_shared<bool>(false);
+  auto photo_features = std::make_shared<std::vector<std::string>>(
+      std::vector<std::string>{"opencv", "colmap"});
+  CLI::App* ph = bench->add_subcommand(
+      "photo",
+      "A photo to a pose (JPEG bytes, decode, SIFT, matching, RANSAC, LM) on an eval work's "
+      "queries against maps padded to a realistic size: per stage p50 / p99 for each extractor "
+      "and thread count, with COLMAP's CLI extraction of the same photos");
+  ph->add_option("--work", photo->work_dir, "work directory of `eval prepare`")->required();
+  ph->add_option("--pad-to", photo->pad_to, "lines per map after padding (0: none)")
+      ->capture_default_str();
+  ph->add_option("--padding", photo->padding_dir,
+                 "folder of other scenes' photos whose descriptors pad the maps "
+                 "(e.g. ../shared/data/strecha)");
+  ph->add_option("--features", *photo_features, "extractors: opencv, colmap")
+      ->capture_default_str();
+  ph->add_option("--threads", photo->threads, "thread counts")->capture_default_str();
+  ph->add_option("--photos", photo->max_photos, "at most this many photos (0: all)")
+      ->capture_default_str();
+  ph->add_option("--colmap", photo->colmap, "COLMAP's executable (empty: no COLMAP peer)")
+      ->capture_default_str();
+  ph->add_flag("--json", *photo_json, "Print JSON");
+  ph->callback([photo, photo_json, photo_features] {
+    photo->extractors.clear();
+    for (const std::string& f : *photo_features) {
+      photo->extractors.push_back(ParseSiftExtractor(f, "--features"));
+    }
+    photo->progress = [](const std::string& s) { std::cerr << s << "\n"; };
+    const nlohmann::json report = RunPhotoBench(*photo);
+    std::cout << (*photo_json ? report.dump(2) + "\n" : PhotoBenchMarkdown(report));
   });
 
   auto attack = std::make_shared<AttackBenchOptions>();

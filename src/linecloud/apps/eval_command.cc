@@ -161,8 +161,13 @@ void RegisterEvalCommand(CLI::App& app) {
   run->add_flag("--no-sweeps", *no_sweeps, "skip the density and noise sweeps (and their plots)");
   run->add_flag("!--no-direct-matching", run_options->direct_matching,
                 "skip the direct-matching protocol (query images' own SIFT features)");
-  run->callback([run_options, no_sweeps, sparsify_mode] {
+  auto features = std::make_shared<std::string>("opencv");
+  run->add_option("--features", *features,
+                  "direct matching's SIFT: opencv, or colmap (identical to COLMAP's extractor)")
+      ->capture_default_str();
+  run->callback([run_options, no_sweeps, sparsify_mode, features] {
     EvalRunOptions o = *run_options;
+    o.features = ParseSiftExtractor(*features, "--features");
     o.lifting.sparsify_mode = SparsifyModeFromName(*sparsify_mode, "--sparsify-mode");
     if (*no_sweeps) {
       o.density_sweep.clear();

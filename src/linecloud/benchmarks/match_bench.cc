@@ -107,6 +107,31 @@ std::vector<std::string> RealBenchImages(const std::string& data_dir) {
   return others;
 }
 
+std::vector<uint8_t> PhotoDescriptors(const std::vector<std::string>& images, size_t count,
+                                      const std::function<void(const std::string&)>& progress) {
+  std::vector<uint8_t> out;
+  SiftOptions sift;
+  sift.max_num_features = 32768;
+  for (int variant = 0; variant < 4 && out.size() < count * 128; ++variant) {
+    for (size_t i = 0; i < images.size() && out.size() < count * 128; ++i) {
+      GreyImage image = ReadGreyImage(images[i]);
+      if (variant >= 2) {
+        image =
+            DownscaleToMaxSize(image, std::max(8, int(0.7 * std::max(image.width, image.height))));
+      }
+      if (variant % 2 == 1) image = Mirrored(image);
+      const SiftFeatures f = ExtractSift(image, sift);
+      const size_t take = std::min(f.descriptors.size(), count * 128 - out.size());
+      out.insert(out.end(), f.descriptors.begin(), f.descriptors.begin() + take);
+      if (progress) progress(fmt::format("photo descriptors: {} of {}", out.size() / 128, count));
+    }
+  }
+  if (out.size() < count * 128) {
+    Fail("{} photos give {} descriptors, fewer than {}", images.size(), out.size() / 128, count);
+  }
+  return out;
+}
+
 RealDescriptors RealSiftDescriptors(const std::vector<std::string>& images, size_t queries,
                                     size_t map_size,
                                     const std::function<void(const std::string&)>& progress) {
@@ -119,28 +144,8 @@ RealDescriptors RealSiftDescriptors(const std::vector<std::string>& images, size
     Fail("bench match: {} gives {} features, fewer than the {} queries asked", images[0],
          out.query.size() / 128, queries);
   }
-  SiftOptions map_sift;
-  map_sift.max_num_features = 32768;
-  for (int variant = 0; variant < 4 && out.map.size() < map_size * 128; ++variant) {
-    for (size_t i = 1; i < images.size() && out.map.size() < map_size * 128; ++i) {
-      GreyImage image = ReadGreyImage(images[i]);
-      if (variant >= 2) {
-        image =
-            DownscaleToMaxSize(image, std::max(8, int(0.7 * std::max(image.width, image.height))));
-      }
-      if (variant % 2 == 1) image = Mirrored(image);
-      const SiftFeatures f = ExtractSift(image, map_sift);
-      const size_t take = std::min(f.descriptors.size(), map_size * 128 - out.map.size());
-      out.map.insert(out.map.end(), f.descriptors.begin(), f.descriptors.begin() + take);
-      if (progress) {
-        progress(fmt::format("real descriptors: {} of {}", out.map.size() / 128, map_size));
-      }
-    }
-  }
-  if (out.map.size() < map_size * 128) {
-    Fail("bench match: the {} photos give {} map descriptors, fewer than {}", images.size() - 1,
-         out.map.size() / 128, map_size);
-  }
+  out.map = PhotoDescriptors(std::vector<std::string>(images.begin() + 1, images.end()), map_size,
+                             progress);
   return out;
 }
 

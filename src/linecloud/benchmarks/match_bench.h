@@ -44,6 +44,12 @@ struct MatchBenchOptions {
 // and every other JPEG / PNG under `data_dir`.
 std::vector<std::string> RealBenchImages(const std::string& data_dir);
 
+// SIFT descriptors (OpenCV's extractor, up to 32 768 a photo) of `images`:
+// the originals, then mirrored, then at 0.7x, then mirrored at 0.7x, until
+// `count` rows; throws Error when they give fewer.
+std::vector<uint8_t> PhotoDescriptors(const std::vector<std::string>& images, size_t count,
+                                      const std::function<void(const std::string&)>& progress);
+
 // Real SIFT descriptors: `queries` rows from the first photo, then up to
 // `map_size` rows from the others (originals, then mirrored, then at 0.7x).
 struct RealDescriptors {

@@ -32,42 +32,46 @@ struct GroupMap {
 
 GroupMap LoadGroupMap(const std::string& work_dir, const EvalGroup& g, const LiftingKey& key,
                       const DirectMatchingOptions& options) {
+  GroupMapData data = LoadGroupMapData(work_dir, g, key, options.lifting);
+  LocalizerOptions o;
+  o.image = options.image;
+  o.localize.ransac.max_error = options.threshold_px;
+  o.localize.ransac.seed = options.seed;
+  GroupMap m;
+  m.lines.emplace(std::move(data.lines), std::move(data.descriptors), o, g.name);
+  // Photos are matched once, on the lines' Localizer: the points' only takes
+  // those queries (no second copy of the descriptors, no second index).
+  m.points.emplace(std::move(data.points), std::nullopt, o, g.name);
+  return m;
+}
+
+}  // namespace
+
+GroupMapData LoadGroupMapData(const std::string& work_dir, const EvalGroup& g,
+                              const LiftingKey& key, const MapLifting& lifting) {
   const Reconstruction model = ReadColmapModel(JoinPaths(work_dir, g.map_dir));
   std::vector<std::string> names;
   for (const EvalImage& im : g.images) names.push_back(im.name);
   const MapDescriptors all =
       MapDescriptorsExcluding(model, JoinPaths(work_dir, "colmap/database.db"), names);
-  // The map `lift --database` would write with these options: the kept
-  // points that have a descriptor.
   const std::vector<uint64_t> model_ids = model.SortedPoint3DIds();
   const std::vector<Eigen::Vector3d> model_xyz = PointCoordinates(model, model_ids);
-  const LiftingKey lines_key = MapLiftingKey(key, options.lifting);
+  const LiftingKey lines_key = MapLiftingKey(key, lifting);
   const LineMap all_lines =
-      LineMapByPointId(LiftMap(key, model_ids, model_xyz, options.lifting), lines_key);
-  MapDescriptors descriptors;
-  PointMap points;
-  LineMap lines;
+      LineMapByPointId(LiftMap(key, model_ids, model_xyz, lifting), lines_key);
+  GroupMapData out;
   for (size_t k = 0; k < all.ids.size(); ++k) {
     const auto line = all_lines.lines.find(all.ids[k]);
     if (line == all_lines.lines.end()) continue;
-    descriptors.ids.push_back(all.ids[k]);
-    descriptors.descriptors.insert(descriptors.descriptors.end(), all.descriptors.begin() + k * 128,
-                                   all.descriptors.begin() + (k + 1) * 128);
-    lines.lines.emplace(line->first, line->second);
-    points.points[all.ids[k]] = model.points3D.at(all.ids[k]).xyz;
+    out.descriptors.ids.push_back(all.ids[k]);
+    out.descriptors.descriptors.insert(out.descriptors.descriptors.end(),
+                                       all.descriptors.begin() + k * 128,
+                                       all.descriptors.begin() + (k + 1) * 128);
+    out.lines.lines.emplace(line->first, line->second);
+    out.points.points[all.ids[k]] = model.points3D.at(all.ids[k]).xyz;
   }
-  LocalizerOptions o;
-  o.localize.ransac.max_error = options.threshold_px;
-  o.localize.ransac.seed = options.seed;
-  GroupMap m;
-  m.lines.emplace(std::move(lines), std::move(descriptors), o, g.name);
-  // Photos are matched once, on the lines' Localizer: the points' only takes
-  // those queries (no second copy of the descriptors, no second index).
-  m.points.emplace(std::move(points), std::nullopt, o, g.name);
-  return m;
+  return out;
 }
-
-}  // namespace
 
 MapDescriptors MapDescriptorsExcluding(const Reconstruction& map, const std::string& database,
                                        const std::vector<std::string>& excluded_images) {
@@ -88,13 +92,15 @@ namespace {
 
 // The photo's features: extracted now, or once into `cache` and copied from
 // it (without its pixels).
-ImageQuery ExtractOnce(const std::string& path, const Camera& camera, ExtractedPhotos* cache) {
-  if (!cache) return ExtractImageQuery(path, camera, {});
-  auto it = cache->find(path);
+ImageQuery ExtractOnce(const std::string& path, const Camera& camera,
+                       const ImageQueryOptions& options, ExtractedPhotos* cache) {
+  if (!cache) return ExtractImageQuery(path, camera, options);
+  const std::string key = std::string(SiftExtractorName(options.sift.extractor)) + ":" + path;
+  auto it = cache->find(key);
   if (it == cache->end()) {
-    ImageQuery q = ExtractImageQuery(path, camera, {});
+    ImageQuery q = ExtractImageQuery(path, camera, options);
     q.image = GreyImage{};
-    it = cache->emplace(path, std::move(q)).first;
+    it = cache->emplace(key, std::move(q)).first;
   }
   return it->second;
 }
@@ -223,7 +229,8 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
       const std::string path = JoinPaths(JoinPaths(work.dataset_dir, "images"), im.name);
       const Camera& camera = work.cameras.at(im.camera_id);
       ImageQuery q =
-          MatchPhoto(map, ExtractOnce(path, camera, options.extracted.get()), camera, path);
+          MatchPhoto(map, ExtractOnce(path, camera, options.image, options.extracted.get()), camera,
+                     path);
       json row = {{"group", g.name},
                   {"image", im.name},
                   {"features", q.features.size()},
@@ -265,6 +272,7 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
   }
   return {{"thresholds",
            {{"rotation_deg", options.max_rotation_deg}, {"translation", options.max_translation}}},
+          {"features", SiftExtractorName(options.image.sift.extractor)},
           {"methods", methods},
           {"per_query", per_query},
           {"per_rig", per_rig}};

@@ -1,5 +1,5 @@
-// The deployable protocol: each query image's own SIFT features (as COLMAP
-// computes them) matched straight to the map's descriptors — the line cloud's
+// The deployable protocol: each query image's own SIFT features (OpenCV's
+// extractor, or COLMAP's own with --features colmap) matched straight to the map's descriptors — the line cloud's
 // for p6L, the point model's for p3P — through the Localizer that
 // `localize --image` uses (the same matching rules and success criteria). The map's descriptors
 // come from the map images only: the query group's images are not in its map (checked), so no query
@@ -20,8 +20,8 @@
 
 namespace linecloud {
 
-// Photos already decoded and described (SIFT), by path, without their
-// pixels: `eval privacy` matches each photo to every lifting's maps and
+// Photos already decoded and described (SIFT), by extractor and path, without
+// their pixels: `eval privacy` matches each photo to every lifting's maps and
 // extracts it once.
 using ExtractedPhotos = std::map<std::string, ImageQuery>;
 
@@ -36,6 +36,7 @@ struct DirectMatchingOptions {
   double threshold_px = 4.0;
   uint64_t seed = 1;
   MapLifting lifting;  // how the maps are lifted (lift's --sparsify, ...)
+  ImageQueryOptions image;  // extractor, matching, index, as `localize --image`
   // When set, photos are extracted once into it and reused from it (their
   // extract_ms is the time of that one extraction).
   std::shared_ptr<ExtractedPhotos> extracted;
@@ -45,6 +46,17 @@ struct DirectMatchingOptions {
 // when the map registers one of `excluded_images` (a query image).
 MapDescriptors MapDescriptorsExcluding(const Reconstruction& map, const std::string& database,
                                        const std::vector<std::string>& excluded_images);
+
+// A group's map as `lift --database` writes it with `lifting`: the kept
+// points that have a descriptor (the medoid of the track, from the map images
+// only), their lines keyed by point id, and the points themselves.
+struct GroupMapData {
+  LineMap lines;
+  PointMap points;
+  MapDescriptors descriptors;
+};
+GroupMapData LoadGroupMapData(const std::string& work_dir, const EvalGroup& group,
+                              const LiftingKey& key, const MapLifting& lifting);
 
 // report.json's "direct_matching": per method the queries, localized count,
 // median errors and mean stage times, per query (image) and per rig the

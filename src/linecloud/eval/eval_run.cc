@@ -600,6 +600,7 @@ void RunDirectMatchingStage(const EvalInputs& in, const EvalRunOptions& options,
   dm.seed = options.seed;
   dm.lifting = options.lifting;
   dm.extracted = options.extracted_photos;
+  dm.image.sift.extractor = options.features;
   (*report)["direct_matching"] = RunDirectMatching(in.work, options.work_dir, in.key, dm);
 }
 

@@ -34,6 +34,8 @@ struct EvalRunOptions {
   // The deployable protocol beside the paper's: query images' own features
   // matched to the map's descriptors (direct_matching.h).
   bool direct_matching = true;
+  // The photos' feature extractor there (opencv, or colmap: COLMAP's own).
+  SiftExtractor features = SiftExtractor::kOpenCV;
   // Shared by runs that match the same photos to other maps (eval privacy):
   // each photo's SIFT is extracted once.
   std::shared_ptr<ExtractedPhotos> extracted_photos;

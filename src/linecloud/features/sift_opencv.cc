@@ -4,6 +4,9 @@
 #include <cmath>
 #include <numbers>
 #include <numeric>
+#include <functional>
+#include <map>
+#include <set>
 #include <tuple>
 
 #include <opencv2/core.hpp>
@@ -51,20 +54,31 @@ SiftFeatures ExtractSiftOpenCV(const GreyImage& input, const SiftOptions& option
   cv::Mat descriptors;
   sift->detectAndCompute(mat, cv::noArray(), keypoints, descriptors);
 
-  // COLMAP's octaves, then the strongest; a fixed order.
+  // COLMAP's rule: whole DoG levels from the coarsest down while the
+  // detections (keypoints before orientations) stay within max_num_features;
+  // the level that crosses it is kept whole. Only COLMAP's octaves.
   const int last_octave = options.first_octave + options.num_octaves - 1;
-  std::vector<int> order;
+  std::map<std::pair<int, int>, std::vector<int>, std::greater<>> levels;  // coarsest first
   for (size_t i = 0; i < keypoints.size(); ++i) {
-    if (KeypointOctave(keypoints[i]) <= last_octave) order.push_back(static_cast<int>(i));
+    const int octave = KeypointOctave(keypoints[i]);
+    if (octave > last_octave) continue;
+    levels[{octave, (keypoints[i].octave >> 8) & 255}].push_back(static_cast<int>(i));
   }
+  std::vector<int> order;
+  size_t detections = 0;
+  for (const auto& [level, members] : levels) {
+    std::set<std::pair<float, float>> positions;  // extra orientations share a position
+    for (const int i : members) positions.insert({keypoints[i].pt.x, keypoints[i].pt.y});
+    order.insert(order.end(), members.begin(), members.end());
+    detections += positions.size();
+    if (detections > static_cast<size_t>(options.max_num_features)) break;
+  }
+  // A fixed order, whatever the thread count.
   auto key = [&](int i) {
     const cv::KeyPoint& k = keypoints[i];
     return std::make_tuple(-k.response, k.pt.y, k.pt.x, k.size, k.angle);
   };
   std::sort(order.begin(), order.end(), [&](int a, int b) { return key(a) < key(b); });
-  if (order.size() > static_cast<size_t>(options.max_num_features)) {
-    order.resize(options.max_num_features);
-  }
 
   SiftFeatures features;
   features.image_width = input.width;

@@ -7,8 +7,9 @@
 //     divides by the levels, VLFeat does not), edge threshold 10, sigma 1.6,
 //     the image doubled first (first octave -1);
 //   - only COLMAP's octaves (first_octave .. first_octave + num_octaves - 1;
-//     OpenCV would go on to the coarsest), then the max_num_features
-//     strongest by DoG response (OpenCV's rule; COLMAP drops whole fine levels);
+//     OpenCV would go on to the coarsest), and COLMAP's cap: the finest DoG
+//     levels dropped until at most max_num_features detections remain, the
+//     level crossing it kept whole (OpenCV would keep the strongest responses);
 //   - keypoints moved to COLMAP's pixel convention (+0.5, less the 0.25 px
 //     OpenCV's doubling shifts them by), scale = sigma,
 //     orientation in radians in image axes (y down) as VLFeat's;

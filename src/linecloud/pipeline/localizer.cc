@@ -197,6 +197,8 @@ ImageQuery Localizer::MatchPhoto(const QueryPhoto& photo, const LocalizeRequest&
   photo.camera.Check(photo.name + ": camera");
   ImageQueryOptions o = state_->options.image;
   o.progress = request.progress;
+  if (request.threads < 0) Fail("{}: threads must not be negative", photo.name);
+  if (request.threads > 0) o.threads = request.threads;
   ImageQuery q;
   if (photo.features) {
     CheckFeatures(*photo.features, photo.camera, photo.name);
