@@ -16,6 +16,7 @@ packages=(
   libfaiss-dev libhnswlib-dev  # features: the matching index (FAISS), a peer (hnswlib)
   libopenblas0-openmp  # BLAS for FAISS's k-means and coarse search (Debian's default is slower)
   colmap         # eval: structure from motion (its command line)
+  libcpp-httplib-dev  # serve: HTTP/1.1
   "$@"
 )
 missing=()

@@ -381,7 +381,9 @@ TEST(Cli, LocalizeImageRejectsBadInput) {
     ASSERT_EQ(ann.code, 0) << ann.err;
     const int matches = nlohmann::json::parse(ann.out)["num_matches"].get<int>();
     EXPECT_GT(matches, 0);
-    if (run == 1) EXPECT_EQ(matches, first_matches);  // the cached index: the same matches
+    if (run == 1) {
+      EXPECT_EQ(matches, first_matches);  // the cached index: the same matches
+    }
     first_matches = matches;
     EXPECT_TRUE(FileExists(tmp.Path("m.lcm.index")));
   }

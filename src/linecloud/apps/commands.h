@@ -15,6 +15,7 @@ void RegisterLocalizeCommand(CLI::App& app);
 void RegisterMakeQueryCommand(CLI::App& app);
 void RegisterBenchCommand(CLI::App& app);
 void RegisterEvalCommand(CLI::App& app);
+void RegisterServeCommand(CLI::App& app);
 void RegisterAttackCommand(CLI::App& app);
 void RegisterAuditCommand(CLI::App& app);
 

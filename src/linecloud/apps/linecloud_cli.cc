@@ -21,6 +21,7 @@ int RunLinecloud(int argc, const char* const* argv) {
   RegisterMakeQueryCommand(app);
   RegisterBenchCommand(app);
   RegisterEvalCommand(app);
+  RegisterServeCommand(app);
   RegisterAttackCommand(app);
   RegisterAuditCommand(app);
   if (argc >= 2 && argv[1][0] != '-') {

@@ -122,13 +122,15 @@ json RunPhotoBench(const PhotoBenchOptions& o) {
   const EvalWork work = ReadPreparedWork(o.work_dir);
   const LiftingKey key = EvalLiftingKey(o.work_dir);
   const std::string image_dir = JoinPaths(work.dataset_dir, "images");
-  std::vector<const EvalGroup*> groups;
+  // Every photo of every query group, alone, against its group's map (which
+  // holds none of the group's photos).
+  std::vector<std::pair<const EvalGroup*, const EvalImage*>> photos;
   for (const EvalGroup& g : work.groups) {
-    if (g.images.size() == 1 && (o.max_photos == 0 || groups.size() < o.max_photos)) {
-      groups.push_back(&g);
+    for (const EvalImage& im : g.images) {
+      if (o.max_photos == 0 || photos.size() < o.max_photos) photos.push_back({&g, &im});
     }
   }
-  if (groups.empty()) Fail("bench photo: {} has no single-photo query", o.work_dir);
+  if (photos.empty()) Fail("bench photo: {} has no query photo", o.work_dir);
   const auto say = [&](const std::string& s) {
     if (o.progress) o.progress(s);
   };
@@ -146,8 +148,8 @@ json RunPhotoBench(const PhotoBenchOptions& o) {
   std::map<std::pair<SiftExtractor, int>, Samples> rows;
   std::map<int, std::vector<double>> colmap_ms;
   size_t map_lines = 0, padded_lines = 0;
-  for (const EvalGroup* g : groups) {
-    const EvalImage& im = g->images.front();
+  for (const auto& [g, photo] : photos) {
+    const EvalImage& im = *photo;
     GroupMapData data = LoadGroupMapData(o.work_dir, *g, key, MapLifting{});
     map_lines += data.lines.lines.size();
     if (o.pad_to > data.lines.lines.size()) {
@@ -157,7 +159,7 @@ json RunPhotoBench(const PhotoBenchOptions& o) {
     const std::string path = JoinPaths(image_dir, im.name);
     const std::string bytes = ReadFileToString(path);
     const Camera& camera = work.cameras.at(im.camera_id);
-    const std::string cache = (scratch / (g->name + ".index")).string();
+    const std::string cache = (scratch / (g->name + "-" + im.name + ".index")).string();
     for (const SiftExtractor e : o.extractors) {
       LocalizerOptions lo;
       lo.image.sift.extractor = e;
@@ -206,9 +208,9 @@ json RunPhotoBench(const PhotoBenchOptions& o) {
 
   json out = {{"work", o.work_dir},
               {"dataset", work.dataset},
-              {"photos", groups.size()},
-              {"mean_map_lines", map_lines / groups.size()},
-              {"mean_padded_lines", padded_lines / groups.size()},
+              {"photos", photos.size()},
+              {"mean_map_lines", map_lines / photos.size()},
+              {"mean_padded_lines", padded_lines / photos.size()},
               {"rows", json::array()}};
   for (const auto& [config, s] : rows) {
     json row = Summary(s);

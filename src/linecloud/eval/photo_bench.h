@@ -1,9 +1,9 @@
 // `linecloud bench photo`: a photo to a pose the way a service answers it —
 // JPEG bytes → decode → SIFT → matching → RANSAC → LM → checks, through the
-// Localizer — on an `eval prepare` work's single-photo queries, each against
+// Localizer — on an `eval prepare` work's query photos, each against
 // its group's line map (built without that photo) padded with the descriptors
 // of other scenes' photos on random lines to a realistic size (100 000 lines:
-// [fast-photo]'s target). Each extractor and thread count in one run, with
+// [fast-photo]'s target); every photo of a query group alone. Each extractor and thread count in one run, with
 // COLMAP's own command-line extraction of the same photos beside them; per
 // stage p50 / p99, photos localized and their median rotation error.
 #pragma once
@@ -26,7 +26,7 @@ struct PhotoBenchOptions {
   std::string padding_dir;
   std::vector<SiftExtractor> extractors = {SiftExtractor::kOpenCV, SiftExtractor::kColmap};
   std::vector<int> threads = {1, 2};
-  size_t max_photos = 0;          // 0: every single-photo query of the work
+  size_t max_photos = 0;          // 0: every query photo of the work
   std::string colmap = "colmap";  // COLMAP's CLI as a peer; empty: not run
   double max_rotation_deg = 0.5;  // "localized" thresholds, as eval's direct matching
   double max_translation = 0.05;

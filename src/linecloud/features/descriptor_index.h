@@ -37,7 +37,7 @@ struct DescriptorIndexOptions {
   // IVF (ours, FAISS's): cells (0: 4 sqrt(n), at most n / 32) and cells
   // scanned per query.
   int nlist = 0;
-  int nprobe = 8;
+  int nprobe = 16;
   // HNSW (FAISS and hnswlib): links per node, candidate lists when building
   // and searching.
   int hnsw_m = 16;

@@ -15,7 +15,9 @@ const nlohmann::json& Array(const nlohmann::json& j, const char* name, const std
   return j[name];
 }
 
-Camera ParseCamera(const nlohmann::json& j, const std::string& where) {
+}  // namespace
+
+Camera CameraFromJson(const nlohmann::json& j, const std::string& where) {
   if (!j.is_object()) Fail("{}: expected an object", where);
   for (const char* key : {"model", "width", "height", "params"}) {
     if (!j.contains(key)) Fail("{}: field '{}' is missing", where, key);
@@ -44,14 +46,12 @@ Camera ParseCamera(const nlohmann::json& j, const std::string& where) {
   return camera;
 }
 
-}  // namespace
-
 Query ParseQueryJson(const nlohmann::json& j, const std::string& source) {
   if (!j.is_object()) Fail("{}: expected a JSON object", source);
   Query q;
   const nlohmann::json& cameras = Array(j, "cameras", source);
   for (size_t c = 0; c < cameras.size(); ++c) {
-    q.cameras.push_back(ParseCamera(cameras[c], fmt::format("{}: cameras[{}]", source, c)));
+    q.cameras.push_back(CameraFromJson(cameras[c], fmt::format("{}: cameras[{}]", source, c)));
   }
   if (j.contains("cam_from_rig")) {
     const nlohmann::json& poses = Array(j, "cam_from_rig", source);

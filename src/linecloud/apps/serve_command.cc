@@ -1,0 +1,80 @@
+#include <pthread.h>
+#include <signal.h>
+
+#include <iostream>
+#include <memory>
+#include <thread>
+
+#include "linecloud/apps/commands.h"
+#include "linecloud/serve/server.h"
+#include "linecloud/serve/tokens.h"
+
+namespace linecloud {
+namespace {
+
+// Serves until SIGTERM / SIGINT (drain, exit 0); SIGHUP reloads the maps. The
+// signals are blocked in every thread and taken by one waiting thread.
+void RunServe(const ServeOptions& options) {
+  sigset_t signals;
+  sigemptyset(&signals);
+  for (const int s : {SIGHUP, SIGTERM, SIGINT}) sigaddset(&signals, s);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  Server server(options);
+  server.Bind();
+  std::cerr << "loaded " << server.num_maps() << " map(s)\n"
+            << "listening on " << server.url() << std::endl;
+  std::thread waiter([&] {
+    for (;;) {
+      int s = 0;
+      if (sigwait(&signals, &s) != 0) continue;
+      if (s == SIGHUP) {
+        server.Reload();
+        std::cerr << "reloaded: " << server.num_maps() << " map(s)" << std::endl;
+        continue;
+      }
+      server.Stop();
+      return;
+    }
+  });
+  server.Run();
+  waiter.join();
+  std::cerr << "stopped" << std::endl;
+}
+
+}  // namespace
+
+void RegisterServeCommand(CLI::App& app) {
+  auto o = std::make_shared<ServeOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "serve",
+      "HTTP localization service over a folder of line clouds (DIR/ID.lcm): photos or client "
+      "features in, poses out (../shared/SPEC.md)");
+  cmd->add_option("--maps", o->maps_dir, "Folder of ID.lcm maps (+ optional ID.json geo-anchor)")
+      ->required();
+  cmd->add_option("--listen", o->listen, "HOST:PORT (port 0: a free one)")->capture_default_str();
+  cmd->add_option("--tokens", o->tokens_path,
+                  "TOKENS.json (SHA-256 of each bearer token, its maps and rate); required off "
+                  "loopback");
+  cmd->add_option("--threads", o->threads, "Localization workers")->capture_default_str();
+  cmd->add_option("--queue", o->queue, "Requests waiting for a worker, at most (then 503)")
+      ->capture_default_str();
+  cmd->add_option("--max-body-mb", o->max_body_mb, "Largest request body (then 413)")
+      ->capture_default_str();
+  cmd->add_option("--max-pixels", o->max_pixels,
+                  "Largest photo, from its header before decoding (then 413)")
+      ->capture_default_str();
+  cmd->add_option("--request-seconds", o->request_seconds,
+                  "Deadline of a localization, queue wait included (then 504)")
+      ->capture_default_str();
+  cmd->callback([o] { RunServe(*o); });
+
+  CLI::App* hash = app.add_subcommand(
+      "token-hash", "The SHA-256 of a bearer token, as TOKENS.json stores it (read from stdin)");
+  hash->callback([] {
+    std::string t;
+    std::getline(std::cin, t);
+    std::cout << TokenSha256Hex(t) << "\n";
+  });
+}
+
+}  // namespace linecloud

@@ -1,0 +1,800 @@
+#include "linecloud/serve/server.h"
+
+#include <sodium.h>
+#include <sys/stat.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <future>
+#include <iostream>
+#include <map>
+#include <mutex>
+#include <regex>
+#include <thread>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "linecloud/features/image.h"
+#include "linecloud/io/lcm_format.h"
+#include "linecloud/localize/image_query.h"
+#include "linecloud/localize/query_json.h"
+#include "linecloud/pipeline/localizer.h"
+#include "linecloud/serve/geo.h"
+#include "linecloud/serve/tokens.h"
+#include "linecloud/util/error.h"
+#include "linecloud/util/file.h"
+
+// After every Eigen header: cpp-httplib pulls in <resolv.h>, whose `_res`
+// macro would rewrite Eigen's parameters of that name.
+#include <httplib.h>
+#undef _res
+
+namespace linecloud {
+namespace {
+
+using json = nlohmann::json;
+using Clock = std::chrono::steady_clock;
+namespace fs = std::filesystem;
+
+const std::regex kMapId("[A-Za-z0-9_-]{1,64}");
+
+// An answer with a status: errors carry {"error": ...}.
+struct HttpError {
+  int status;
+  std::string message;
+  double retry_after = 0;  // seconds, for 429 / 503
+};
+
+[[noreturn]] void Throw(int status, std::string message, double retry_after = 0) {
+  throw HttpError{status, std::move(message), retry_after};
+}
+
+// A fixed pool of localization workers behind a bounded queue.
+class WorkPool {
+ public:
+  WorkPool(int threads, int capacity) : capacity_(capacity) {
+    for (int i = 0; i < threads; ++i) workers_.emplace_back([this] { Loop(); });
+  }
+  ~WorkPool() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stopping_ = true;
+    }
+    cv_.notify_all();
+    for (std::thread& t : workers_) t.join();
+  }
+  // False when `capacity` jobs already wait.
+  bool TrySubmit(std::function<void()> job) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (static_cast<int>(jobs_.size()) >= capacity_) return false;
+      jobs_.push_back(std::move(job));
+    }
+    cv_.notify_one();
+    return true;
+  }
+  int queued() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return static_cast<int>(jobs_.size());
+  }
+  int running() const { return running_.load(); }
+
+ private:
+  void Loop() {
+    for (;;) {
+      std::function<void()> job;
+      {
+        std::unique_lock<std::mutex> lock(mutex_);
+        cv_.wait(lock, [&] { return stopping_ || !jobs_.empty(); });
+        if (jobs_.empty()) return;  // stopping, and every job done
+        job = std::move(jobs_.front());
+        jobs_.pop_front();
+      }
+      ++running_;
+      job();
+      --running_;
+    }
+  }
+  const int capacity_;
+  mutable std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<std::function<void()>> jobs_;
+  std::vector<std::thread> workers_;
+  std::atomic<int> running_{0};
+  bool stopping_ = false;
+};
+
+// Prometheus counters and histograms (text exposition format 0.0.4).
+class Metrics {
+ public:
+  static constexpr double kBucketsMs[] = {5,   10,   25,   50,   100,  250,
+                                          500, 1000, 2500, 5000, 10000};
+  void Request(const std::string& route, int status) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++requests_[{route, status}];
+  }
+  void Stage(const std::string& stage, double ms) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    Histogram& h = stages_[stage];
+    for (size_t i = 0; i < std::size(kBucketsMs); ++i) h.buckets[i] += ms <= kBucketsMs[i];
+    ++h.count;
+    h.sum += ms;
+  }
+  std::string Text(int in_flight, int queued, size_t maps) const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::string out =
+        "# HELP linecloud_requests_total Requests answered, by route and status.\n"
+        "# TYPE linecloud_requests_total counter\n";
+    for (const auto& [key, n] : requests_) {
+      out += fmt::format("linecloud_requests_total{{route=\"{}\",status=\"{}\"}} {}\n", key.first,
+                         key.second, n);
+    }
+    out +=
+        "# HELP linecloud_stage_ms Localization time per stage, milliseconds.\n"
+        "# TYPE linecloud_stage_ms histogram\n";
+    for (const auto& [stage, h] : stages_) {
+      for (size_t i = 0; i < std::size(kBucketsMs); ++i) {
+        out += fmt::format("linecloud_stage_ms_bucket{{stage=\"{}\",le=\"{}\"}} {}\n", stage,
+                           kBucketsMs[i], h.buckets[i]);
+      }
+      out += fmt::format("linecloud_stage_ms_bucket{{stage=\"{}\",le=\"+Inf\"}} {}\n", stage,
+                         h.count);
+      out += fmt::format("linecloud_stage_ms_sum{{stage=\"{}\"}} {}\n", stage, h.sum);
+      out += fmt::format("linecloud_stage_ms_count{{stage=\"{}\"}} {}\n", stage, h.count);
+    }
+    std::ifstream statm("/proc/self/statm");
+    size_t pages = 0, resident = 0;
+    statm >> pages >> resident;
+    out += fmt::format(
+        "# TYPE linecloud_in_flight gauge\nlinecloud_in_flight {}\n"
+        "# TYPE linecloud_queue_length gauge\nlinecloud_queue_length {}\n"
+        "# TYPE linecloud_maps gauge\nlinecloud_maps {}\n"
+        "# TYPE linecloud_resident_bytes gauge\nlinecloud_resident_bytes {}\n",
+        in_flight, queued, maps, resident * 4096);
+    return out;
+  }
+
+ private:
+  struct Histogram {
+    uint64_t buckets[std::size(kBucketsMs)] = {};
+    uint64_t count = 0;
+    double sum = 0;
+  };
+  mutable std::mutex mutex_;
+  std::map<std::pair<std::string, int>, uint64_t> requests_;
+  std::map<std::string, Histogram> stages_;
+};
+
+struct LoadedMap {
+  std::string id;
+  std::unique_ptr<Localizer> localizer;
+  json info;
+  std::optional<GeoAnchor> anchor;
+  std::pair<uintmax_t, int64_t> stamp;  // size, mtime: unchanged files are kept on reload
+};
+using MapSet = std::map<std::string, std::shared_ptr<const LoadedMap>>;
+
+std::pair<uintmax_t, int64_t> FileStamp(const std::string& path) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return {0, 0};
+  return {static_cast<uintmax_t>(st.st_size),
+          static_cast<int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec};
+}
+
+std::string Base64Decode(const std::string& text, const std::string& field) {
+  std::string out(text.size() / 4 * 3 + 3, '\0');
+  size_t len = 0;
+  if (sodium_base642bin(reinterpret_cast<unsigned char*>(out.data()), out.size(), text.data(),
+                        text.size(), " \n\r", &len, nullptr, sodium_base64_VARIANT_ORIGINAL) != 0) {
+    Throw(400, fmt::format("{}: not base64", field));
+  }
+  out.resize(len);
+  return out;
+}
+
+json PoseJson(const LocalizerResult& r) {
+  if (!r.success()) return {{"success", false}, {"reason", r.reason}};
+  const Sim3d& p = r.pose.query_from_world;
+  const Eigen::Vector3d c = p.Inverse().translation;
+  const Eigen::Quaterniond q = p.rotation.normalized();
+  const size_t matches = r.query.observations.size();
+  json times = {{"decode", r.times.decode_ms},   {"extract", r.times.extract_ms},
+                {"match", r.times.match_ms},     {"ransac", r.times.ransac_ms},
+                {"refine", r.times.refine_ms},   {"total", r.times.total_ms}};
+  return {{"success", true},
+          {"q", {q.w(), q.x(), q.y(), q.z()}},
+          {"t", {p.translation.x(), p.translation.y(), p.translation.z()}},
+          {"center", {c.x(), c.y(), c.z()}},
+          {"num_matches", matches},
+          {"num_inliers", r.pose.inliers.size()},
+          {"inlier_ratio", matches ? double(r.pose.inliers.size()) / matches : 0.0},
+          {"uncertainty",
+           {{"rotation_deg", r.pose.uncertainty.rotation_deg},
+            {"position", r.pose.uncertainty.position}}},
+          {"times_ms", times}};
+}
+
+bool IsLoopback(const std::string& host) {
+  return host == "127.0.0.1" || host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+}
+
+}  // namespace
+
+std::pair<std::string, int> ParseListen(const std::string& listen, const std::string& option) {
+  const size_t colon = listen.rfind(':');
+  if (colon == std::string::npos || colon == 0) Fail("{}: expected HOST:PORT, got '{}'", option, listen);
+  const std::string host = listen.substr(0, colon), port = listen.substr(colon + 1);
+  if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos ||
+      std::stoi(port) > 65535) {
+    Fail("{}: '{}' is not a port (0-65535)", option, port);
+  }
+  return {host, std::stoi(port)};
+}
+
+void ServeOptions::Check() const {
+  if (maps_dir.empty()) Fail("serve: --maps DIR is required");
+  if (threads < 1 || threads > 256) Fail("serve: --threads must be 1-256, got {}", threads);
+  if (queue < 0 || queue > 100000) Fail("serve: --queue must be 0-100000, got {}", queue);
+  if (!(max_body_mb > 0 && max_body_mb <= 1024)) {
+    Fail("serve: --max-body-mb must be in (0, 1024], got {}", max_body_mb);
+  }
+  if (max_pixels < 1) Fail("serve: --max-pixels must be positive");
+  if (!(request_seconds > 0 && request_seconds <= 3600)) {
+    Fail("serve: --request-seconds must be in (0, 3600], got {}", request_seconds);
+  }
+  const auto [host, port] = ParseListen(listen, "--listen");
+  if (!IsLoopback(host) && tokens_path.empty()) {
+    Fail("serve: listening on {} (not loopback) needs --tokens TOKENS.json", host);
+  }
+}
+
+struct Server::Impl {
+  ServeOptions options;
+  TokenStore tokens;
+  Metrics metrics;
+  std::unique_ptr<WorkPool> pool;
+  httplib::Server http;
+  std::string host;
+  int port = -1;
+  std::atomic<int> in_flight{0};
+  mutable std::mutex maps_mutex;
+  std::shared_ptr<const MapSet> maps = std::make_shared<MapSet>();
+
+  void Log(const std::string& line) const {
+    if (options.log) {
+      options.log(line);
+    } else {
+      std::cerr << line << "\n";
+    }
+  }
+
+  std::shared_ptr<const MapSet> Maps() const {
+    std::lock_guard<std::mutex> lock(maps_mutex);
+    return maps;
+  }
+
+  std::shared_ptr<const LoadedMap> LoadMap(const std::string& id, const std::string& path) const {
+    auto m = std::make_shared<LoadedMap>();
+    m->id = id;
+    m->stamp = FileStamp(path);
+    const LineCloud cloud = ReadLineCloud(path);
+    LocalizerOptions lo;
+    lo.image.max_pixels = options.max_pixels;
+    lo.image.threads = 1;  // concurrency comes from the workers
+    m->localizer = std::make_unique<Localizer>(cloud, lo, id);
+    const std::string anchor_path = JoinPaths(options.maps_dir, id + ".json");
+    if (FileExists(anchor_path)) {
+      m->anchor = GeoAnchorFromJson(json::parse(ReadFilePrefix(anchor_path, 1 << 16)), anchor_path);
+    }
+    m->info = {{"id", id},
+               {"lines", cloud.size()},
+               {"descriptors", cloud.has_descriptors() ? cloud.descriptor_type : "none"},
+               {"encoding", std::string(LineEncodingName(cloud.encoding))},
+               {"gravity", cloud.gravity.has_value()},
+               {"geo_anchored", m->anchor.has_value()}};
+    return m;
+  }
+
+  void LoadMaps() {
+    if (!fs::is_directory(options.maps_dir)) Fail("serve: {} is not a folder", options.maps_dir);
+    const std::shared_ptr<const MapSet> old = Maps();
+    auto next = std::make_shared<MapSet>();
+    for (const auto& e : fs::directory_iterator(options.maps_dir)) {
+      if (e.path().extension() != ".lcm") continue;
+      const std::string id = e.path().stem().string();
+      if (!std::regex_match(id, kMapId)) {
+        Log(fmt::format("{{\"notice\": \"skipped {}: map ids are [A-Za-z0-9_-]{{1,64}}\"}}",
+                        json(e.path().filename().string()).dump()));
+        continue;
+      }
+      const std::string path = e.path().string();
+      const auto kept = old->find(id);
+      if (kept != old->end() && kept->second->stamp == FileStamp(path)) {
+        (*next)[id] = kept->second;
+        continue;
+      }
+      try {
+        (*next)[id] = LoadMap(id, path);
+      } catch (const std::exception& err) {
+        Log(json{{"notice", fmt::format("map {} not loaded: {}", id, err.what())}}.dump());
+      }
+    }
+    std::lock_guard<std::mutex> lock(maps_mutex);
+    maps = next;
+  }
+
+  // The caller's token entry (nullopt: no tokens file, everything allowed);
+  // 401 without a known token.
+  std::optional<TokenEntry> Authorize(const httplib::Request& req) const {
+    if (tokens.open()) return std::nullopt;
+    auto e = tokens.Authenticate(req.get_header_value("Authorization"));
+    if (!e) Throw(401, "a valid 'Authorization: Bearer TOKEN' header is required");
+    return e;
+  }
+
+  void Throttle(const std::optional<TokenEntry>& token) {
+    if (!token) return;
+    if (const auto wait = const_cast<TokenStore&>(tokens).Throttle(token->id,
+                                                                 token->requests_per_minute)) {
+      Throw(429, "rate limit: too many requests for this token", *wait);
+    }
+  }
+
+  // 404 for unknown maps and for maps this token may not use alike.
+  std::shared_ptr<const LoadedMap> FindMap(const std::string& id,
+                                           const std::optional<TokenEntry>& token) const {
+    const std::shared_ptr<const MapSet> set = Maps();
+    const auto it = std::regex_match(id, kMapId) ? set->find(id) : set->end();
+    if (it == set->end() || (token && !token->MayUse(id))) Throw(404, "no such map");
+    return it->second;
+  }
+
+  // Runs `job` on a worker within the request's deadline: 503 when the queue
+  // is full, 504 when the deadline passes first.
+  LocalizerResult RunBounded(std::function<LocalizerResult()> job, Clock::time_point deadline) {
+    auto promise = std::make_shared<std::promise<LocalizerResult>>();
+    std::future<LocalizerResult> result = promise->get_future();
+    if (!pool->TrySubmit([promise, job = std::move(job)] {
+          try {
+            promise->set_value(job());
+          } catch (...) {
+            promise->set_exception(std::current_exception());
+          }
+        })) {
+      Throw(503, "the server is busy: every worker and queue slot is taken", 1);
+    }
+    if (result.wait_until(deadline) != std::future_status::ready) {
+      Throw(504, fmt::format("no answer within the {} s deadline", options.request_seconds));
+    }
+    try {
+      return result.get();
+    } catch (const Error& e) {
+      Throw(400, e.what());
+    }
+  }
+
+  LocalizeRequest RequestOptions(const std::string& method, const std::string& gravity,
+                                 std::optional<double> max_seconds, Clock::time_point deadline) {
+    LocalizeRequest r;
+    r.method = method;
+    if (!gravity.empty()) r.gravity = ParseDirection(gravity, "gravity");
+    const double left = std::chrono::duration<double>(deadline - Clock::now()).count();
+    r.max_seconds = std::max(0.01, std::min(max_seconds.value_or(left), left));
+    return r;
+  }
+
+  void CheckPhotoHeader(const std::string& bytes, const Camera& camera, const std::string& name) {
+    const std::span<const uint8_t> data(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size());
+    ImageHeader header;
+    try {
+      header = ReadImageHeader(data, name, ImageLimits{.max_pixels = UINT64_MAX});
+    } catch (const Error& e) {
+      Throw(400, e.what());
+    }
+    if (header.width * header.height > options.max_pixels) {
+      Throw(413, fmt::format("{}: {}x{} pixels exceed the server's {} (--max-pixels)", name,
+                             header.width, header.height, options.max_pixels));
+    }
+    if (header.width != camera.width || header.height != camera.height) {
+      Throw(400, fmt::format("{}: the photo is {}x{} pixels but the camera is {}x{}", name,
+                             header.width, header.height, camera.width, camera.height));
+    }
+  }
+
+  void RecordStages(const LocalizerResult& r) {
+    metrics.Stage("decode", r.times.decode_ms);
+    metrics.Stage("extract", r.times.extract_ms);
+    metrics.Stage("match", r.times.match_ms);
+    metrics.Stage("ransac", r.times.ransac_ms);
+    metrics.Stage("refine", r.times.refine_ms);
+    metrics.Stage("total", r.times.total_ms);
+  }
+
+  // POST /v1/maps/{id}/localize
+  json Localize(const httplib::Request& req, json* log) {
+    const auto token = Authorize(req);
+    if (token) (*log)["token"] = token->id;
+    const std::string id = req.matches[1];
+    const auto map = FindMap(id, token);
+    (*log)["map"] = id;
+    Throttle(token);
+    const Clock::time_point deadline =
+        Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                           std::chrono::duration<double>(options.request_seconds));
+    std::function<LocalizerResult()> job;
+    const std::string type = req.get_header_value("Content-Type");
+    if (req.is_multipart_form_data()) {
+      if (!req.has_file("image")) Throw(400, "multipart: the 'image' part is missing");
+      if (!req.has_file("camera")) Throw(400, "multipart: the 'camera' part is missing");
+      Camera camera;
+      try {
+        camera = ParseCameraString(req.get_file_value("camera").content);
+      } catch (const Error& e) {
+        Throw(400, std::string("camera: ") + e.what());
+      }
+      auto bytes = std::make_shared<std::string>(req.get_file_value("image").content);
+      CheckPhotoHeader(*bytes, camera, "image");
+      std::optional<double> max_seconds;
+      if (req.has_file("max_seconds")) {
+        try {
+          max_seconds = std::stod(req.get_file_value("max_seconds").content);
+        } catch (const std::exception&) {
+          Throw(400, "max_seconds: not a number");
+        }
+      }
+      LocalizeRequest r;
+      try {
+        r = RequestOptions(req.has_file("method") ? req.get_file_value("method").content : "",
+                           req.has_file("gravity") ? req.get_file_value("gravity").content : "",
+                           max_seconds, deadline);
+      } catch (const Error& e) {
+        Throw(400, e.what());
+      }
+      job = [map, bytes, camera, r] {
+        return map->localizer->LocalizeEncodedImage(
+            std::span(reinterpret_cast<const uint8_t*>(bytes->data()), bytes->size()), camera, r,
+            "image");
+      };
+    } else if (type.rfind("application/json", 0) == 0) {
+      job = FeaturesJob(req.body, map, deadline);
+    } else {
+      Throw(415, "send multipart/form-data (image + camera) or application/json (features)");
+    }
+    ++in_flight;
+    struct Done {
+      std::atomic<int>& n;
+      ~Done() { --n; }
+    } done{in_flight};
+    const LocalizerResult r = RunBounded(std::move(job), deadline);
+    RecordStages(r);
+    (*log)["times_ms"] = {{"decode", r.times.decode_ms},
+                          {"extract", r.times.extract_ms},
+                          {"match", r.times.match_ms},
+                          {"ransac", r.times.ransac_ms},
+                          {"total", r.times.total_ms}};
+    (*log)["success"] = r.success();
+    return PoseJson(r);
+  }
+
+  std::function<LocalizerResult()> FeaturesJob(const std::string& body,
+                                               std::shared_ptr<const LoadedMap> map,
+                                               Clock::time_point deadline) {
+    json j;
+    try {
+      j = json::parse(body);
+    } catch (const json::exception& e) {
+      Throw(400, fmt::format("body: not JSON ({})", e.what()));
+    }
+    if (!j.is_object()) Throw(400, "body: expected a JSON object");
+    for (const char* key : {"camera", "keypoints", "descriptors"}) {
+      if (!j.contains(key)) Throw(400, fmt::format("body: field '{}' is missing", key));
+    }
+    auto features = std::make_shared<SiftFeatures>();
+    Camera camera;
+    LocalizeRequest r;
+    try {
+      camera = CameraFromJson(j["camera"], "camera");
+      if (!j["keypoints"].is_array()) Fail("keypoints: expected [[x, y], ...]");
+      for (size_t i = 0; i < j["keypoints"].size(); ++i) {
+        const json& k = j["keypoints"][i];
+        if (!k.is_array() || k.size() != 2 || !k[0].is_number() || !k[1].is_number()) {
+          Fail("keypoints[{}]: expected [x, y]", i);
+        }
+        features->keypoints.push_back({k[0].get<float>(), k[1].get<float>(), 0, 0});
+      }
+      if (!j["descriptors"].is_string()) Fail("descriptors: expected base64 of N x 128 bytes");
+      const std::string d = Base64Decode(j["descriptors"].get<std::string>(), "descriptors");
+      features->descriptors.assign(d.begin(), d.end());
+      std::string gravity;
+      if (j.contains("gravity")) {
+        const json& g = j["gravity"];
+        if (g.is_string()) {
+          gravity = g.get<std::string>();
+        } else if (g.is_array() && g.size() == 3 && g[0].is_number() && g[1].is_number() &&
+                   g[2].is_number()) {
+          gravity = fmt::format("{},{},{}", g[0].get<double>(), g[1].get<double>(), g[2].get<double>());
+        } else {
+          Fail("gravity: expected [x, y, z] or \"x,y,z\"");
+        }
+      }
+      std::optional<double> max_seconds;
+      if (j.contains("max_seconds")) {
+        if (!j["max_seconds"].is_number()) Fail("max_seconds: expected a number");
+        max_seconds = j["max_seconds"].get<double>();
+      }
+      const std::string method =
+          j.contains("method") && j["method"].is_string() ? j["method"].get<std::string>() : "";
+      r = RequestOptions(method, gravity, max_seconds, deadline);
+    } catch (const Error& e) {
+      Throw(400, e.what());
+    }
+    return [map, features, camera, r] {
+      return map->localizer->LocalizeFeatures(*features, camera, r);
+    };
+  }
+
+  // POST /geopose (OSCP GeoPose Protocol v2)
+  json GeoPoseRoute(const httplib::Request& req, json* log) {
+    const auto token = Authorize(req);
+    if (token) (*log)["token"] = token->id;
+    json j;
+    try {
+      j = json::parse(req.body);
+    } catch (const json::exception& e) {
+      Throw(400, fmt::format("GeoPoseReq: not JSON ({})", e.what()));
+    }
+    std::string id = req.get_param_value("map");
+    if (id.empty()) {  // the token's only geo-anchored map
+      std::vector<std::string> anchored;
+      for (const auto& [mid, m] : *Maps()) {
+        if (m->anchor && (!token || token->MayUse(mid))) anchored.push_back(mid);
+      }
+      if (anchored.size() != 1) {
+        Throw(404, anchored.empty() ? "no geo-anchored map" : "several geo-anchored maps: give ?map=ID");
+      }
+      id = anchored.front();
+    }
+    const auto map = FindMap(id, token);
+    (*log)["map"] = id;
+    if (!map->anchor) Throw(404, "the map has no geo-anchor");
+    Throttle(token);
+    const Clock::time_point deadline =
+        Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                           std::chrono::duration<double>(options.request_seconds));
+    const json* reading = nullptr;
+    if (j.is_object() && j.contains("sensorReadings") && j["sensorReadings"].is_object() &&
+        j["sensorReadings"].contains("cameraReadings") &&
+        j["sensorReadings"]["cameraReadings"].is_array() &&
+        !j["sensorReadings"]["cameraReadings"].empty()) {
+      reading = &j["sensorReadings"]["cameraReadings"][0];
+    }
+    if (!reading || !reading->is_object()) {
+      Throw(400, "GeoPoseReq: sensorReadings.cameraReadings[0] is missing");
+    }
+    const json& c = *reading;
+    Camera camera;
+    auto image = std::make_shared<GreyImage>();
+    auto bytes = std::make_shared<std::string>();
+    try {
+      if (!c.contains("imageBytes") || !c["imageBytes"].is_string()) Fail("imageBytes is missing");
+      if (!c.contains("size") || !c["size"].is_array() || c["size"].size() != 2 ||
+          !c["size"][0].is_number_unsigned() || !c["size"][1].is_number_unsigned()) {
+        Fail("size: expected [width, height]");
+      }
+      if (!c.contains("params") || !c["params"].is_object()) Fail("params is missing");
+      const json& p = c["params"];
+      if (!p.contains("model") || !p["model"].is_string() || !p.contains("modelParams")) {
+        Fail("params: 'model' (a COLMAP camera name) and 'modelParams' are required");
+      }
+      camera = CameraFromJson({{"model", p["model"]},
+                               {"width", c["size"][0]},
+                               {"height", c["size"][1]},
+                               {"params", p["modelParams"]}},
+                              "cameraReadings[0]");
+    } catch (const Error& e) {
+      Throw(400, std::string("GeoPoseReq: ") + e.what());
+    }
+    *bytes = Base64Decode(c["imageBytes"].get<std::string>(), "imageBytes");
+    const auto* b = reinterpret_cast<const unsigned char*>(bytes->data());
+    const bool encoded =
+        bytes->size() > 8 && ((b[0] == 0xFF && b[1] == 0xD8) || (b[0] == 0x89 && b[1] == 'P'));
+    if (encoded) {
+      CheckPhotoHeader(*bytes, camera, "imageBytes");
+    } else {
+      // Raw pixels: GRAY8 or RGBA32 of `size`.
+      const std::string format =
+          c.contains("imageFormat") && c["imageFormat"].is_string() ? c["imageFormat"].get<std::string>() : "";
+      const uint64_t n = camera.width * camera.height;
+      if (n > options.max_pixels) Throw(413, "imageBytes: the image exceeds the pixel cap");
+      const int channels = format == "GRAY8" ? 1 : format == "RGBA32" ? 4 : 0;
+      if (channels == 0) Throw(400, "imageBytes: neither JPEG / PNG nor GRAY8 / RGBA32 pixels");
+      if (bytes->size() != n * channels) {
+        Throw(400, fmt::format("imageBytes: {} bytes, {}x{} {} needs {}", bytes->size(),
+                               camera.width, camera.height, format, n * channels));
+      }
+      image->width = static_cast<int>(camera.width);
+      image->height = static_cast<int>(camera.height);
+      image->pixels.resize(n);
+      for (uint64_t i = 0; i < n; ++i) {
+        const unsigned char* px = b + i * channels;
+        image->pixels[i] = channels == 1 ? px[0]
+                                         : static_cast<uint8_t>(std::lround(
+                                               0.299 * px[0] + 0.587 * px[1] + 0.114 * px[2]));
+      }
+    }
+    LocalizeRequest r = RequestOptions("", "", std::nullopt, deadline);
+    ++in_flight;
+    struct Done {
+      std::atomic<int>& n;
+      ~Done() { --n; }
+    } done{in_flight};
+    const LocalizerResult result = RunBounded(
+        [map, bytes, image, camera, r, encoded] {
+          return encoded ? map->localizer->LocalizeEncodedImage(
+                               std::span(reinterpret_cast<const uint8_t*>(bytes->data()),
+                                         bytes->size()),
+                               camera, r, "imageBytes")
+                         : map->localizer->LocalizeImage(*image, camera, r);
+        },
+        deadline);
+    RecordStages(result);
+    (*log)["success"] = result.success();
+    if (!result.success()) Throw(404, "no pose: " + result.reason);
+    const Sim3d& p = result.pose.query_from_world;
+    const GeoPose g = GeoPoseOfCamera(*map->anchor, Rigid3d(p.rotation, p.translation));
+    const double scale = map->anchor->enu_from_map.scale;
+    return {{"id", j.contains("id") ? j["id"] : json("")},
+            {"timestamp", std::chrono::duration_cast<std::chrono::milliseconds>(
+                              std::chrono::system_clock::now().time_since_epoch())
+                              .count()},
+            {"type", "geopose"},
+            {"accuracy",
+             {{"position", result.pose.uncertainty.position * scale},
+              {"orientation", result.pose.uncertainty.rotation_deg}}},
+            {"geopose",
+             {{"position", {{"lat", g.lat_deg}, {"lon", g.lon_deg}, {"h", g.h_m}}},
+              {"quaternion",
+               {{"x", g.enu_from_camera.x()},
+                {"y", g.enu_from_camera.y()},
+                {"z", g.enu_from_camera.z()},
+                {"w", g.enu_from_camera.w()}}}}}};
+  }
+
+  // Every route: status from HttpError, library errors 400, one access-log line.
+  void Handle(const std::string& route, const httplib::Request& req, httplib::Response& res,
+              const std::function<json(json*)>& body) {
+    const auto start = Clock::now();
+    json log = {{"time", std::chrono::duration_cast<std::chrono::milliseconds>(
+                             std::chrono::system_clock::now().time_since_epoch())
+                             .count()},
+                {"route", route},
+                {"method", req.method}};
+    int status = 200;
+    try {
+      res.set_content(body(&log).dump(), "application/json");
+    } catch (const HttpError& e) {
+      status = e.status;
+      res.set_content(json{{"error", e.message}}.dump(), "application/json");
+      if (e.retry_after > 0) {
+        res.set_header("Retry-After", std::to_string(static_cast<int>(std::ceil(e.retry_after))));
+      }
+    } catch (const Error& e) {
+      status = 400;
+      res.set_content(json{{"error", e.what()}}.dump(), "application/json");
+    } catch (const std::exception& e) {
+      status = 500;
+      res.set_content(json{{"error", "internal error"}}.dump(), "application/json");
+      log["exception"] = e.what();
+    }
+    res.status = status;
+    metrics.Request(route, status);
+    log["status"] = status;
+    log["ms"] = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+    Log(log.dump());
+  }
+
+  void Routes() {
+    http.Get("/healthz", [this](const httplib::Request& req, httplib::Response& res) {
+      Handle("/healthz", req, res, [](json*) { return json{{"status", "ok"}}; });
+    });
+    http.Get("/readyz", [this](const httplib::Request& req, httplib::Response& res) {
+      Handle("/readyz", req, res, [this](json*) {
+        if (Maps()->empty()) Throw(503, "no map is loaded");
+        return json{{"status", "ready"}, {"maps", Maps()->size()}};
+      });
+    });
+    http.Get("/metrics", [this](const httplib::Request& req, httplib::Response& res) {
+      std::string text;
+      Handle("/metrics", req, res, [&](json* log) {
+        const auto token = Authorize(req);
+        if (token && !token->admin) Throw(404, "no such route for this token");
+        if (token) (*log)["token"] = token->id;
+        text = metrics.Text(in_flight.load(), pool->queued(), Maps()->size());
+        return json();
+      });
+      if (res.status == 200) res.set_content(text, "text/plain; version=0.0.4");
+    });
+    http.Get("/v1/maps", [this](const httplib::Request& req, httplib::Response& res) {
+      Handle("/v1/maps", req, res, [&](json* log) {
+        const auto token = Authorize(req);
+        if (token) (*log)["token"] = token->id;
+        json list = json::array();
+        for (const auto& [id, m] : *Maps()) {
+          if (!token || token->MayUse(id)) list.push_back(m->info);
+        }
+        return json{{"maps", list}};
+      });
+    });
+    http.Post(R"(/v1/maps/([^/]+)/localize)",
+              [this](const httplib::Request& req, httplib::Response& res) {
+                Handle("/v1/maps/{id}/localize", req, res,
+                       [&](json* log) { return Localize(req, log); });
+              });
+    http.Post("/geopose", [this](const httplib::Request& req, httplib::Response& res) {
+      Handle("/geopose", req, res, [&](json* log) { return GeoPoseRoute(req, log); });
+    });
+    // Unknown routes and methods: JSON errors too.
+    http.set_error_handler([](const httplib::Request&, httplib::Response& res) {
+      if (res.body.empty()) {
+        const std::string message = res.status == 413   ? "the body exceeds --max-body-mb"
+                                    : res.status == 404 ? "no such route"
+                                                        : "bad request";
+        res.set_content(json{{"error", message}}.dump(), "application/json");
+      }
+    });
+  }
+};
+
+Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
+  options.Check();
+  if (sodium_init() < 0) Fail("libsodium could not be initialised");
+  impl_->options = std::move(options);
+  const ServeOptions& o = impl_->options;
+  if (!o.tokens_path.empty()) impl_->tokens = TokenStore::Read(o.tokens_path);
+  std::tie(impl_->host, impl_->port) = ParseListen(o.listen, "--listen");
+  impl_->LoadMaps();
+  impl_->pool = std::make_unique<WorkPool>(o.threads, o.queue);
+  httplib::Server& h = impl_->http;
+  h.set_payload_max_length(static_cast<size_t>(o.max_body_mb * 1024 * 1024));
+  const auto seconds = [](double s) {
+    return std::make_pair(static_cast<time_t>(s), static_cast<time_t>((s - std::floor(s)) * 1e6));
+  };
+  h.set_read_timeout(seconds(o.read_timeout_s).first, seconds(o.read_timeout_s).second);
+  h.set_write_timeout(seconds(o.write_timeout_s).first, seconds(o.write_timeout_s).second);
+  h.set_keep_alive_max_count(100);
+  h.set_keep_alive_timeout(5);
+  // Connection threads: the workers, the queue and a few for cheap routes.
+  const int http_threads = o.threads + o.queue + 4;
+  h.new_task_queue = [http_threads] { return new httplib::ThreadPool(http_threads); };
+  impl_->Routes();
+}
+
+Server::~Server() { Stop(); }
+
+int Server::Bind() {
+  if (impl_->port == 0) {
+    impl_->port = impl_->http.bind_to_any_port(impl_->host);
+    if (impl_->port < 0) Fail("serve: cannot listen on {}", impl_->host);
+  } else if (!impl_->http.bind_to_port(impl_->host, impl_->port)) {
+    Fail("serve: cannot listen on {}:{}", impl_->host, impl_->port);
+  }
+  return impl_->port;
+}
+
+void Server::Run() { impl_->http.listen_after_bind(); }
+
+void Server::Stop() { impl_->http.stop(); }
+
+void Server::Reload() { impl_->LoadMaps(); }
+
+size_t Server::num_maps() const { return impl_->Maps()->size(); }
+
+std::string Server::url() const { return fmt::format("http://{}:{}", impl_->host, impl_->port); }
+
+}  // namespace linecloud

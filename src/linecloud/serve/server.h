@@ -1,0 +1,69 @@
+// `linecloud serve`: the localization service of ../shared/SPEC.md — the
+// paper's first scenario (Speciale et al., CVPR 2019: a cloud service that
+// holds only line clouds) over HTTP/1.1 (cpp-httplib, Debian's 0.11).
+//
+// Maps are DIR/ID.lcm (+ optional ID.json geo-anchor), each loaded once into a
+// Localizer; Reload() (SIGHUP) swaps in a new set while requests in flight
+// finish on the old one. Every request is bounded before it is used: body
+// size (413), the photo's pixel count from its header (413), a fixed pool of
+// localization workers behind a bounded queue (503 + Retry-After when full),
+// a deadline (504), per-token rate (429 + Retry-After), socket read / write
+// timeouts. Answers reveal the pose only — never inlier indices, line ids or
+// 3D data; the access log (one JSON line per request) never holds a token or
+// image bytes.
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+namespace linecloud {
+
+struct ServeOptions {
+  std::string maps_dir;
+  std::string listen = "127.0.0.1:8080";  // HOST:PORT; port 0 picks a free one
+  std::string tokens_path;                // empty: every request allowed (loopback only)
+  int threads = 2;                        // localization workers
+  int queue = 16;                         // requests waiting for a worker, at most
+  double max_body_mb = 16;
+  uint64_t max_pixels = 50'000'000;
+  double request_seconds = 10;  // deadline of a localization (queue wait included)
+  double read_timeout_s = 5, write_timeout_s = 5;  // a slow client's socket
+  // Access log lines (JSON) and notices; default: standard error.
+  std::function<void(const std::string&)> log;
+
+  void Check() const;
+};
+
+// The host and port of HOST:PORT; throws Error naming `option`.
+std::pair<std::string, int> ParseListen(const std::string& listen, const std::string& option);
+
+class Server {
+ public:
+  // Reads the tokens and loads the maps (a map that fails to load is logged
+  // and left out); throws Error on bad options, a non-loopback listen without
+  // tokens, or a missing maps folder.
+  explicit Server(ServeOptions options);
+  ~Server();
+  Server(const Server&) = delete;
+  Server& operator=(const Server&) = delete;
+
+  // Binds the listening socket; returns the port. Throws Error when it cannot.
+  int Bind();
+  // Serves until Stop(); returns once in-flight requests are answered.
+  void Run();
+  // Stops accepting; Run() returns after the requests in flight finish.
+  void Stop();
+  // Re-reads the maps folder: new maps in, removed out, changed reloaded.
+  void Reload();
+
+  size_t num_maps() const;
+  std::string url() const;  // http://HOST:PORT once bound
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace linecloud
