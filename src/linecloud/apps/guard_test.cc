@@ -357,36 +357,10 @@ TEST(Guard, AFifoOutputWithoutAReaderIsRefused) {
   EXPECT_EQ(received.rfind("ply\n", 0), 0u) << received.substr(0, 100);
 }
 
-// Row 4: a 97-byte PNG whose header says 60000 x 60000: refused from its header
-// (before: 3.5 GB and 19 s, then an error).
-std::string BombPng() {
-  const auto chunk = [](const std::string& type, const std::string& data) {
-    std::string out;
-    for (int s = 24; s >= 0; s -= 8) out += static_cast<char>((data.size() >> s) & 0xff);
-    std::string body = type + data;
-    uint32_t crc = 0xffffffffu;
-    for (const unsigned char c : body) {
-      crc ^= c;
-      for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
-    }
-    crc ^= 0xffffffffu;
-    out += body;
-    for (int s = 24; s >= 0; s -= 8) out += static_cast<char>((crc >> s) & 0xff);
-    return out;
-  };
-  std::string ihdr;
-  for (const uint32_t v : {60000u, 60000u})
-    for (int s = 24; s >= 0; s -= 8) ihdr += static_cast<char>((v >> s) & 0xff);
-  ihdr += std::string("\x08\x00\x00\x00\x00", 5);  // 8-bit grey
-  // A zlib stream of zeros (stored block header only: the decoder would have
-  // to inflate 3.6 GB of rows to find out).
-  const std::string idat("\x78\x9c\x63\x60\x18\x05\xa3\x60\x14\x0c\x77\x00\x00", 13);
-  return std::string("\x89PNG\r\n\x1a\n", 8) + chunk("IHDR", ihdr) + chunk("IDAT", idat) +
-         chunk("IEND", "");
-}
-
+// Row 4: a 97-byte PNG whose header says 60000 x 60000 (testing::BombPng):
+// refused from its header (before: 3.5 GB and 19 s, then an error).
 TEST(Guard, ADecompressionBombIsRefusedFromItsHeader) {
-  const std::string png = BombPng();
+  const std::string png = testing::BombPng();
   ASSERT_LT(png.size(), 200u);
   const std::span<const uint8_t> bytes(reinterpret_cast<const uint8_t*>(png.data()), png.size());
   const ImageHeader header = ReadImageHeader(bytes, "bomb.png", {.max_pixels = ~uint64_t{0}});

@@ -228,9 +228,8 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
     for (const EvalImage& im : g.images) {
       const std::string path = JoinPaths(JoinPaths(work.dataset_dir, "images"), im.name);
       const Camera& camera = work.cameras.at(im.camera_id);
-      ImageQuery q =
-          MatchPhoto(map, ExtractOnce(path, camera, options.image, options.extracted.get()), camera,
-                     path);
+      ImageQuery q = MatchPhoto(
+          map, ExtractOnce(path, camera, options.image, options.extracted.get()), camera, path);
       json row = {{"group", g.name},
                   {"image", im.name},
                   {"features", q.features.size()},

@@ -1,9 +1,9 @@
 // The deployable protocol: each query image's own SIFT features (OpenCV's
-// extractor, or COLMAP's own with --features colmap) matched straight to the map's descriptors — the line cloud's
-// for p6L, the point model's for p3P — through the Localizer that
-// `localize --image` uses (the same matching rules and success criteria). The map's descriptors
-// come from the map images only: the query group's images are not in its map (checked), so no query
-// descriptor can reach the map it is localized against.
+// extractor, or COLMAP's own with --features colmap) matched straight to the map's descriptors —
+// the line cloud's for p6L, the point model's for p3P — through the Localizer that `localize
+// --image` uses (the same matching rules and success criteria). The map's descriptors come from the
+// map images only: the query group's images are not in its map (checked), so no query descriptor
+// can reach the map it is localized against.
 #pragma once
 
 #include <map>
@@ -35,7 +35,7 @@ struct DirectMatchingOptions {
   double max_translation = 0.05;  // work units (metres with ground truth)
   double threshold_px = 4.0;
   uint64_t seed = 1;
-  MapLifting lifting;  // how the maps are lifted (lift's --sparsify, ...)
+  MapLifting lifting;       // how the maps are lifted (lift's --sparsify, ...)
   ImageQueryOptions image;  // extractor, matching, index, as `localize --image`
   // When set, photos are extracted once into it and reused from it (their
   // extract_ms is the time of that one extraction).

@@ -62,7 +62,8 @@ void Pad(GroupMapData* data, const std::vector<uint8_t>& padding, size_t count) 
     data->lines.lines.emplace(id, PluckerLine::FromPointAndDirection(x, v));
     data->descriptors.ids.push_back(id);
     data->descriptors.descriptors.insert(data->descriptors.descriptors.end(),
-                                         padding.begin() + k * 128, padding.begin() + (k + 1) * 128);
+                                         padding.begin() + k * 128,
+                                         padding.begin() + (k + 1) * 128);
   }
 }
 
@@ -165,8 +166,8 @@ json RunPhotoBench(const PhotoBenchOptions& o) {
       lo.image.sift.extractor = e;
       lo.index_cache = cache;  // the second extractor's Localizer loads the first's index
       lo.index_cache_key = cache_key;
-      say(fmt::format("{} ({}): {} lines, {} extractor", g->name, im.name,
-                      data.lines.lines.size(), SiftExtractorName(e)));
+      say(fmt::format("{} ({}): {} lines, {} extractor", g->name, im.name, data.lines.lines.size(),
+                      SiftExtractorName(e)));
       const Localizer localizer(LocalizationMap(data.lines), data.descriptors, lo, g->name);
       for (const int t : o.threads) {
         SetOpenCVThreads(t);

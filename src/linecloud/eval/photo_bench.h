@@ -3,9 +3,9 @@
 // Localizer — on an `eval prepare` work's query photos, each against
 // its group's line map (built without that photo) padded with the descriptors
 // of other scenes' photos on random lines to a realistic size (100 000 lines:
-// [fast-photo]'s target); every photo of a query group alone. Each extractor and thread count in one run, with
-// COLMAP's own command-line extraction of the same photos beside them; per
-// stage p50 / p99, photos localized and their median rotation error.
+// [fast-photo]'s target); every photo of a query group alone. Each extractor and thread count in
+// one run, with COLMAP's own command-line extraction of the same photos beside them; per stage p50
+// / p99, photos localized and their median rotation error.
 #pragma once
 
 #include <functional>
@@ -19,7 +19,7 @@
 namespace linecloud {
 
 struct PhotoBenchOptions {
-  std::string work_dir;  // of `eval prepare`
+  std::string work_dir;    // of `eval prepare`
   size_t pad_to = 100000;  // lines per map after padding (0: no padding)
   // Photos whose descriptors pad the maps (other scenes): JPEG / PNG files
   // under this folder outside the work's dataset.

@@ -74,7 +74,7 @@ struct LocalizeRequest {
   std::optional<double> max_seconds;  // RANSAC's time budget
   std::optional<bool> refine_focal;
   std::optional<uint64_t> seed;
-  int threads = 0;  // this request's matching threads (0: the Localizer's image.threads)
+  int threads = 0;           // this request's matching threads (0: the Localizer's image.threads)
   bool keep_images = false;  // keep each decoded photo in the result (overlays)
   // RANSAC progress (iterations, needed, best inliers, seconds) and stage messages.
   std::function<void(int, int, int, double)> ransac_progress;

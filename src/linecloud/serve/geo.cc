@@ -8,9 +8,9 @@
 namespace linecloud {
 namespace {
 
-constexpr double kA = 6378137.0;              // WGS84 semi-major axis, m
-constexpr double kF = 1.0 / 298.257223563;    // flattening
-constexpr double kE2 = kF * (2.0 - kF);       // first eccentricity squared
+constexpr double kA = 6378137.0;            // WGS84 semi-major axis, m
+constexpr double kF = 1.0 / 298.257223563;  // flattening
+constexpr double kE2 = kF * (2.0 - kF);     // first eccentricity squared
 constexpr double kDeg = std::numbers::pi / 180.0;
 
 // Rows: east, north, up at (lat, lon) in ECEF axes (enu_from_ecef rotation).

@@ -69,11 +69,11 @@ class WorkPool {
     cv_.notify_all();
     for (std::thread& t : workers_) t.join();
   }
-  // False when `capacity` jobs already wait.
+  // False when every idle worker has a job and `capacity` more wait.
   bool TrySubmit(std::function<void()> job) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      if (static_cast<int>(jobs_.size()) >= capacity_) return false;
+      if (static_cast<int>(jobs_.size()) >= capacity_ + idle_) return false;
       jobs_.push_back(std::move(job));
     }
     cv_.notify_one();
@@ -81,7 +81,7 @@ class WorkPool {
   }
   int queued() const {
     std::lock_guard<std::mutex> lock(mutex_);
-    return static_cast<int>(jobs_.size());
+    return std::max(0, static_cast<int>(jobs_.size()) - idle_);
   }
   int running() const { return running_.load(); }
 
@@ -91,7 +91,9 @@ class WorkPool {
       std::function<void()> job;
       {
         std::unique_lock<std::mutex> lock(mutex_);
+        ++idle_;
         cv_.wait(lock, [&] { return stopping_ || !jobs_.empty(); });
+        --idle_;
         if (jobs_.empty()) return;  // stopping, and every job done
         job = std::move(jobs_.front());
         jobs_.pop_front();
@@ -107,14 +109,14 @@ class WorkPool {
   std::deque<std::function<void()>> jobs_;
   std::vector<std::thread> workers_;
   std::atomic<int> running_{0};
+  int idle_ = 0;  // workers waiting for a job
   bool stopping_ = false;
 };
 
 // Prometheus counters and histograms (text exposition format 0.0.4).
 class Metrics {
  public:
-  static constexpr double kBucketsMs[] = {5,   10,   25,   50,   100,  250,
-                                          500, 1000, 2500, 5000, 10000};
+  static constexpr double kBucketsMs[] = {5, 10, 25, 50, 100, 250, 500, 1000, 2500, 5000, 10000};
   void Request(const std::string& route, int status) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++requests_[{route, status}];
@@ -143,8 +145,8 @@ class Metrics {
         out += fmt::format("linecloud_stage_ms_bucket{{stage=\"{}\",le=\"{}\"}} {}\n", stage,
                            kBucketsMs[i], h.buckets[i]);
       }
-      out += fmt::format("linecloud_stage_ms_bucket{{stage=\"{}\",le=\"+Inf\"}} {}\n", stage,
-                         h.count);
+      out +=
+          fmt::format("linecloud_stage_ms_bucket{{stage=\"{}\",le=\"+Inf\"}} {}\n", stage, h.count);
       out += fmt::format("linecloud_stage_ms_sum{{stage=\"{}\"}} {}\n", stage, h.sum);
       out += fmt::format("linecloud_stage_ms_count{{stage=\"{}\"}} {}\n", stage, h.count);
     }
@@ -204,9 +206,9 @@ json PoseJson(const LocalizerResult& r) {
   const Eigen::Vector3d c = p.Inverse().translation;
   const Eigen::Quaterniond q = p.rotation.normalized();
   const size_t matches = r.query.observations.size();
-  json times = {{"decode", r.times.decode_ms},   {"extract", r.times.extract_ms},
-                {"match", r.times.match_ms},     {"ransac", r.times.ransac_ms},
-                {"refine", r.times.refine_ms},   {"total", r.times.total_ms}};
+  json times = {{"decode", r.times.decode_ms}, {"extract", r.times.extract_ms},
+                {"match", r.times.match_ms},   {"ransac", r.times.ransac_ms},
+                {"refine", r.times.refine_ms}, {"total", r.times.total_ms}};
   return {{"success", true},
           {"q", {q.w(), q.x(), q.y(), q.z()}},
           {"t", {p.translation.x(), p.translation.y(), p.translation.z()}},
@@ -228,10 +230,11 @@ bool IsLoopback(const std::string& host) {
 
 std::pair<std::string, int> ParseListen(const std::string& listen, const std::string& option) {
   const size_t colon = listen.rfind(':');
-  if (colon == std::string::npos || colon == 0) Fail("{}: expected HOST:PORT, got '{}'", option, listen);
+  if (colon == std::string::npos || colon == 0)
+    Fail("{}: expected HOST:PORT, got '{}'", option, listen);
   const std::string host = listen.substr(0, colon), port = listen.substr(colon + 1);
-  if (port.empty() || port.size() > 5 || port.find_first_not_of("0123456789") != std::string::npos ||
-      std::stoi(port) > 65535) {
+  if (port.empty() || port.size() > 5 ||
+      port.find_first_not_of("0123456789") != std::string::npos || std::stoi(port) > 65535) {
     Fail("{}: '{}' is not a port (0-65535)", option, port);
   }
   return {host, std::stoi(port)};
@@ -340,8 +343,8 @@ struct Server::Impl {
 
   void Throttle(const std::optional<TokenEntry>& token) {
     if (!token) return;
-    if (const auto wait = const_cast<TokenStore&>(tokens).Throttle(token->id,
-                                                                 token->requests_per_minute)) {
+    if (const auto wait =
+            const_cast<TokenStore&>(tokens).Throttle(token->id, token->requests_per_minute)) {
       Throw(429, "rate limit: too many requests for this token", *wait);
     }
   }
@@ -390,7 +393,8 @@ struct Server::Impl {
   }
 
   void CheckPhotoHeader(const std::string& bytes, const Camera& camera, const std::string& name) {
-    const std::span<const uint8_t> data(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size());
+    const std::span<const uint8_t> data(reinterpret_cast<const uint8_t*>(bytes.data()),
+                                        bytes.size());
     ImageHeader header;
     try {
       header = ReadImageHeader(data, name, ImageLimits{.max_pixels = UINT64_MAX});
@@ -518,7 +522,8 @@ struct Server::Impl {
           gravity = g.get<std::string>();
         } else if (g.is_array() && g.size() == 3 && g[0].is_number() && g[1].is_number() &&
                    g[2].is_number()) {
-          gravity = fmt::format("{},{},{}", g[0].get<double>(), g[1].get<double>(), g[2].get<double>());
+          gravity =
+              fmt::format("{},{},{}", g[0].get<double>(), g[1].get<double>(), g[2].get<double>());
         } else {
           Fail("gravity: expected [x, y, z] or \"x,y,z\"");
         }
@@ -556,7 +561,8 @@ struct Server::Impl {
         if (m->anchor && (!token || token->MayUse(mid))) anchored.push_back(mid);
       }
       if (anchored.size() != 1) {
-        Throw(404, anchored.empty() ? "no geo-anchored map" : "several geo-anchored maps: give ?map=ID");
+        Throw(404,
+              anchored.empty() ? "no geo-anchored map" : "several geo-anchored maps: give ?map=ID");
       }
       id = anchored.front();
     }
@@ -608,8 +614,9 @@ struct Server::Impl {
       CheckPhotoHeader(*bytes, camera, "imageBytes");
     } else {
       // Raw pixels: GRAY8 or RGBA32 of `size`.
-      const std::string format =
-          c.contains("imageFormat") && c["imageFormat"].is_string() ? c["imageFormat"].get<std::string>() : "";
+      const std::string format = c.contains("imageFormat") && c["imageFormat"].is_string()
+                                     ? c["imageFormat"].get<std::string>()
+                                     : "";
       const uint64_t n = camera.width * camera.height;
       if (n > options.max_pixels) Throw(413, "imageBytes: the image exceeds the pixel cap");
       const int channels = format == "GRAY8" ? 1 : format == "RGBA32" ? 4 : 0;
@@ -623,9 +630,10 @@ struct Server::Impl {
       image->pixels.resize(n);
       for (uint64_t i = 0; i < n; ++i) {
         const unsigned char* px = b + i * channels;
-        image->pixels[i] = channels == 1 ? px[0]
-                                         : static_cast<uint8_t>(std::lround(
-                                               0.299 * px[0] + 0.587 * px[1] + 0.114 * px[2]));
+        image->pixels[i] =
+            channels == 1
+                ? px[0]
+                : static_cast<uint8_t>(std::lround(0.299 * px[0] + 0.587 * px[1] + 0.114 * px[2]));
       }
     }
     LocalizeRequest r = RequestOptions("", "", std::nullopt, deadline);
@@ -731,11 +739,10 @@ struct Server::Impl {
         return json{{"maps", list}};
       });
     });
-    http.Post(R"(/v1/maps/([^/]+)/localize)",
-              [this](const httplib::Request& req, httplib::Response& res) {
-                Handle("/v1/maps/{id}/localize", req, res,
-                       [&](json* log) { return Localize(req, log); });
-              });
+    http.Post(R"(/v1/maps/([^/]+)/localize)", [this](const httplib::Request& req,
+                                                     httplib::Response& res) {
+      Handle("/v1/maps/{id}/localize", req, res, [&](json* log) { return Localize(req, log); });
+    });
     http.Post("/geopose", [this](const httplib::Request& req, httplib::Response& res) {
       Handle("/geopose", req, res, [&](json* log) { return GeoPoseRoute(req, log); });
     });

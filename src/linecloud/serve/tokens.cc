@@ -66,8 +66,9 @@ TokenStore TokenStore::Read(const std::string& path) {
     }
     const std::string hex = t["sha256"].get<std::string>();
     size_t len = 0;
-    if (hex.size() != 64 || sodium_hex2bin(e.sha256.data(), e.sha256.size(), hex.data(), hex.size(),
-                                           nullptr, &len, nullptr) != 0 ||
+    if (hex.size() != 64 ||
+        sodium_hex2bin(e.sha256.data(), e.sha256.size(), hex.data(), hex.size(), nullptr, &len,
+                       nullptr) != 0 ||
         len != 32) {
       Fail("{}.sha256: expected 64 hex digits", where);
     }
@@ -115,7 +116,7 @@ std::optional<TokenEntry> TokenStore::Authenticate(const std::string& authorizat
 
 std::optional<double> TokenStore::Throttle(const std::string& id, double requests_per_minute,
                                            std::chrono::steady_clock::time_point now) {
-  const double rate = requests_per_minute / 60.0;    // per second
+  const double rate = requests_per_minute / 60.0;     // per second
   const double capacity = std::max(1.0, rate * 5.0);  // five seconds' worth of burst
   std::lock_guard<std::mutex> lock(buckets_->mutex);
   auto [it, fresh] = buckets_->by_id.try_emplace(id);
@@ -124,7 +125,8 @@ std::optional<double> TokenStore::Throttle(const std::string& id, double request
     b.tokens = capacity;
     b.last = now;
   }
-  b.tokens = std::min(capacity, b.tokens + rate * std::chrono::duration<double>(now - b.last).count());
+  b.tokens =
+      std::min(capacity, b.tokens + rate * std::chrono::duration<double>(now - b.last).count());
   b.last = now;
   if (b.tokens >= 1.0) {
     b.tokens -= 1.0;

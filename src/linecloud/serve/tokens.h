@@ -42,9 +42,9 @@ class TokenStore {
 
   // Takes one request from `id`'s bucket; when empty, the seconds until one is
   // back (Retry-After).
-  std::optional<double> Throttle(const std::string& id, double requests_per_minute,
-                                 std::chrono::steady_clock::time_point now =
-                                     std::chrono::steady_clock::now());
+  std::optional<double> Throttle(
+      const std::string& id, double requests_per_minute,
+      std::chrono::steady_clock::time_point now = std::chrono::steady_clock::now());
 
  private:
   struct Buckets;

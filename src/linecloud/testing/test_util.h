@@ -112,4 +112,32 @@ void ExpectNoCoordinates(const std::string& bytes, const Points& points) {
   }
 }
 
+// A 97-byte PNG whose header says 60000 x 60000 grey pixels (3.6 GB once
+// decoded): a decompression bomb for the decoders' and the service's limits.
+inline std::string BombPng() {
+  const auto chunk = [](const std::string& type, const std::string& data) {
+    std::string out;
+    for (int s = 24; s >= 0; s -= 8) out += static_cast<char>((data.size() >> s) & 0xff);
+    std::string body = type + data;
+    uint32_t crc = 0xffffffffu;
+    for (const unsigned char c : body) {
+      crc ^= c;
+      for (int k = 0; k < 8; ++k) crc = (crc >> 1) ^ (0xedb88320u & (0u - (crc & 1u)));
+    }
+    crc ^= 0xffffffffu;
+    out += body;
+    for (int s = 24; s >= 0; s -= 8) out += static_cast<char>((crc >> s) & 0xff);
+    return out;
+  };
+  std::string ihdr;
+  for (const uint32_t v : {60000u, 60000u})
+    for (int s = 24; s >= 0; s -= 8) ihdr += static_cast<char>((v >> s) & 0xff);
+  ihdr += std::string("\x08\x00\x00\x00\x00", 5);  // 8-bit grey
+  // A zlib stream of zeros (the decoder would have to inflate 3.6 GB of rows
+  // to find out).
+  const std::string idat("\x78\x9c\x63\x60\x18\x05\xa3\x60\x14\x0c\x77\x00\x00", 13);
+  return std::string("\x89PNG\r\n\x1a\n", 8) + chunk("IHDR", ihdr) + chunk("IDAT", idat) +
+         chunk("IEND", "");
+}
+
 }  // namespace linecloud::testing
