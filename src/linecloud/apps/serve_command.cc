@@ -6,6 +6,7 @@
 #include <thread>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/serve/load.h"
 #include "linecloud/serve/server.h"
 #include "linecloud/serve/tokens.h"
 
@@ -67,6 +68,34 @@ void RegisterServeCommand(CLI::App& app) {
                   "Deadline of a localization, queue wait included (then 504)")
       ->capture_default_str();
   cmd->callback([o] { RunServe(*o); });
+
+  auto load = std::make_shared<LoadOptions>();
+  auto load_json = std::make_shared<bool>(false);
+  // `linecloud bench serve` (the bench command is registered first).
+  CLI::App* bench = app.get_subcommand("bench")->add_subcommand(
+      "serve",
+      "Load test of the service (in this process, 127.0.0.1): client features and photos at "
+      "each concurrency; throughput, p50 / p99, statuses, memory over a run");
+  bench->add_option("--maps", load->serve.maps_dir, "Folder of ID.lcm maps")->required();
+  bench->add_option("--map", load->map_id, "The map id to localize against")->required();
+  bench->add_option("--photo", load->photo, "A photo of the map's scene")->required();
+  bench->add_option("--camera", load->camera, "Its camera, \"MODEL W H PARAMS...\"")->required();
+  bench->add_option("--threads", load->serve.threads, "Server workers")->capture_default_str();
+  bench->add_option("--queue", load->serve.queue, "Server queue")->capture_default_str();
+  bench->add_option("--concurrency", load->concurrency, "Client connections per level")
+      ->capture_default_str();
+  bench->add_option("--requests", load->requests, "Requests per level and body")
+      ->capture_default_str();
+  bench->add_flag("!--no-photos", load->photos, "Client features only");
+  bench
+      ->add_option("--leak-requests", load->leak_requests,
+                   "Then this many more feature requests, memory before / after")
+      ->capture_default_str();
+  bench->add_flag("--json", *load_json, "Print JSON");
+  bench->callback([load, load_json] {
+    const nlohmann::json r = RunLoad(*load);
+    std::cout << (*load_json ? r.dump(2) + "\n" : LoadMarkdown(r));
+  });
 
   CLI::App* hash = app.add_subcommand(
       "token-hash", "The SHA-256 of a bearer token, as TOKENS.json stores it (read from stdin)");

@@ -27,6 +27,7 @@
 #include "linecloud/serve/server.h"
 #include "linecloud/serve/tokens.h"
 #include "linecloud/testing/test_util.h"
+#include "linecloud/util/base64.h"
 #include "linecloud/util/file.h"
 
 #include <fmt/format.h>
@@ -104,18 +105,10 @@ Scene MakeScene() {
   return s;
 }
 
-std::string Base64(const std::vector<uint8_t>& bytes) {
-  std::string out(sodium_base64_ENCODED_LEN(bytes.size(), sodium_base64_VARIANT_ORIGINAL), '\0');
-  sodium_bin2base64(out.data(), out.size(), bytes.data(), bytes.size(),
-                    sodium_base64_VARIANT_ORIGINAL);
-  out.pop_back();
-  return out;
-}
-
 json FeaturesBody(const Scene& s) {
   json kp = json::array();
   for (const auto& k : s.keypoints) kp.push_back({k[0], k[1]});
-  return {{"camera", s.camera}, {"keypoints", kp}, {"descriptors", Base64(s.descriptors)}};
+  return {{"camera", s.camera}, {"keypoints", kp}, {"descriptors", Base64Encode(s.descriptors)}};
 }
 
 // A server on 127.0.0.1 with a random port, run on its own thread.
@@ -488,7 +481,7 @@ TEST(Serve, FountainPhotoThroughEveryRoute) {
                        {"height", 1024},
                        {"params", {1379.74, 1382.08, 760.095, 503.155}}}},
                      {"keypoints", kp},
-                     {"descriptors", Base64(features.descriptors)}};
+                     {"descriptors", Base64Encode(features.descriptors)}};
   r = c.Post("/v1/maps/fountain/localize", body.dump(), "application/json");
   ASSERT_EQ(r->status, 200) << r->body;
   j = json::parse(r->body);
@@ -505,7 +498,7 @@ TEST(Serve, FountainPhotoThroughEveryRoute) {
          {{{"sensorId", "cam"},
            {"imageFormat", "RGBA32"},  // the reference client's label for JPEG bytes
            {"size", {1536, 1024}},
-           {"imageBytes", Base64(std::vector<uint8_t>(photo.begin(), photo.end()))},
+           {"imageBytes", Base64Encode(std::vector<uint8_t>(photo.begin(), photo.end()))},
            {"params",
             {{"model", "PINHOLE"}, {"modelParams", {1379.74, 1382.08, 760.095, 503.155}}}}}}}}}};
   r = c.Post("/geopose", req.dump(), "application/json");

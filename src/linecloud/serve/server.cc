@@ -27,6 +27,7 @@
 #include "linecloud/pipeline/localizer.h"
 #include "linecloud/serve/geo.h"
 #include "linecloud/serve/tokens.h"
+#include "linecloud/util/base64.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
@@ -187,17 +188,6 @@ std::pair<uintmax_t, int64_t> FileStamp(const std::string& path) {
   if (::stat(path.c_str(), &st) != 0) return {0, 0};
   return {static_cast<uintmax_t>(st.st_size),
           static_cast<int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec};
-}
-
-std::string Base64Decode(const std::string& text, const std::string& field) {
-  std::string out(text.size() / 4 * 3 + 3, '\0');
-  size_t len = 0;
-  if (sodium_base642bin(reinterpret_cast<unsigned char*>(out.data()), out.size(), text.data(),
-                        text.size(), " \n\r", &len, nullptr, sodium_base64_VARIANT_ORIGINAL) != 0) {
-    Throw(400, fmt::format("{}: not base64", field));
-  }
-  out.resize(len);
-  return out;
 }
 
 json PoseJson(const LocalizerResult& r) {

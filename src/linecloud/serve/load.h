@@ -1,0 +1,35 @@
+// A load test of `linecloud serve` (a client of ours, bounded in count and
+// time, 127.0.0.1 only): a server started in this process on a free port over
+// a maps folder, driven at each concurrency by that many keep-alive clients
+// with one request body — a photo (multipart) or its client features (JSON) —
+// reporting throughput, p50 / p99 latency, statuses, and the server's resident
+// memory over the run (a leak shows as growth).
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "linecloud/serve/server.h"
+
+namespace linecloud {
+
+struct LoadOptions {
+  ServeOptions serve;  // maps_dir, threads, queue; listen is replaced by 127.0.0.1:0
+  std::string map_id;
+  std::string photo;   // JPEG / PNG file
+  std::string camera;  // "MODEL W H PARAMS..."
+  std::vector<int> concurrency = {1, 2, 8, 32};
+  int requests = 100;        // per concurrency level and body kind
+  double max_seconds = 120;  // per level: stops sending after this
+  bool photos = true;        // also the multipart photo (not only client features)
+  int leak_requests = 0;     // > 0: that many more feature requests, RSS before / after
+
+  void Check() const;
+};
+
+nlohmann::json RunLoad(const LoadOptions& options);
+std::string LoadMarkdown(const nlohmann::json& report);
+
+}  // namespace linecloud
