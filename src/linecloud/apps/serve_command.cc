@@ -1,6 +1,7 @@
 #include <pthread.h>
 #include <signal.h>
 
+#include <array>
 #include <iostream>
 #include <memory>
 #include <thread>
@@ -9,6 +10,7 @@
 #include "linecloud/serve/load.h"
 #include "linecloud/serve/server.h"
 #include "linecloud/serve/tokens.h"
+#include "linecloud/util/file.h"
 
 namespace linecloud {
 namespace {
@@ -95,6 +97,22 @@ void RegisterServeCommand(CLI::App& app) {
   bench->callback([load, load_json] {
     const nlohmann::json r = RunLoad(*load);
     std::cout << (*load_json ? r.dump(2) + "\n" : LoadMarkdown(r));
+  });
+
+  auto features = std::make_shared<std::array<std::string, 4>>();
+  CLI::App* fc = app.add_subcommand(
+      "features",
+      "A photo's SIFT features as the JSON body of a client-features request to `serve`");
+  fc->add_option("--image", (*features)[0], "The photo (JPEG or PNG)")->required();
+  fc->add_option("--camera", (*features)[1], "\"MODEL W H PARAMS...\"")->required();
+  (*features)[2] = "opencv";
+  fc->add_option("--features", (*features)[2], "opencv or colmap")->capture_default_str();
+  fc->add_option("--out", (*features)[3], "Output file")->required();
+  fc->callback([features] {
+    const auto& [image, camera, extractor, out] = *features;
+    const std::string body =
+        ClientFeaturesJson(image, camera, ParseSiftExtractor(extractor, "--features"));
+    WriteFileAtomically(out, [&](std::ostream& os) { os << body; });
   });
 
   CLI::App* hash = app.add_subcommand(

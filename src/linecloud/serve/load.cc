@@ -35,25 +35,6 @@ size_t ResidentBytes() {
   return resident * 4096;
 }
 
-// The photo's features as a client would send them.
-std::string FeaturesBody(const std::string& photo, const Camera& camera,
-                         const std::string& camera_text) {
-  const SiftFeatures f = ExtractSift(ReadGreyImage(photo));
-  json kp = json::array();
-  for (const SiftKeypoint& k : f.keypoints) kp.push_back({k.x, k.y});
-  std::istringstream in(camera_text);
-  std::string model;
-  in >> model;
-  return json{{"camera",
-               {{"model", model},
-                {"width", camera.width},
-                {"height", camera.height},
-                {"params", camera.params}}},
-              {"keypoints", kp},
-              {"descriptors", Base64Encode(f.descriptors)}}
-      .dump();
-}
-
 struct Level {
   std::vector<double> ms;
   std::map<int, int> statuses;  // 0: no answer
@@ -103,6 +84,26 @@ json LevelJson(const std::string& kind, int clients, const Level& l) {
 
 }  // namespace
 
+std::string ClientFeaturesJson(const std::string& photo, const std::string& camera_text,
+                               SiftExtractor extractor) {
+  const Camera camera = ParseCameraString(camera_text);
+  SiftOptions sift;
+  sift.extractor = extractor;
+  const SiftFeatures f = ExtractSift(
+      ReadGreyImage(photo, {.expected_width = camera.width, .expected_height = camera.height}),
+      sift);
+  json kp = json::array();
+  for (const SiftKeypoint& k : f.keypoints) kp.push_back({k.x, k.y});
+  return json{{"camera",
+               {{"model", camera_text.substr(0, camera_text.find(' '))},
+                {"width", camera.width},
+                {"height", camera.height},
+                {"params", camera.params}}},
+              {"keypoints", kp},
+              {"descriptors", Base64Encode(f.descriptors)}}
+      .dump();
+}
+
 void LoadOptions::Check() const {
   if (map_id.empty() || photo.empty() || camera.empty()) {
     Fail("bench serve: --map, --photo and --camera are required");
@@ -122,8 +123,7 @@ json RunLoad(const LoadOptions& o) {
   Server server(so);
   const int port = server.Bind();
   std::thread runner([&] { server.Run(); });
-  const Camera camera = ParseCameraString(o.camera);
-  const std::string features = FeaturesBody(o.photo, camera, o.camera);
+  const std::string features = ClientFeaturesJson(o.photo, o.camera);
   const std::string photo = ReadFileToString(o.photo);
   const std::string path = "/v1/maps/" + o.map_id + "/localize";
   json report = {{"map", o.map_id},

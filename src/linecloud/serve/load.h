@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "linecloud/features/sift.h"
 #include "linecloud/serve/server.h"
 
 namespace linecloud {
@@ -30,6 +31,12 @@ struct LoadOptions {
 };
 
 nlohmann::json RunLoad(const LoadOptions& options);
+
+// The JSON body of a client-features request (../shared/SPEC.md) for a photo:
+// its SIFT by `extractor`, keypoints in COLMAP's pixel convention,
+// descriptors base64. `camera` is "MODEL W H PARAMS...".
+std::string ClientFeaturesJson(const std::string& photo, const std::string& camera,
+                               SiftExtractor extractor = SiftExtractor::kOpenCV);
 std::string LoadMarkdown(const nlohmann::json& report);
 
 }  // namespace linecloud
