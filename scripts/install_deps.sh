@@ -17,6 +17,7 @@ packages=(
   libopenblas0-openmp  # BLAS for FAISS's k-means and coarse search (Debian's default is slower)
   colmap         # eval: structure from motion (its command line)
   libcpp-httplib-dev  # serve: HTTP/1.1
+  nginx-light wrk     # serve: the deployment example's fault test and load test
   "$@"
 )
 missing=()

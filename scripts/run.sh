@@ -2,7 +2,8 @@
 # One entry point for a fresh Debian 12 machine: installs the dependencies,
 # builds (Release) and runs one job.
 #   scripts/run.sh demo    the built-in synthetic demo (no data download)
-#   scripts/run.sh test    every unit and end-to-end test (CTest + GoogleTest)
+#   scripts/run.sh test    every unit and end-to-end test (CTest + GoogleTest), then the
+#                          service behind nginx with one server killed (scripts/fault_test.sh)
 #   scripts/run.sh bench   the benchmarks (Google Benchmark)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -12,7 +13,9 @@ cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release >/dev/null
 case "$job" in
   # The demo needs only the executable, not the tests and benchmarks.
   demo) cmake --build build -j2 --target linecloud && ./build/linecloud demo ;;
-  test) cmake --build build -j2 && ctest --test-dir build --output-on-failure -j2 ;;
+  # C++ tests (library, CLI, service), then the service behind nginx with a server killed.
+  test) cmake --build build -j2 && ctest --test-dir build --output-on-failure -j2 &&
+        bash scripts/fault_test.sh ;;
   bench) cmake --build build -j2 && ./build/linecloud_bench ;;
   *) echo "error: unknown job '$job' (demo, test, bench)" >&2; exit 2 ;;
 esac

@@ -523,6 +523,30 @@ namespace {
 // thread-local and only the main thread gets --random_seed), so the map and
 // COLMAP's median of 11 photos move from run to run: the ratio of one run was
 // 1.05x-1.61x over ten runs (docs/image.md, "How much one run says").
+// [fast-photo]: the fast extractor (OpenCV's SIFT, the default) against the
+// COLMAP-identical one on the same work in CI: the same photos and rigs
+// localized, median rotation errors within 1.5x (measured on four scenes:
+// 0.91-1.70x, fountain-P11 0.91-1.22x; docs/fast_photo.md).
+TEST(EvalReport, FastFeaturesLocalizeWhatColmapFeaturesDo) {
+  const char* fast = std::getenv("LINECLOUD_EVAL_REPORT");
+  const char* reference = std::getenv("LINECLOUD_EVAL_COLMAP_FEATURES_REPORT");
+  if (!fast || !reference) {
+    GTEST_SKIP() << "LINECLOUD_EVAL_REPORT / LINECLOUD_EVAL_COLMAP_FEATURES_REPORT are not set "
+                    "(CI runs eval run with each extractor)";
+  }
+  const nlohmann::json f = ReadJsonFile(fast)["direct_matching"];
+  const nlohmann::json c = ReadJsonFile(reference)["direct_matching"];
+  ASSERT_EQ(f["features"], "opencv");
+  ASSERT_EQ(c["features"], "colmap");
+  for (const char* m : {"p6L", "p3P", "m-p6L", "m-p3P"}) {
+    const std::string at = std::string("/methods/") + m;
+    EXPECT_GE(Number(f, at + "/localized"), Number(c, at + "/localized")) << m;
+    EXPECT_LE(Number(f, at + "/median_rotation_deg"), 1.5 * Number(c, at + "/median_rotation_deg"))
+        << m;
+    EXPECT_LT(Number(f, at + "/mean_ms/extract"), 0.5 * Number(c, at + "/mean_ms/extract")) << m;
+  }
+}
+
 TEST(EvalColmap, P6lAgainstColmapsOwnRegistration) {
   const char* path = std::getenv("LINECLOUD_COLMAP_REPORT");
   if (!path)
