@@ -333,8 +333,7 @@ struct Server::Impl {
 
   void Throttle(const std::optional<TokenEntry>& token) {
     if (!token) return;
-    if (const auto wait =
-            const_cast<TokenStore&>(tokens).Throttle(token->id, token->requests_per_minute)) {
+    if (const auto wait = tokens.Throttle(token->id, token->requests_per_minute)) {
       Throw(429, "rate limit: too many requests for this token", *wait);
     }
   }
