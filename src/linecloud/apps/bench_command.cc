@@ -253,6 +253,9 @@ void RegisterBenchCommand(CLI::App& app) {
   ph->add_option("--features", *photo_features, "extractors: opencv, colmap")
       ->capture_default_str();
   ph->add_option("--threads", photo->threads, "thread counts")->capture_default_str();
+  ph->add_option("--max-image-size", photo->max_image_size,
+                 "photos with a larger side are downscaled before SIFT")
+      ->capture_default_str();
   ph->add_option("--photos", photo->max_photos, "at most this many photos (0: all)")
       ->capture_default_str();
   ph->add_option("--colmap", photo->colmap, "COLMAP's executable (empty: no COLMAP peer)")

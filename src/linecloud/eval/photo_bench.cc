@@ -115,6 +115,7 @@ void PhotoBenchOptions::Check() const {
     if (t < 1 || t > 256) Fail("bench photo: threads {} out of range [1, 256]", t);
   }
   if (threads.empty()) Fail("bench photo: no thread count");
+  if (max_image_size < 16) Fail("bench photo: --max-image-size must be at least 16");
   if (pad_to > 0 && padding_dir.empty()) Fail("bench photo: padding needs --padding DIR");
 }
 
@@ -164,6 +165,7 @@ json RunPhotoBench(const PhotoBenchOptions& o) {
     for (const SiftExtractor e : o.extractors) {
       LocalizerOptions lo;
       lo.image.sift.extractor = e;
+      lo.image.sift.max_image_size = o.max_image_size;
       lo.index_cache = cache;  // the second extractor's Localizer loads the first's index
       lo.index_cache_key = cache_key;
       say(fmt::format("{} ({}): {} lines, {} extractor", g->name, im.name, data.lines.lines.size(),
@@ -208,6 +210,7 @@ json RunPhotoBench(const PhotoBenchOptions& o) {
   fs::remove_all(scratch, ec);
 
   json out = {{"work", o.work_dir},
+              {"max_image_size", o.max_image_size},
               {"dataset", work.dataset},
               {"photos", photos.size()},
               {"mean_map_lines", map_lines / photos.size()},
@@ -229,12 +232,14 @@ json RunPhotoBench(const PhotoBenchOptions& o) {
 
 std::string PhotoBenchMarkdown(const json& report) {
   std::string md = fmt::format(
-      "bench photo: {} photos of {}, JPEG bytes to pose; maps of {} lines padded to {}\n\n"
+      "bench photo: {} photos of {}, JPEG bytes to pose (SIFT on at most {} px); maps of {} lines "
+      "padded to {}\n\n"
       "| features | threads | localized | median rot. ° | features | matches | decode | extract "
       "p50 / p99 | match p50 / p99 | RANSAC+LM | checks | total p50 / p99 ms |\n"
       "|---|---|---|---|---|---|---|---|---|---|---|---|\n",
       report["photos"].get<size_t>(), report["dataset"].get<std::string>(),
-      report["mean_map_lines"].get<size_t>(), report["mean_padded_lines"].get<size_t>());
+      report["max_image_size"].get<int>(), report["mean_map_lines"].get<size_t>(),
+      report["mean_padded_lines"].get<size_t>());
   for (const json& r : report["rows"]) {
     const json& ms = r["ms"];
     auto p = [&](const char* stage, const char* which) { return ms[stage][which].get<double>(); };

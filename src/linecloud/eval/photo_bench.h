@@ -26,6 +26,7 @@ struct PhotoBenchOptions {
   std::string padding_dir;
   std::vector<SiftExtractor> extractors = {SiftExtractor::kOpenCV, SiftExtractor::kColmap};
   std::vector<int> threads = {1, 2};
+  int max_image_size = 3200;      // photos with a larger side are downscaled first (SIFT)
   size_t max_photos = 0;          // 0: every query photo of the work
   std::string colmap = "colmap";  // COLMAP's CLI as a peer; empty: not run
   double max_rotation_deg = 0.5;  // "localized" thresholds, as eval's direct matching
