@@ -90,6 +90,10 @@ void RegisterServeCommand(CLI::App& app) {
       ->capture_default_str();
   bench->add_flag("!--no-photos", load->photos, "Client features only");
   bench
+      ->add_option("--max-features", load->max_features,
+                   "The client's SIFT budget (COLMAP's cap: whole levels from the coarsest)")
+      ->capture_default_str();
+  bench
       ->add_option("--leak-requests", load->leak_requests,
                    "Then this many more feature requests, memory before / after")
       ->capture_default_str();
@@ -100,6 +104,7 @@ void RegisterServeCommand(CLI::App& app) {
   });
 
   auto features = std::make_shared<std::array<std::string, 4>>();
+  auto features_max = std::make_shared<int>(8192);
   CLI::App* fc = app.add_subcommand(
       "features",
       "A photo's SIFT features as the JSON body of a client-features request to `serve`");
@@ -108,10 +113,12 @@ void RegisterServeCommand(CLI::App& app) {
   (*features)[2] = "opencv";
   fc->add_option("--features", (*features)[2], "opencv or colmap")->capture_default_str();
   fc->add_option("--out", (*features)[3], "Output file")->required();
-  fc->callback([features] {
+  fc->add_option("--max-features", *features_max, "SIFT's cap (COLMAP's rule)")
+      ->capture_default_str();
+  fc->callback([features, features_max] {
     const auto& [image, camera, extractor, out] = *features;
-    const std::string body =
-        ClientFeaturesJson(image, camera, ParseSiftExtractor(extractor, "--features"));
+    const std::string body = ClientFeaturesJson(
+        image, camera, ParseSiftExtractor(extractor, "--features"), *features_max);
     WriteFileAtomically(out, [&](std::ostream& os) { os << body; });
   });
 

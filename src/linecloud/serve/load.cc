@@ -85,10 +85,11 @@ json LevelJson(const std::string& kind, int clients, const Level& l) {
 }  // namespace
 
 std::string ClientFeaturesJson(const std::string& photo, const std::string& camera_text,
-                               SiftExtractor extractor) {
+                               SiftExtractor extractor, int max_features) {
   const Camera camera = ParseCameraString(camera_text);
   SiftOptions sift;
   sift.extractor = extractor;
+  sift.max_num_features = max_features;
   const SiftFeatures f = ExtractSift(
       ReadGreyImage(photo, {.expected_width = camera.width, .expected_height = camera.height}),
       sift);
@@ -123,10 +124,13 @@ json RunLoad(const LoadOptions& o) {
   Server server(so);
   const int port = server.Bind();
   std::thread runner([&] { server.Run(); });
-  const std::string features = ClientFeaturesJson(o.photo, o.camera);
+  const std::string features =
+      ClientFeaturesJson(o.photo, o.camera, SiftExtractor::kOpenCV, o.max_features);
+  const size_t num_features = json::parse(features)["keypoints"].size();
   const std::string photo = ReadFileToString(o.photo);
   const std::string path = "/v1/maps/" + o.map_id + "/localize";
   json report = {{"map", o.map_id},
+                 {"client_features", num_features},
                  {"workers", so.threads},
                  {"queue", so.queue},
                  {"hardware_threads", std::thread::hardware_concurrency()},
@@ -168,11 +172,12 @@ json RunLoad(const LoadOptions& o) {
 
 std::string LoadMarkdown(const json& r) {
   std::string md = fmt::format(
-      "bench serve: map {}, {} workers, queue {}, {} hardware threads; client and server on "
-      "127.0.0.1\n\n| body | concurrency | requests | req/s | p50 ms | p99 ms | statuses |\n"
+      "bench serve: map {}, {} client features a request, {} workers, queue {}, {} hardware "
+      "threads; client and server on 127.0.0.1\n\n| body | concurrency | requests | req/s | p50 ms "
+      "| p99 ms | statuses |\n"
       "|---|---|---|---|---|---|---|\n",
-      r["map"].get<std::string>(), r["workers"].get<int>(), r["queue"].get<int>(),
-      r["hardware_threads"].get<unsigned>());
+      r["map"].get<std::string>(), r["client_features"].get<size_t>(), r["workers"].get<int>(),
+      r["queue"].get<int>(), r["hardware_threads"].get<unsigned>());
   for (const json& l : r["levels"]) {
     md += fmt::format("| {} | {} | {} | {:.1f} | {:.0f} | {:.0f} | {} |\n",
                       l["body"].get<std::string>(), l["concurrency"].get<int>(),

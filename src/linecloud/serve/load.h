@@ -26,6 +26,7 @@ struct LoadOptions {
   double max_seconds = 120;  // per level: stops sending after this
   bool photos = true;        // also the multipart photo (not only client features)
   int leak_requests = 0;     // > 0: that many more feature requests, RSS before / after
+  int max_features = 8192;   // the client's feature budget (SIFT's cap)
 
   void Check() const;
 };
@@ -35,8 +36,11 @@ nlohmann::json RunLoad(const LoadOptions& options);
 // The JSON body of a client-features request (../shared/SPEC.md) for a photo:
 // its SIFT by `extractor`, keypoints in COLMAP's pixel convention,
 // descriptors base64. `camera` is "MODEL W H PARAMS...".
+// `max_features` caps the detections as COLMAP does (whole levels from the
+// coarsest; a device's budget).
 std::string ClientFeaturesJson(const std::string& photo, const std::string& camera,
-                               SiftExtractor extractor = SiftExtractor::kOpenCV);
+                               SiftExtractor extractor = SiftExtractor::kOpenCV,
+                               int max_features = 8192);
 std::string LoadMarkdown(const nlohmann::json& report);
 
 }  // namespace linecloud
