@@ -1,7 +1,8 @@
-// Fuzzes the descriptor-index cache reader (MAP.lcm.flann, a file anyone who
+// Fuzzes the descriptor-index cache reader (MAP.lcm.index, a file anyone who
 // can write beside a map can plant): any content must be refused (nullptr)
 // or load an index that searches without crashing. Only a cache that this
-// user's secret authenticated reaches FLANN's reader, which trusts its input.
+// user's secret authenticated reaches the index readers (FLANN's and FAISS's
+// trust their input; ours checks its offsets and ids as well).
 #include <unistd.h>
 
 #include <array>
