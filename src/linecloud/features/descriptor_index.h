@@ -7,7 +7,9 @@
 //     & Jégou, "Billion-scale similarity search with GPUs", 2019): k-means
 //     cells, the descriptors stored as their own bytes (8-bit direct), the
 //     query scanned against the nprobe nearest cells by inner product;
-//   - FAISS's and hnswlib's HNSW graphs (Malkov & Yashunin, TPAMI 2020);
+//   - FAISS's and hnswlib's HNSW graphs (Malkov & Yashunin, TPAMI 2020;
+//     hnswlib 0.6.2 over-reads one link past a node's list when it
+//     prefetches — a peer for `bench match`, not for production);
 //   - FLANN's randomised kd-trees (Muja & Lowe, VISAPP 2009 / TPAMI 2014).
 // Every kind is built from fixed seeds (the same index, and so the same
 // matches, on every run; searches are per query, so any thread count gives

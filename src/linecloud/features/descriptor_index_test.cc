@@ -64,6 +64,12 @@ TEST(DescriptorIndex, EveryKindFindsTheExactMatchesOnAnyThreadCount) {
        {DescriptorIndexKind::kIvf, DescriptorIndexKind::kFaissIvf, DescriptorIndexKind::kFaissHnsw,
         DescriptorIndexKind::kHnswlib, DescriptorIndexKind::kFlann}) {
     SCOPED_TRACE(DescriptorIndexKindName(kind));
+#if defined(__SANITIZE_ADDRESS__)
+    // hnswlib 0.6.2 prefetches the entry one past the end of a node's link
+    // list (hnswalg.h:214, an upstream bug): a 4-byte heap over-read that
+    // AddressSanitizer stops at. A benchmark peer only; not run under ASan.
+    if (kind == DescriptorIndexKind::kHnswlib) continue;
+#endif
     DescriptorIndexOptions o;
     o.kind = kind;
     o.threads = 2;  // builds (FAISS IVF's k-means) on two threads
