@@ -574,7 +574,7 @@ TEST(Serve, SighupReloadsAndSigtermDrainsUnderLoad) {
   const auto load = [&](int n) {
     std::vector<std::thread> clients;
     for (int k = 0; k < 4; ++k) {
-      clients.emplace_back([&] {
+      clients.emplace_back([&, n] {  // n by value: load() returns before they end
         httplib::Client c("127.0.0.1", port);
         for (int i = 0; i < n; ++i) {
           const auto r = c.Post("/v1/maps/synth/localize", body, "application/json");
