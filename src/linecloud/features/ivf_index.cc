@@ -1,8 +1,11 @@
 #include "linecloud/features/ivf_index.h"
 
 // GCC 12's AVX-512 intrinsics read an uninitialised dummy operand (GCC bug
-// 105593): its warning, not ours, is silenced in this file.
+// 105593): its warning, not ours, is silenced in this file (clang has no such
+// warning group).
+#if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 #include <immintrin.h>
 
 #include <algorithm>

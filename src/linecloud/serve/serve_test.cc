@@ -13,7 +13,6 @@
 #include <cmath>
 #include <fstream>
 #include <random>
-#include <regex>
 #include <set>
 #include <thread>
 
@@ -562,10 +561,10 @@ TEST(Serve, SighupReloadsAndSigtermDrainsUnderLoad) {
   int port = 0;
   for (int i = 0; i < 200 && port == 0; ++i) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    std::smatch m;
     const std::string text = ReadFileToString(err);
-    if (std::regex_search(text, m, std::regex("listening on http://127.0.0.1:(\\d+)"))) {
-      port = std::stoi(m[1]);
+    const std::string key = "listening on http://127.0.0.1:";
+    if (const size_t at = text.find(key); at != std::string::npos) {
+      port = std::atoi(text.c_str() + at + key.size());
     }
   }
   ASSERT_GT(port, 0) << ReadFileToString(err);
