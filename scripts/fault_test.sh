@@ -43,7 +43,13 @@ for k in 1 2; do
   [ -n "$port" ] || { cat "$tmp/serve$k.log"; exit 1; }
   ports+=("$port")
 done
-front=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+# A free loopback port for nginx: nothing answers a connection to it.
+front=""
+for _ in $(seq 50); do
+  p=$((20000 + RANDOM % 40000))
+  if ! (exec 3<>"/dev/tcp/127.0.0.1/$p") 2>/dev/null; then front=$p; break; fi
+done
+[ -n "$front" ] || { echo "fault test: no free port found"; exit 1; }
 # deploy/nginx.conf with these ports, its pid and logs in the scratch folder.
 sed -e "s|server 127.0.0.1:8081|server 127.0.0.1:${ports[0]}|" \
     -e "s|server 127.0.0.1:8082|server 127.0.0.1:${ports[1]}|" \
