@@ -4,7 +4,6 @@
 
 #include <atomic>
 #include <chrono>
-#include <fstream>
 #include <map>
 #include <mutex>
 #include <thread>
@@ -17,6 +16,7 @@
 #include "linecloud/util/error.h"
 #include "linecloud/util/base64.h"
 #include "linecloud/util/file.h"
+#include "linecloud/util/memory.h"
 #include "linecloud/util/statistics.h"
 
 #include <httplib.h>
@@ -27,13 +27,6 @@ namespace {
 
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
-
-size_t ResidentBytes() {
-  std::ifstream statm("/proc/self/statm");
-  size_t pages = 0, resident = 0;
-  statm >> pages >> resident;
-  return resident * 4096;
-}
 
 struct Level {
   std::vector<double> ms;
@@ -96,7 +89,7 @@ std::string ClientFeaturesJson(const std::string& photo, const std::string& came
   json kp = json::array();
   for (const SiftKeypoint& k : f.keypoints) kp.push_back({k.x, k.y});
   return json{{"camera",
-               {{"model", camera_text.substr(0, camera_text.find(' '))},
+               {{"model", std::string(CameraModelName(camera.model_id))},
                 {"width", camera.width},
                 {"height", camera.height},
                 {"params", camera.params}}},

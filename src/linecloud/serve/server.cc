@@ -11,7 +11,6 @@
 #include <condition_variable>
 #include <deque>
 #include <filesystem>
-#include <fstream>
 #include <future>
 #include <iostream>
 #include <map>
@@ -31,6 +30,7 @@
 #include "linecloud/util/base64.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
+#include "linecloud/util/memory.h"
 
 // After every Eigen header: cpp-httplib pulls in <resolv.h>, whose `_res`
 // macro would rewrite Eigen's parameters of that name.
@@ -157,15 +157,12 @@ class Metrics {
       out += fmt::format("linecloud_stage_ms_sum{{stage=\"{}\"}} {}\n", stage, h.sum);
       out += fmt::format("linecloud_stage_ms_count{{stage=\"{}\"}} {}\n", stage, h.count);
     }
-    std::ifstream statm("/proc/self/statm");
-    size_t pages = 0, resident = 0;
-    statm >> pages >> resident;
     out += fmt::format(
         "# TYPE linecloud_in_flight gauge\nlinecloud_in_flight {}\n"
         "# TYPE linecloud_queue_length gauge\nlinecloud_queue_length {}\n"
         "# TYPE linecloud_maps gauge\nlinecloud_maps {}\n"
         "# TYPE linecloud_resident_bytes gauge\nlinecloud_resident_bytes {}\n",
-        in_flight, queued, maps, resident * 4096);
+        in_flight, queued, maps, ResidentBytes());
     return out;
   }
 
@@ -353,9 +350,20 @@ struct Server::Impl {
     return it->second;
   }
 
+  // When a request that arrives now must be answered (--request-seconds).
+  Clock::time_point Deadline() const {
+    return Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                              std::chrono::duration<double>(options.request_seconds));
+  }
+
   // Runs `job` on a worker within the request's deadline: 503 when the queue
   // is full, 504 when the deadline passes first.
   LocalizerResult RunBounded(std::function<LocalizerResult()> job, Clock::time_point deadline) {
+    ++in_flight;  // this request, from here until it is answered
+    struct Done {
+      std::atomic<int>& n;
+      ~Done() { --n; }
+    } done{in_flight};
     auto promise = std::make_shared<std::promise<LocalizerResult>>();
     std::future<LocalizerResult> result = promise->get_future();
     if (!pool->TrySubmit([promise, job = std::move(job)] {
@@ -423,9 +431,7 @@ struct Server::Impl {
     const auto map = FindMap(id, token);
     (*log)["map"] = id;
     Throttle(token);
-    const Clock::time_point deadline =
-        Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                           std::chrono::duration<double>(options.request_seconds));
+    const Clock::time_point deadline = Deadline();
     std::function<LocalizerResult()> job;
     const std::string type = req.get_header_value("Content-Type");
     if (req.is_multipart_form_data()) {
@@ -465,11 +471,6 @@ struct Server::Impl {
     } else {
       Throw(415, "send multipart/form-data (image + camera) or application/json (features)");
     }
-    ++in_flight;
-    struct Done {
-      std::atomic<int>& n;
-      ~Done() { --n; }
-    } done{in_flight};
     const LocalizerResult r = RunBounded(std::move(job), deadline);
     RecordStages(r);
     (*log)["times_ms"] = {{"decode", r.times.decode_ms},
@@ -565,9 +566,7 @@ struct Server::Impl {
     (*log)["map"] = id;
     if (!map->anchor) Throw(404, "the map has no geo-anchor");
     Throttle(token);
-    const Clock::time_point deadline =
-        Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                           std::chrono::duration<double>(options.request_seconds));
+    const Clock::time_point deadline = Deadline();
     const json* reading = nullptr;
     if (j.is_object() && j.contains("sensorReadings") && j["sensorReadings"].is_object() &&
         j["sensorReadings"].contains("cameraReadings") &&
@@ -632,11 +631,6 @@ struct Server::Impl {
       }
     }
     LocalizeRequest r = RequestOptions("", "", std::nullopt, deadline);
-    ++in_flight;
-    struct Done {
-      std::atomic<int>& n;
-      ~Done() { --n; }
-    } done{in_flight};
     const LocalizerResult result = RunBounded(
         [map, bytes, image, camera, r, encoded] {
           return encoded ? map->localizer->LocalizeEncodedImage(
