@@ -82,16 +82,25 @@ void Synthetic(const MatchBenchOptions& o, size_t n, std::vector<uint8_t>* map,
 
 }  // namespace
 
+std::vector<std::string> PhotosUnder(const std::string& dir) {
+  namespace fs = std::filesystem;
+  std::vector<std::string> photos;
+  for (const auto& e : fs::recursive_directory_iterator(dir)) {
+    const std::string ext = e.path().extension().string();
+    if (e.is_regular_file() && (ext == ".jpg" || ext == ".png"))
+      photos.push_back(e.path().string());
+  }
+  std::sort(photos.begin(), photos.end());
+  return photos;
+}
+
 std::vector<std::string> RealBenchImages(const std::string& data_dir) {
   namespace fs = std::filesystem;
   const fs::path first = fs::path(data_dir) / "strecha/fountain-P11/images/0000.jpg";
   if (!fs::exists(first)) Fail("bench match --real: {} is missing", first.string());
   std::vector<std::string> others;
-  for (const auto& e : fs::recursive_directory_iterator(data_dir)) {
-    const std::string ext = e.path().extension().string();
-    if (e.is_regular_file() && (ext == ".jpg" || ext == ".png") && e.path() != first) {
-      others.push_back(e.path().string());
-    }
+  for (std::string& p : PhotosUnder(data_dir)) {
+    if (fs::path(p) != first) others.push_back(std::move(p));
   }
   // The query's own scene first (its true matches), then the other Strecha
   // scenes, then the rest.

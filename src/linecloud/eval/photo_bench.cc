@@ -29,15 +29,11 @@ namespace fs = std::filesystem;
 
 std::vector<std::string> PaddingImages(const std::string& dir, const std::string& dataset_dir) {
   std::vector<std::string> images;
-  const fs::path skip = fs::weakly_canonical(dataset_dir);
-  for (const auto& e : fs::recursive_directory_iterator(dir)) {
-    const std::string ext = e.path().extension().string();
-    if (!e.is_regular_file() || (ext != ".jpg" && ext != ".png")) continue;
-    const std::string path = fs::weakly_canonical(e.path()).string();
-    if (path.rfind(skip.string(), 0) == 0) continue;  // the work's own scene
-    images.push_back(e.path().string());
+  const std::string skip = fs::weakly_canonical(dataset_dir).string();
+  for (std::string& path : PhotosUnder(dir)) {
+    if (fs::weakly_canonical(path).string().rfind(skip, 0) == 0) continue;  // the work's scene
+    images.push_back(std::move(path));
   }
-  std::sort(images.begin(), images.end());
   return images;
 }
 
