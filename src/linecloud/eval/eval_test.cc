@@ -450,8 +450,15 @@ TEST(EvalReport, StrechaSceneMeetsTheMeasuredTargets) {
   ASSERT_TRUE(r.contains("direct_matching")) << "eval run without direct matching";
   const std::string d = "/direct_matching/methods/";
   EXPECT_GE(Number(r, d + "p6L/localized"), 0.9 * Number(r, d + "p6L/queries"));
+  // One run's ratio of two medians over 11 photos moves with the map COLMAP
+  // builds (not reproducible run to run, docs/image.md "How much one run
+  // says"): p6L / p3P was 1.12x here and 1.61x in CI's run of 2026-11-25 at
+  // 0.006 deg, a tenth of how far the reference itself is from Strecha's
+  // ground truth. Hence 2x for one run, and both far below that resolution.
+  const double resolution = Number(r, "/reconstruction/ground_truth/max_rotation_deg");
   EXPECT_LE(Number(r, d + "p6L/median_rotation_deg"),
-            1.5 * Number(r, d + "p3P/median_rotation_deg"));
+            2.0 * Number(r, d + "p3P/median_rotation_deg"));
+  EXPECT_LT(Number(r, d + "p6L/median_rotation_deg"), resolution);
   // The rig path on real photos (`localize --image A --image B --rig`): each
   // group's two photos, matched one by one, as one generalized camera. The
   // rig comes from the group's local reconstruction and disagrees with the
@@ -525,8 +532,10 @@ namespace {
 // 1.05x-1.61x over ten runs (docs/image.md, "How much one run says").
 // [fast-photo]: the fast extractor (OpenCV's SIFT, the default) against the
 // COLMAP-identical one on the same work in CI: the same photos and rigs
-// localized, median rotation errors within 1.5x (measured on four scenes:
-// 0.91-1.70x, fountain-P11 0.91-1.22x; docs/fast_photo.md).
+// localized, median rotation errors within 2x in one run (measured on four
+// scenes: 0.91-1.70x, fountain-P11 0.91-1.22x locally, m-p6L 1.61x over CI's
+// five rigs of 2026-11-25; docs/fast_photo.md) and, for single photos, below
+// the resolution of the reference (its own distance to Strecha's truth).
 TEST(EvalReport, FastFeaturesLocalizeWhatColmapFeaturesDo) {
   const char* fast = std::getenv("LINECLOUD_EVAL_REPORT");
   const char* reference = std::getenv("LINECLOUD_EVAL_COLMAP_FEATURES_REPORT");
@@ -534,15 +543,21 @@ TEST(EvalReport, FastFeaturesLocalizeWhatColmapFeaturesDo) {
     GTEST_SKIP() << "LINECLOUD_EVAL_REPORT / LINECLOUD_EVAL_COLMAP_FEATURES_REPORT are not set "
                     "(CI runs eval run with each extractor)";
   }
-  const nlohmann::json f = ReadJsonFile(fast)["direct_matching"];
+  const nlohmann::json report = ReadJsonFile(fast);
+  const double resolution = Number(report, "/reconstruction/ground_truth/max_rotation_deg");
+  const nlohmann::json f = report["direct_matching"];
   const nlohmann::json c = ReadJsonFile(reference)["direct_matching"];
   ASSERT_EQ(f["features"], "opencv");
   ASSERT_EQ(c["features"], "colmap");
   for (const char* m : {"p6L", "p3P", "m-p6L", "m-p3P"}) {
     const std::string at = std::string("/methods/") + m;
     EXPECT_GE(Number(f, at + "/localized"), Number(c, at + "/localized")) << m;
-    EXPECT_LE(Number(f, at + "/median_rotation_deg"), 1.5 * Number(c, at + "/median_rotation_deg"))
+    EXPECT_LE(Number(f, at + "/median_rotation_deg"), 2.0 * Number(c, at + "/median_rotation_deg"))
         << m;
+    // A rig's pose inherits its local reconstruction's error (up to 0.3 deg).
+    if (m[0] != 'm') {
+      EXPECT_LT(Number(f, at + "/median_rotation_deg"), resolution) << m;
+    }
     EXPECT_LT(Number(f, at + "/mean_ms/extract"), 0.5 * Number(c, at + "/mean_ms/extract")) << m;
   }
 }
