@@ -1,5 +1,7 @@
 #include "linecloud/io/colmap_model.h"
 
+#include <cerrno>
+
 #include <algorithm>
 #include <fmt/format.h>
 #include <ostream>
@@ -497,7 +499,8 @@ void ParsePoints3DText(std::string_view data, const std::string& source, Reconst
 
 Reconstruction ReadColmapModel(const std::string& dir) {
   if (!IsDirectory(dir)) {
-    Fail("{}: not a directory (expected a COLMAP model folder)", dir);
+    FailFile(FileExists(dir) ? ENOTDIR : ENOENT,
+             "{}: not a directory (expected a COLMAP model folder)", dir);
   }
   Reconstruction rec;
   const auto path = [&](const char* name) { return JoinPaths(dir, name); };

@@ -26,6 +26,7 @@ struct ResolvedKey {
 // Refuses an output that would replace a key or an entry of the key store
 // (`lift --out` naming the store's own .key file would lose the key).
 void RefuseOutputInKeyStore(const LiftModelOptions& o, const KeyStore& store) {
+  if (o.out_path.empty()) return;
   RefuseOutputOverInputs(o.out_path, {o.key_file, store.dir()}, "--out");
   std::error_code ec;
   const std::filesystem::path parent =
@@ -48,7 +49,7 @@ ResolvedKey ResolveKey(const LiftModelOptions& o, const std::vector<uint64_t>& e
     if (known) return {known->key, known->key_path, "key store"};
     // Before the key store, the default key lived next to the output.
     const std::string legacy = o.out_path + ".key";
-    if (FileExists(legacy)) {
+    if (!o.out_path.empty() && FileExists(legacy)) {
       const LiftingKey key = ReadKeyFile(legacy, o.allow_shared_key);
       store.Register(key, legacy, elements);
       return {key, legacy, "legacy key file"};
@@ -77,7 +78,7 @@ ResolvedKey ResolveKey(const LiftModelOptions& o, const std::vector<uint64_t>& e
 // Refuses to replace a map whose lines differ from the new ones: the old and
 // new line of a point would intersect in the point.
 void CheckExistingOutput(const LiftModelOptions& o, const LineCloud& cloud, const LiftingKey& key) {
-  if (!FileExists(o.out_path) || o.force) return;
+  if (o.out_path.empty() || !FileExists(o.out_path) || o.force) return;
   LineCloud existing;
   try {
     existing = ReadLineCloud(o.out_path);
@@ -111,7 +112,6 @@ void CheckExistingOutput(const LiftModelOptions& o, const LineCloud& cloud, cons
 
 void LiftModelOptions::Check() const {
   if (model_dir.empty()) Fail("lift: no model folder given (--model)");
-  if (out_path.empty()) Fail("lift: no output given (--out)");
   if (!(sparsify >= 0 && sparsify < 1)) Fail("--sparsify: {} is not a share in [0, 1)", sparsify);
 }
 
@@ -202,7 +202,7 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
     result.cloud.gravity = o.gravity->normalized();
   }
   CheckExistingOutput(o, result.cloud, key.key);
-  WriteLineCloud(result.cloud, o.out_path);
+  if (!o.out_path.empty()) WriteLineCloud(result.cloud, o.out_path);
   result.num_points = ids.size();
   result.key_path = key.path;
   result.key_source = key.source;

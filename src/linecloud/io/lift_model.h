@@ -25,7 +25,7 @@ namespace linecloud {
 
 struct LiftModelOptions {
   std::string model_dir;
-  std::string out_path;
+  std::string out_path;   // empty: the cloud is returned, not written
   std::string key_file;   // empty: the key store's key of the model
   std::string key_store;  // empty: KeyStore::DefaultDirectory()
   std::string database;   // empty: no descriptors

@@ -133,7 +133,11 @@ std::vector<Eigen::Vector3d> SecretPointsOfLines(const LineCloud& cloud,
 
 ojson RunAudit(const AuditOptions& o) {
   o.Check();
-  const LineCloud cloud = ReadLineCloud(o.map_path);
+  return RunAudit(ReadLineCloud(o.map_path), o);
+}
+
+ojson RunAudit(const LineCloud& cloud, const AuditOptions& o) {
+  o.Check();
   const Reconstruction model = ReadColmapModel(o.model_dir);
   // The public demo key needs no key store (anyone can compute it).
   const LiftingKey key =

@@ -43,6 +43,8 @@ std::vector<Eigen::Vector3d> SecretPointsOfLines(const LineCloud& cloud,
 
 // Runs the audit, writes the outputs, returns report.json's content.
 nlohmann::ordered_json RunAudit(const AuditOptions& options);
+// The same on a map already read; `options.map_path` names it in the report.
+nlohmann::ordered_json RunAudit(const LineCloud& cloud, const AuditOptions& options);
 
 // report.md from report.json's content.
 std::string AuditMarkdown(const nlohmann::ordered_json& report);

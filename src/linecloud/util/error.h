@@ -15,9 +15,25 @@ class Error : public std::runtime_error {
   explicit Error(const std::string& what) : std::runtime_error(what) {}
 };
 
+// A file that cannot be opened, read or written (the operating system said
+// no): `error_number` is errno (0 when unknown). Bindings raise OSError.
+class FileError : public Error {
+ public:
+  FileError(const std::string& what, int error_number) : Error(what), error_number_(error_number) {}
+  int error_number() const { return error_number_; }
+
+ private:
+  int error_number_ = 0;
+};
+
 template <typename... Args>
 [[noreturn]] void Fail(fmt::format_string<Args...> format, Args&&... args) {
   throw Error(fmt::format(format, std::forward<Args>(args)...));
+}
+
+template <typename... Args>
+[[noreturn]] void FailFile(int error_number, fmt::format_string<Args...> format, Args&&... args) {
+  throw FileError(fmt::format(format, std::forward<Args>(args)...), error_number);
 }
 
 }  // namespace linecloud

@@ -19,9 +19,9 @@ namespace linecloud {
 void CheckReadableFile(const std::string& path) {
   struct stat st;
   if (::stat(path.c_str(), &st) != 0) {
-    Fail("{}: cannot open for reading ({})", path, std::strerror(errno));
+    FailFile(errno, "{}: cannot open for reading ({})", path, std::strerror(errno));
   }
-  if (S_ISDIR(st.st_mode)) Fail("{}: is a directory, expected a file", path);
+  if (S_ISDIR(st.st_mode)) FailFile(EISDIR, "{}: is a directory, expected a file", path);
   // A FIFO without a writer would block forever in open(); devices and
   // sockets are no files to parse either.
   if (!S_ISREG(st.st_mode)) Fail("{}: is not a regular file (a device, FIFO or socket)", path);
@@ -31,7 +31,7 @@ std::string ReadFileToString(const std::string& path) {
   CheckReadableFile(path);
   std::ifstream file(path, std::ios::binary);
   if (!file) {
-    Fail("{}: cannot open for reading ({})", path, std::strerror(errno));
+    FailFile(errno, "{}: cannot open for reading ({})", path, std::strerror(errno));
   }
   std::string data;
   file.seekg(0, std::ios::end);
@@ -40,14 +40,14 @@ std::string ReadFileToString(const std::string& path) {
   data.resize(static_cast<size_t>(size));
   file.seekg(0, std::ios::beg);
   file.read(data.data(), size);
-  if (!file) Fail("{}: read error", path);
+  if (!file) FailFile(EIO, "{}: read error", path);
   return data;
 }
 
 std::string ReadFilePrefix(const std::string& path, size_t max_bytes) {
   CheckReadableFile(path);
   std::ifstream file(path, std::ios::binary);
-  if (!file) Fail("{}: cannot open for reading ({})", path, std::strerror(errno));
+  if (!file) FailFile(errno, "{}: cannot open for reading ({})", path, std::strerror(errno));
   std::string data(max_bytes, '\0');
   file.read(data.data(), static_cast<std::streamsize>(max_bytes));
   data.resize(static_cast<size_t>(file.gcount()));
@@ -114,7 +114,7 @@ int OpenDeviceForWriting(const std::string& path, const std::string& shown) {
   if (fd < 0 && errno == ENXIO) {
     Fail("{}: is a FIFO that nothing reads: refusing to wait for a reader", shown);
   }
-  if (fd < 0) Fail("{}: cannot open for writing ({})", shown, std::strerror(errno));
+  if (fd < 0) FailFile(errno, "{}: cannot open for writing ({})", shown, std::strerror(errno));
   const int flags = ::fcntl(fd, F_GETFL);
   if (flags >= 0) ::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK);
   return fd;
@@ -152,12 +152,12 @@ void WriteFileAtomically(const std::string& path, const std::function<void(std::
   }
   struct stat st;
   if (::stat(target.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) {
-    if (S_ISDIR(st.st_mode)) Fail("{}: is a directory, expected a file", path);
+    if (S_ISDIR(st.st_mode)) FailFile(EISDIR, "{}: is a directory, expected a file", path);
     // A device or FIFO (/dev/null, /dev/stdout, a pipe): written through, never replaced.
     const int fd = OpenDeviceForWriting(target, path);
     const bool ok = WriteAll(fd, data);
     ::close(fd);
-    if (!ok) Fail("{}: write error ({})", path, std::strerror(errno));
+    if (!ok) FailFile(errno, "{}: write error ({})", path, std::strerror(errno));
     return;
   }
   // A regular file or none: an exclusive, unpredictable temporary file in the
@@ -172,21 +172,23 @@ void WriteFileAtomically(const std::string& path, const std::function<void(std::
   RemoveStaleTemporaries(dir);
   std::string tmp = dir + "/" + kTemporaryPrefix + "XXXXXX";
   const int fd = ::mkostemp(tmp.data(), O_CLOEXEC);
-  if (fd < 0) Fail("{}: cannot create a file in its folder ({})", path, std::strerror(errno));
+  if (fd < 0) {
+    FailFile(errno, "{}: cannot create a file in its folder ({})", path, std::strerror(errno));
+  }
   // Held until the rename: a temporary that nobody locks belongs to a dead writer.
   bool ok = ::flock(fd, LOCK_EX) == 0;
   ok = ok && ::fchmod(fd, final_mode) == 0;
   ok = ok && WriteAll(fd, data) && ::fsync(fd) == 0;
-  const std::string reason = std::strerror(errno);
+  const int error_number = errno;
   ::close(fd);
   if (!ok) {
     ::unlink(tmp.c_str());
-    Fail("{}: write error ({})", path, reason);
+    FailFile(error_number, "{}: write error ({})", path, std::strerror(error_number));
   }
   if (::rename(tmp.c_str(), target.c_str()) != 0) {
-    const std::string why = std::strerror(errno);
+    const int error_number = errno;
     ::unlink(tmp.c_str());
-    Fail("{}: cannot move into place ({})", path, why);
+    FailFile(error_number, "{}: cannot move into place ({})", path, std::strerror(error_number));
   }
 }
 
@@ -194,7 +196,7 @@ bool WriteNewFile(const std::string& path, std::string_view text, unsigned mode,
                   std::string_view what) {
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, mode);
   if (fd < 0 && errno == EEXIST) return false;
-  if (fd < 0) Fail("{}: cannot create {} ({})", path, what, std::strerror(errno));
+  if (fd < 0) FailFile(errno, "{}: cannot create {} ({})", path, what, std::strerror(errno));
   const bool ok = ::fchmod(fd, mode) == 0 && WriteAll(fd, std::string(text)) && ::fsync(fd) == 0;
   ::close(fd);
   if (!ok) {

@@ -1,0 +1,39 @@
+"""linecloud: privacy-preserving image-based localization.
+
+Line clouds after Speciale et al., "Privacy Preserving Image-Based Localization"
+(CVPR 2019): every map point X is lifted to a 3D line through X with a random
+direction and X is thrown away; a photo is localized by finding the pose where
+its rays meet those lines.
+
+Cameras are dicts ``{"model", "width", "height", "params"}`` (COLMAP's names and
+parameter order); poses are ``cam_from_world`` dicts ``{"q": (w, x, y, z),
+"t": (x, y, z)}`` (+ ``"scale"`` for Sim3 methods); arrays are numpy.
+"""
+
+from . import interop
+from ._core import (
+    LineCloud,
+    Localizer,
+    __version__,
+    attack,
+    audit,
+    estimate_pose,
+    lift,
+    methods,
+    read_colmap_model,
+    solve,
+)
+
+__all__ = [
+    "LineCloud",
+    "Localizer",
+    "__version__",
+    "attack",
+    "audit",
+    "estimate_pose",
+    "interop",
+    "lift",
+    "methods",
+    "read_colmap_model",
+    "solve",
+]

@@ -1,0 +1,81 @@
+"""Fixtures of the Python suite: the built CLI (to compare with), a seeded
+demo scene, a key store per test, and fountain-P11 when CI's work exists."""
+
+import json
+import os
+import subprocess
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def _binary() -> Path:
+    path = Path(os.environ.get("LINECLOUD_BINARY", REPO / "build" / "linecloud"))
+    if not path.exists():
+        pytest.fail(f"the linecloud binary is not at {path} (set LINECLOUD_BINARY)")
+    return path
+
+
+@pytest.fixture(scope="session")
+def binary() -> Path:
+    return _binary()
+
+
+def run_cli(*args, env=None) -> str:
+    """Runs the CLI, returns its standard output; fails the test on an error."""
+    full_env = dict(os.environ, **(env or {}))
+    r = subprocess.run([str(_binary()), *map(str, args)], capture_output=True, text=True,
+                       env=full_env, check=False)
+    assert r.returncode == 0, f"linecloud {' '.join(map(str, args))}: {r.stderr}"
+    return r.stdout
+
+
+@pytest.fixture(scope="session")
+def demo(tmp_path_factory) -> Path:
+    """`linecloud demo` (seed 42): a COLMAP model, its line cloud under the public
+    demo key and query files."""
+    out = tmp_path_factory.mktemp("demo") / "demo"
+    run_cli("demo", "--out", out, "--points", 1500, "--images", 12, "--queries", 4)
+    return out
+
+
+@pytest.fixture(autouse=True)
+def key_store(tmp_path, monkeypatch) -> Path:
+    """Each test its own key store (never the user's)."""
+    store = tmp_path / "keys"
+    monkeypatch.setenv("LINECLOUD_KEY_STORE", str(store))
+    return store
+
+
+def _shared() -> Path:
+    return Path(os.environ.get("LINECLOUD_SHARED", REPO.parent / "shared"))
+
+
+@pytest.fixture(scope="session")
+def fountain():
+    """CI's `eval prepare` work of fountain-P11 (LINECLOUD_FOUNTAIN_WORK, else
+    build/eval/fountain-P11): group g00's map (built without 0000.jpg), its
+    database, the photo and its true pose."""
+    work = Path(os.environ.get("LINECLOUD_FOUNTAIN_WORK", REPO / "build" / "eval" / "fountain-P11"))
+    if not (work / "prepared.json").exists():
+        pytest.skip(f"no eval prepare work of fountain-P11 at {work} (CI sets "
+                    "LINECLOUD_FOUNTAIN_WORK)")
+    prepared = json.loads((work / "prepared.json").read_text())
+    image = prepared["groups"][0]["images"][0]
+    assert image["name"] == "0000.jpg"
+    dataset = Path(prepared["dataset_dir"])
+    if not dataset.is_absolute():
+        dataset = _shared() / "data" / "strecha" / "fountain-P11"
+    photo = dataset / "images" / "0000.jpg"
+    if not photo.exists():
+        pytest.skip(f"the fountain-P11 photo is absent: {photo} (../shared/data, see its README)")
+    return {
+        "model": work / "groups" / "g00" / "map",
+        "database": work / "colmap" / "database.db",
+        "photo": photo,
+        "truth": image["cam_from_world"],
+        "camera": {"model": "PINHOLE", "width": 1536, "height": 1024,
+                   "params": [1379.74, 1382.08, 760.095, 503.155]},
+    }

@@ -1,0 +1,386 @@
+// Localizer: a map loaded once, photos, client features and queries answered
+// from many Python threads (the GIL is released while a request runs).
+#include <filesystem>
+#include <memory>
+
+#include <fmt/format.h>
+#include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
+
+#include "linecloud/features/sift_opencv.h"
+#include "linecloud/io/json_util.h"
+#include "linecloud/io/lcm_format.h"
+#include "linecloud/localize/query_json.h"
+#include "linecloud/pipeline/localizer.h"
+#include "linecloud/python/bindings.h"
+#include "linecloud/python/convert.h"
+#include "linecloud/util/error.h"
+#include "linecloud/util/file.h"
+
+namespace linecloud::python {
+namespace {
+
+constexpr const char* kClass = "Localizer";
+
+// The Localizer and the defaults a Python user gave it.
+struct PyLocalizer {
+  std::shared_ptr<const Localizer> localizer;
+  std::string method;  // empty: the map's default for the number of photos
+  std::string source;
+};
+
+LocalizerOptions MakeOptions(const nlohmann::json& o, int threads) {
+  const std::string where = kClass;
+  LocalizerOptions options;
+  ImageQueryOptions& image = options.image;
+  image.threads = threads;
+  if (threads < 1) Fail("{}: threads must be at least 1, got {}", where, threads);
+  if (auto v = StringOption(o, "features", where)) {
+    image.sift.extractor = ParseSiftExtractor(*v, "features");
+  }
+  if (auto v = StringOption(o, "index", where)) {
+    image.index.kind = ParseDescriptorIndexKind(*v, "index");
+  }
+  if (auto v = IntegerOption(o, "nprobe", where)) {
+    if (*v < 1 || *v > 1 << 20) Fail("{}: nprobe must be in [1, 2^20], got {}", where, *v);
+    image.index.nprobe = static_cast<int>(*v);
+  }
+  if (auto v = NumberOption(o, "max_ratio", where)) image.matching.max_ratio = *v;
+  if (auto v = BoolOption(o, "cross_check", where)) image.matching.cross_check = *v;
+  if (auto v = BoolOption(o, "exact_matching", where); v && *v) image.approximate_from = 0;
+  if (auto v = IntegerOption(o, "max_pixels", where)) {
+    if (*v < 1) Fail("{}: max_pixels must be positive, got {}", where, *v);
+    image.max_pixels = static_cast<uint64_t>(*v);
+  }
+  image.index.threads = threads;
+  LocalizeOptions& l = options.localize;
+  if (auto v = NumberOption(o, "threshold", where)) l.ransac.max_error = *v;
+  if (auto v = IntegerOption(o, "seed", where)) {
+    if (*v < 0) Fail("{}: seed must be non-negative, got {}", where, *v);
+    l.ransac.seed = static_cast<uint64_t>(*v);
+  }
+  if (auto v = BoolOption(o, "refine", where)) l.refine = *v;
+  if (auto v = NumberOption(o, "max_seconds", where)) l.ransac.max_seconds = *v;
+  if (auto v = IntegerOption(o, "min_inliers", where)) {
+    if (*v < 0 || *v > 1 << 30) Fail("{}: min_inliers must be in [0, 2^30], got {}", where, *v);
+    l.success.min_inliers_points = l.success.min_inliers_lines = static_cast<int>(*v);
+  }
+  if (o.contains("map_gravity") && !o["map_gravity"].is_null()) {
+    options.map_gravity = JsonVector3(o["map_gravity"], where + ": map_gravity");
+  }
+  options.image.matching.Check();
+  options.localize.Check();
+  return options;
+}
+
+PyLocalizer MakeLocalizer(py::object cloud_or_path, std::optional<std::string> method, int threads,
+                          const py::kwargs& kwargs) {
+  const nlohmann::json o = Options(
+      kwargs,
+      {"features", "index", "nprobe", "max_ratio", "cross_check", "exact_matching", "max_pixels",
+       "threshold", "seed", "refine", "max_seconds", "min_inliers", "map_gravity"},
+      kClass);
+  const LocalizerOptions options = MakeOptions(o, threads);
+  if (options.image.sift.extractor == SiftExtractor::kOpenCV) SetOpenCVThreads(threads);
+  PyLocalizer out;
+  out.method = method.value_or("");
+  if (!out.method.empty()) FindMethod(out.method);  // an unknown name fails here, not later
+  if (py::isinstance<LineCloud>(cloud_or_path)) {
+    const LineCloud& cloud = cloud_or_path.cast<const LineCloud&>();
+    out.source = "LineCloud";
+    py::gil_scoped_release release;
+    out.localizer = std::make_shared<const Localizer>(cloud, options, out.source);
+    return out;
+  }
+  out.source = py::str(py::module_::import("os").attr("fspath")(cloud_or_path));
+  py::gil_scoped_release release;
+  out.localizer = std::make_shared<const Localizer>(ReadLineCloud(out.source), options, out.source);
+  return out;
+}
+
+// The per-request options of every localize_* call.
+struct Request {
+  LocalizeRequest request;
+  bool with_inliers = true;
+  std::vector<Rigid3d> cam_from_rig;
+};
+
+Request MakeRequest(const PyLocalizer& self, const py::kwargs& kwargs, const std::string& where,
+                    bool photos) {
+  std::initializer_list<const char*> keys = {"method",      "gravity",      "threshold",
+                                             "max_seconds", "refine_focal", "seed",
+                                             "threads",     "with_inliers"};
+  std::initializer_list<const char*> photo_keys = {"method",      "gravity",      "threshold",
+                                                   "max_seconds", "refine_focal", "seed",
+                                                   "threads",     "with_inliers", "cam_from_rig"};
+  py::dict plain;
+  py::object rig = py::none();
+  for (const auto& [key, value] : kwargs) {
+    if (photos && key.cast<std::string>() == "cam_from_rig") {
+      rig = py::reinterpret_borrow<py::object>(value);
+    } else {
+      plain[key] = value;
+    }
+  }
+  const nlohmann::json o = Options(py::kwargs(plain), photos ? photo_keys : keys, where);
+  Request r;
+  r.request.method = StringOption(o, "method", where).value_or(self.method);
+  if (!r.request.method.empty()) FindMethod(r.request.method);
+  if (o.contains("gravity") && !o["gravity"].is_null()) {
+    r.request.gravity = JsonVector3(o["gravity"], where + ": gravity");
+  }
+  r.request.threshold_px = NumberOption(o, "threshold", where);
+  r.request.max_seconds = NumberOption(o, "max_seconds", where);
+  r.request.refine_focal = BoolOption(o, "refine_focal", where);
+  if (auto v = IntegerOption(o, "seed", where)) {
+    if (*v < 0) Fail("{}: seed must be non-negative, got {}", where, *v);
+    r.request.seed = static_cast<uint64_t>(*v);
+  }
+  if (auto v = IntegerOption(o, "threads", where)) {
+    if (*v < 1 || *v > 1024) Fail("{}: threads must be in [1, 1024], got {}", where, *v);
+    r.request.threads = static_cast<int>(*v);
+  }
+  r.with_inliers = BoolOption(o, "with_inliers", where).value_or(true);
+  if (!rig.is_none()) {
+    if (!py::isinstance<py::list>(rig) && !py::isinstance<py::tuple>(rig)) {
+      throw py::type_error(where + ": cam_from_rig must be a list of pose dicts");
+    }
+    size_t k = 0;
+    for (py::handle pose : rig) {
+      r.cam_from_rig.push_back(PoseFromDict(pose, fmt::format("{}: cam_from_rig[{}]", where, k++)));
+    }
+  }
+  return r;
+}
+
+py::dict ResultToDict(const LocalizerResult& r, bool with_inliers) {
+  nlohmann::ordered_json j = LocalizeResultToJson(FindMethod(r.method), r.pose, with_inliers);
+  if (!r.photos.empty()) {
+    AddPhotoStats(r.num_features(), r.num_matches(), r.times.decode_ms, r.times.extract_ms,
+                  r.times.match_ms, r.pose, &j);
+  }
+  if (!r.success()) j["reason"] = r.reason;
+  const StageTimes& t = r.times;
+  j["times_ms"] = {{"decode", t.decode_ms},   {"extract", t.extract_ms}, {"match", t.match_ms},
+                   {"prepare", t.prepare_ms}, {"ransac", t.ransac_ms},   {"refine", t.refine_ms},
+                   {"check", t.check_ms},     {"total", t.total_ms}};
+  return FromJson(j).cast<py::dict>();
+}
+
+// One photo or a list of them (a rig), each with its camera.
+std::vector<py::handle> Items(py::handle value, bool* many) {
+  *many = py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value);
+  std::vector<py::handle> items;
+  if (*many) {
+    for (py::handle item : value) items.push_back(item);
+  } else {
+    items.push_back(value);
+  }
+  return items;
+}
+
+std::vector<Camera> Cameras(py::handle camera, size_t photos, const std::string& where) {
+  bool many = false;
+  const std::vector<py::handle> items = Items(camera, &many);
+  std::vector<Camera> cameras;
+  for (size_t k = 0; k < items.size(); ++k) {
+    cameras.push_back(CameraFromDict(
+        items[k], many ? fmt::format("{}: camera[{}]", where, k) : where + ": camera"));
+  }
+  if (cameras.size() == 1) cameras.resize(photos, cameras[0]);
+  if (cameras.size() != photos) {
+    Fail("{}: {} photos but {} cameras (give one for all, or one per photo)", where, photos,
+         cameras.size());
+  }
+  return cameras;
+}
+
+// Photos of a request: per photo its camera, rig pose and name; the bytes,
+// images or features they point to live in `storage` during the call.
+struct PhotoStorage {
+  std::vector<std::string> bytes;
+  std::vector<GreyImage> images;
+  std::vector<SiftFeatures> features;
+};
+
+void SetRig(std::vector<QueryPhoto>& photos, const Request& r, const std::string& where) {
+  if (photos.size() == 1 && r.cam_from_rig.empty()) return;
+  if (r.cam_from_rig.size() != photos.size()) {
+    Fail("{}: {} photos need {} cam_from_rig poses, got {}", where, photos.size(), photos.size(),
+         r.cam_from_rig.size());
+  }
+  for (size_t k = 0; k < photos.size(); ++k) photos[k].cam_from_rig = r.cam_from_rig[k];
+}
+
+void AddImage(py::handle image, const std::string& name, PhotoStorage* storage, QueryPhoto* photo) {
+  if (py::isinstance<py::bytes>(image) || py::isinstance<py::bytearray>(image) ||
+      py::isinstance<py::memoryview>(image)) {
+    // bytes(x) copies any buffer (bytearray, memoryview) into one string.
+    const py::object copy = py::module_::import("builtins").attr("bytes")(image);
+    storage->bytes.push_back(copy.cast<std::string>());
+    photo->name = name;
+  } else if (py::isinstance<py::array>(image)) {
+    const py::array array = py::reinterpret_borrow<py::array>(image);
+    if (array.ndim() != 2 || array.dtype().kind() != 'u' || array.dtype().itemsize() != 1) {
+      throw py::type_error(fmt::format(
+          "{}: expected a grey uint8 H x W array (convert colour photos first, or pass the "
+          "encoded file), got dtype {} with {} dimensions",
+          name, py::str(array.dtype()).cast<std::string>(), array.ndim()));
+    }
+    const auto pixels = py::array_t<uint8_t, py::array::c_style>::ensure(array);
+    GreyImage grey;
+    grey.height = static_cast<int>(pixels.shape(0));
+    grey.width = static_cast<int>(pixels.shape(1));
+    grey.pixels.assign(pixels.data(), pixels.data() + pixels.size());
+    storage->images.push_back(std::move(grey));
+    photo->name = name;
+  } else if (py::hasattr(image, "read")) {  // an open binary file (a closed one raises)
+    const py::object data = image.attr("read")();
+    if (!py::isinstance<py::bytes>(data)) {
+      throw py::type_error(name + ": the file's read() must give bytes (open it with 'rb')");
+    }
+    storage->bytes.push_back(data.cast<std::string>());
+    photo->name =
+        py::hasattr(image, "name") ? py::str(image.attr("name")).cast<std::string>() : name;
+  } else if (py::isinstance<py::str>(image) || py::hasattr(image, "__fspath__")) {
+    const std::string path = py::str(py::module_::import("os").attr("fspath")(image));
+    storage->bytes.push_back(ReadFileToString(path));
+    photo->name = path;
+  } else {
+    throw py::type_error(fmt::format(
+        "{}: expected a path, an open binary file, the encoded file's bytes or a grey uint8 "
+        "array, got {}",
+        name, py::str(py::type::of(image).attr("__name__")).cast<std::string>()));
+  }
+}
+
+py::dict LocalizeImages(const PyLocalizer& self, py::handle image, py::handle camera,
+                        const py::kwargs& kwargs) {
+  const std::string where = "Localizer.localize_image";
+  const Request r = MakeRequest(self, kwargs, where, true);
+  bool many = false;
+  const std::vector<py::handle> items = Items(image, &many);
+  if (items.empty()) Fail("{}: no photo given", where);
+  const std::vector<Camera> cameras = Cameras(camera, items.size(), where);
+  PhotoStorage storage;
+  storage.bytes.reserve(items.size());
+  storage.images.reserve(items.size());
+  std::vector<QueryPhoto> photos(items.size());
+  for (size_t k = 0; k < items.size(); ++k) {
+    const size_t bytes = storage.bytes.size(), images = storage.images.size();
+    AddImage(items[k], many ? fmt::format("image[{}]", k) : "image", &storage, &photos[k]);
+    if (storage.bytes.size() > bytes) {
+      const std::string& b = storage.bytes.back();
+      photos[k].encoded = {reinterpret_cast<const uint8_t*>(b.data()), b.size()};
+    } else if (storage.images.size() > images) {
+      photos[k].image = &storage.images.back();
+    }
+    photos[k].camera = cameras[k];
+  }
+  SetRig(photos, r, where);
+  LocalizerResult result;
+  {
+    py::gil_scoped_release release;
+    result = self.localizer->LocalizePhotos(photos, r.request);
+  }
+  return ResultToDict(result, r.with_inliers);
+}
+
+py::dict LocalizeFeatures(const PyLocalizer& self, py::handle keypoints, py::handle descriptors,
+                          py::handle camera, const py::kwargs& kwargs) {
+  const std::string where = "Localizer.localize_features";
+  const Request r = MakeRequest(self, kwargs, where, true);
+  bool many_k = false, many_d = false;
+  const std::vector<py::handle> k_items = Items(keypoints, &many_k);
+  const std::vector<py::handle> d_items = Items(descriptors, &many_d);
+  if (many_k != many_d || k_items.size() != d_items.size()) {
+    Fail("{}: keypoints and descriptors: one array each, or lists of equal length", where);
+  }
+  if (k_items.empty()) Fail("{}: no photo given", where);
+  const std::vector<Camera> cameras = Cameras(camera, k_items.size(), where);
+  PhotoStorage storage;
+  storage.features.resize(k_items.size());
+  std::vector<QueryPhoto> photos(k_items.size());
+  for (size_t k = 0; k < k_items.size(); ++k) {
+    const std::string suffix = many_k ? fmt::format("[{}]", k) : "";
+    // N x 2 (x, y) or N x 4 (x, y, scale, orientation), COLMAP's pixel convention.
+    const py::array array = py::array::ensure(k_items[k]);
+    const int cols = array && array.ndim() == 2 && array.shape(1) == 4 ? 4 : 2;
+    size_t n = 0, nd = 0;
+    const std::vector<double> xy = FiniteRows(k_items[k], cols, "keypoints" + suffix, &n);
+    SiftFeatures& f = storage.features[k];
+    f.descriptors = ByteRows(d_items[k], 128, "descriptors" + suffix, &nd);
+    if (nd != n) Fail("{}: {} keypoints but {} descriptors{}", where, n, nd, suffix);
+    f.keypoints.resize(n);
+    for (size_t i = 0; i < n; ++i) {
+      f.keypoints[i].x = static_cast<float>(xy[cols * i]);
+      f.keypoints[i].y = static_cast<float>(xy[cols * i + 1]);
+      if (cols == 4) {
+        f.keypoints[i].scale = static_cast<float>(xy[cols * i + 2]);
+        f.keypoints[i].orientation = static_cast<float>(xy[cols * i + 3]);
+      }
+    }
+    f.image_width = static_cast<int>(cameras[k].width);
+    f.image_height = static_cast<int>(cameras[k].height);
+    photos[k].features = &f;
+    photos[k].camera = cameras[k];
+    photos[k].name = "features" + suffix;
+  }
+  SetRig(photos, r, where);
+  LocalizerResult result;
+  {
+    py::gil_scoped_release release;
+    result = self.localizer->LocalizePhotos(photos, r.request);
+  }
+  return ResultToDict(result, r.with_inliers);
+}
+
+py::dict LocalizeQuery(const PyLocalizer& self, py::handle query, const py::kwargs& kwargs) {
+  const std::string where = "Localizer.localize_query";
+  const Request r = MakeRequest(self, kwargs, where, false);
+  if (!py::isinstance<py::dict>(query)) {
+    throw py::type_error(where + ": expected a QUERY.json-like dict");
+  }
+  const Query q = ParseQueryJson(ToJson(query, "query"), "query");
+  LocalizerResult result;
+  {
+    py::gil_scoped_release release;
+    result = self.localizer->LocalizeQuery(q, r.request, "query");
+  }
+  return ResultToDict(result, r.with_inliers);
+}
+
+}  // namespace
+
+void BindLocalizer(py::module_& m) {
+  py::class_<PyLocalizer>(m, kClass,
+                          "A map loaded once, many photos localized: SIFT, matching to the "
+                          "map's descriptors, RANSAC with the method's minimal solver, LM. Safe "
+                          "to call from many threads; each call releases the GIL.")
+      .def(py::init(&MakeLocalizer), py::arg("cloud_or_path"), py::arg("method") = py::none(),
+           py::arg("threads") = 1,
+           "cloud_or_path: a LineCloud or a .lcm path. Options: features ('opencv' | "
+           "'colmap'), index ('ivf', 'faiss-ivf', 'faiss-hnsw', 'hnswlib', 'flann'), nprobe, "
+           "max_ratio, cross_check, exact_matching, max_pixels, threshold (px), seed, refine, "
+           "max_seconds, min_inliers, map_gravity.")
+      .def("localize_image", &LocalizeImages, py::arg("image"), py::arg("camera"),
+           "image: a path, the encoded file's bytes or a grey uint8 H x W array (or a list of "
+           "them with cam_from_rig=[pose, ...] for a rig); camera: a camera dict (or one per "
+           "photo). Options: method, gravity, threshold, max_seconds, refine_focal, seed, "
+           "threads, with_inliers. Returns localize's result dict.")
+      .def("localize_features", &LocalizeFeatures, py::arg("keypoints"), py::arg("descriptors"),
+           py::arg("camera"),
+           "keypoints: N x 2 (or N x 4 with scale, orientation) in COLMAP's pixel convention; "
+           "descriptors: N x 128 uint8 in COLMAP's SIFT normalisation. Lists for a rig.")
+      .def("localize_query", &LocalizeQuery, py::arg("query"),
+           "query: a dict laid out as QUERY.json (cameras, observations, ...).")
+      .def_property_readonly("size", [](const PyLocalizer& s) { return s.localizer->size(); })
+      .def_property_readonly("has_descriptors",
+                             [](const PyLocalizer& s) { return s.localizer->has_descriptors(); })
+      .def("__len__", [](const PyLocalizer& s) { return s.localizer->size(); })
+      .def("__repr__", [](const PyLocalizer& s) {
+        return fmt::format("<linecloud.Localizer: {} ({} lines)>", s.source, s.localizer->size());
+      });
+}
+
+}  // namespace linecloud::python
