@@ -18,6 +18,10 @@ packages=(
   colmap         # eval: structure from motion (its command line)
   libcpp-httplib-dev  # serve: HTTP/1.1
   nginx-light wrk     # serve: the deployment example's fault test and load test
+  # python: `import linecloud` (pybind11), its tests (pytest, OpenCV's SIFT as another
+  # extractor) and an offline `pip install` into a virtual environment
+  python3 python3-dev python3-venv python3-setuptools python3-wheel pybind11-dev python3-numpy
+  python3-pytest python3-opencv
   "$@"
 )
 missing=()
