@@ -19,6 +19,12 @@
 #include "linecloud/features/omp_threads.h"
 #include "linecloud/util/error.h"
 
+// BLAS's single-precision matrix product (Fortran interface; FAISS links
+// the BLAS it was built with, OpenBLAS on Debian).
+extern "C" int sgemm_(const char* transa, const char* transb, const int* m, const int* n,
+                      const int* k, const float* alpha, const float* a, const int* lda,
+                      const float* b, const int* ldb, const float* beta, float* c, const int* ldc);
+
 namespace linecloud {
 namespace {
 
@@ -82,6 +88,68 @@ __attribute__((target("avx512f,avx512bw"))) void DotsAvx512(const int16_t* q, co
     out[r] = _mm_cvtsi128_si32(s);
   }
 }
+
+// The `k` largest of `n` values (k <= n), as (value, index) sorted by value,
+// the earlier index first among equals. Most values fail the comparison with
+// the current k-th: the SIMD versions compare 16 or 8 at once and visit only
+// the lanes above it; every version gives the same result.
+struct TopK {
+  float* dot;
+  uint32_t* index;
+  int k, size = 0;
+
+  float Threshold() const { return size < k ? -INFINITY : dot[k - 1]; }
+  void Offer(float d, uint32_t c) {
+    if (size == k && !(d > dot[k - 1])) return;
+    int at = size < k ? size++ : k - 1;
+    for (; at > 0 && d > dot[at - 1]; --at) {
+      dot[at] = dot[at - 1];
+      index[at] = index[at - 1];
+    }
+    dot[at] = d;
+    index[at] = c;
+  }
+};
+using TopKKernel = void (*)(const float* d, int n, TopK* top);
+
+void TopKPortable(const float* d, int n, TopK* top) {
+  for (int c = 0; c < n; ++c) top->Offer(d[c], static_cast<uint32_t>(c));
+}
+
+__attribute__((target("avx2"))) void TopKAvx2(const float* d, int n, TopK* top) {
+  int c = 0;
+  for (; c + 8 <= n; c += 8) {
+    int mask = _mm256_movemask_ps(
+        _mm256_cmp_ps(_mm256_loadu_ps(d + c), _mm256_set1_ps(top->Threshold()), _CMP_GT_OQ));
+    for (; mask; mask &= mask - 1) {
+      const int lane = __builtin_ctz(mask);
+      top->Offer(d[c + lane], static_cast<uint32_t>(c + lane));
+    }
+  }
+  for (; c < n; ++c) top->Offer(d[c], static_cast<uint32_t>(c));
+}
+
+__attribute__((target("avx512f"))) void TopKAvx512(const float* d, int n, TopK* top) {
+  int c = 0;
+  for (; c + 16 <= n; c += 16) {
+    unsigned mask =
+        _mm512_cmp_ps_mask(_mm512_loadu_ps(d + c), _mm512_set1_ps(top->Threshold()), _CMP_GT_OQ);
+    for (; mask; mask &= mask - 1) {
+      const int lane = __builtin_ctz(mask);
+      top->Offer(d[c + lane], static_cast<uint32_t>(c + lane));
+    }
+  }
+  for (; c < n; ++c) top->Offer(d[c], static_cast<uint32_t>(c));
+}
+
+TopKKernel PickTopK() {
+  __builtin_cpu_init();
+  if (__builtin_cpu_supports("avx512f")) return TopKAvx512;
+  if (__builtin_cpu_supports("avx2")) return TopKAvx2;
+  return TopKPortable;
+}
+
+const TopKKernel kTopK = PickTopK();
 
 DotKernel PickKernel() {
   __builtin_cpu_init();
@@ -250,24 +318,45 @@ void IvfIndex::Search(std::span<const uint8_t> queries, int nprobe, int64_t* ids
   const size_t nq = queries.size() / kDim;
   if (nq == 0) return;
   nprobe = std::clamp(nprobe, 1, nlist_);
-  // Coarse: the nprobe nearest centroids of each query (a BLAS product).
-  std::vector<float> q(queries.begin(), queries.end()), dist(nq * nprobe);
-  std::vector<faiss::Index::idx_t> cells(nq * nprobe);
+  // Coarse: the nprobe nearest centroids of each query, as a BLAS product of
+  // a block of queries with the centroids, then a top-k selection per row
+  // (TopK). FAISS's flat index did the same through a generic heap: a third of
+  // the search on a 13 000-line map.
+  std::vector<uint32_t> cells(nq * nprobe);
+  std::vector<uint32_t> per_cell(nlist_ + 1, 0);
   {
-    OmpThreads one(1);
-    coarse_->flat.search(static_cast<faiss::Index::idx_t>(nq), q.data(), nprobe, dist.data(),
-                         cells.data());
-  }
-  // (cell, query) pairs in cell order: each cell's rows are read once.
-  std::vector<std::pair<uint32_t, uint32_t>> visits;
-  visits.reserve(nq * nprobe);
-  for (size_t i = 0; i < nq; ++i) {
-    for (int p = 0; p < nprobe; ++p) {
-      const faiss::Index::idx_t c = cells[i * nprobe + p];
-      if (c >= 0) visits.emplace_back(static_cast<uint32_t>(c), static_cast<uint32_t>(i));
+    OmpThreads one(1);  // OpenBLAS (OpenMP build) on this thread only
+    constexpr int kBlock = 256;
+    std::vector<float> q(size_t(kBlock) * kDim), dots(size_t(kBlock) * nlist_);
+    std::vector<float> top_dot(nprobe);
+    for (size_t first = 0; first < nq; first += kBlock) {
+      int rows = static_cast<int>(std::min<size_t>(kBlock, nq - first));
+      std::copy_n(queries.data() + first * kDim, size_t(rows) * kDim, q.data());
+      int nlist = nlist_, dim = kDim;
+      const float one = 1, zero = 0;
+      sgemm_("T", "N", &nlist, &rows, &dim, &one, centroids_.data(), &dim, q.data(), &dim, &zero,
+             dots.data(), &nlist);
+      for (int r = 0; r < rows; ++r) {
+        uint32_t* top = cells.data() + (first + r) * nprobe;
+        TopK selection{top_dot.data(), top, nprobe};
+        kTopK(dots.data() + size_t(r) * nlist_, nlist_, &selection);
+        for (int k = 0; k < nprobe; ++k) ++per_cell[top[k] + 1];
+      }
     }
   }
-  std::sort(visits.begin(), visits.end());
+  // (cell, query) pairs in cell order, queries ascending within a cell (a
+  // counting sort): each cell's rows are read once per batch.
+  for (int c = 0; c < nlist_; ++c) per_cell[c + 1] += per_cell[c];
+  std::vector<std::pair<uint32_t, uint32_t>> visits(nq * nprobe);
+  {
+    std::vector<uint32_t> next(per_cell.begin(), per_cell.end() - 1);
+    for (size_t i = 0; i < nq; ++i) {
+      for (int p = 0; p < nprobe; ++p) {
+        const uint32_t c = cells[i * nprobe + p];
+        visits[next[c]++] = {c, static_cast<uint32_t>(i)};
+      }
+    }
+  }
   std::vector<int16_t> q16(queries.begin(), queries.end());
   std::vector<Best2> best(nq);
   std::vector<int32_t> dots;

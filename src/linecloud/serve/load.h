@@ -21,7 +21,7 @@ struct LoadOptions {
   std::string map_id;
   std::string photo;   // JPEG / PNG file
   std::string camera;  // "MODEL W H PARAMS..."
-  std::vector<int> concurrency = {1, 2, 8, 32};
+  std::vector<int> concurrency = {1, 2, 4, 8, 32};
   int requests = 100;        // per concurrency level and body kind
   double max_seconds = 120;  // per level: stops sending after this
   bool photos = true;        // also the multipart photo (not only client features)

@@ -1,5 +1,5 @@
-// Base64 (RFC 4648, with padding) by libsodium: descriptors and images in
-// JSON bodies (the service, OSCP GeoPose).
+// Base64 (RFC 4648, with padding): descriptors and images in JSON bodies (the
+// service, OSCP GeoPose). Encoding by libsodium, decoding by a table.
 #pragma once
 
 #include <cstdint>
