@@ -1,6 +1,7 @@
 #include "linecloud/features/descriptor_index.h"
 
 #include <algorithm>
+#include <numeric>
 #include <array>
 #include <cstring>
 #include <iostream>
@@ -157,6 +158,36 @@ TEST(IvfIndex, EveryKernelGivesThePlainDotProducts) {
     ++tested;
   }
   std::cout << "[ IVF kernels ] " << tested << " SIMD kernel(s) checked on this CPU\n";
+}
+
+// The coarse step's selection: every kernel picks the same cells, those of
+// a full sort (largest first, the earlier cell first among equal values).
+TEST(IvfIndex, TopKKernelsAgreeWithASort) {
+  std::mt19937 rng(4);
+  int tested = 0;
+  for (int trial = 0; trial < 200; ++trial) {
+    const int n = 1 + static_cast<int>(rng() % 600), k = 1 + static_cast<int>(rng() % n);
+    std::vector<float> values(n);
+    // Few distinct values in some trials: ties must break the same way.
+    for (float& v : values) v = trial % 2 ? float(rng() % 7) : float(rng()) / float(rng.max());
+    std::vector<uint32_t> order(n);
+    std::iota(order.begin(), order.end(), 0u);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](uint32_t a, uint32_t b) { return values[a] > values[b]; });
+    order.resize(k);
+    ASSERT_EQ(IvfIndex::TopKWith("portable", values.data(), n, k), order) << trial;
+    for (const char* kernel : {"avx2", "avx512f"}) {
+      std::vector<uint32_t> got;
+      try {
+        got = IvfIndex::TopKWith(kernel, values.data(), n, k);
+      } catch (const Error&) {
+        continue;  // not on this CPU
+      }
+      EXPECT_EQ(got, order) << kernel << " trial " << trial;
+      ++tested;
+    }
+  }
+  std::cout << "[ top-k kernels ] " << tested / 200 << " SIMD kernel(s) checked on this CPU\n";
 }
 
 // A serialised IVF that is inconsistent (after its MAC was checked) is

@@ -212,6 +212,21 @@ void IvfIndex::DotsWith(const std::string& kernel, const int16_t* query, const u
   Fail("IVF kernel '{}' is not available on this CPU", kernel);
 }
 
+std::vector<uint32_t> IvfIndex::TopKWith(const std::string& kernel, const float* values, int n,
+                                         int k) {
+  TopKKernel run = nullptr;
+  if (kernel == "avx512f" && __builtin_cpu_supports("avx512f")) run = TopKAvx512;
+  if (kernel == "avx2" && __builtin_cpu_supports("avx2")) run = TopKAvx2;
+  if (kernel == "portable") run = TopKPortable;
+  if (!run) Fail("top-k kernel '{}' is not available on this CPU", kernel);
+  if (k < 1 || k > n) Fail("top-k: need 1 <= k ({}) <= n ({})", k, n);
+  std::vector<float> dot(k);
+  std::vector<uint32_t> index(k);
+  TopK top{dot.data(), index.data(), k};
+  run(values, n, &top);
+  return index;
+}
+
 void IvfIndex::MakeCoarse() {
   coarse_ = std::make_unique<Coarse>();
   coarse_->flat.add(nlist_, centroids_.data());

@@ -53,6 +53,11 @@ class IvfIndex {
   // The scan kernel `kernel` (one this CPU runs) on `n` rows: for tests.
   static void DotsWith(const std::string& kernel, const int16_t* query, const uint8_t* rows,
                        size_t n, int32_t* out);
+  // The coarse step's top-k selection with kernel `kernel`: the indices of the
+  // k largest of `n` values, largest first, the earlier index first among
+  // equals. For tests.
+  static std::vector<uint32_t> TopKWith(const std::string& kernel, const float* values, int n,
+                                        int k);
 
  private:
   IvfIndex() = default;
