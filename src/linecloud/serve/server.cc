@@ -4,6 +4,9 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <sys/socket.h>
+#include <cstring>
+#include <cerrno>
 #include <atomic>
 #include <cctype>
 #include <chrono>
@@ -261,6 +264,7 @@ struct Server::Impl {
   httplib::Server http;
   std::string host;
   int port = -1;
+  socket_t listen_socket = INVALID_SOCKET;  // seen when the server creates it
   std::atomic<int> in_flight{0};
   mutable std::mutex maps_mutex;
   std::shared_ptr<const MapSet> maps = std::make_shared<MapSet>();
@@ -773,6 +777,14 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   // clients and 22 threads, 2 of 40 clients timed out writing their 2.7 MB
   // bodies (docs/serve.md), hence --connections (64).
   const int http_threads = std::max(o.connections, o.threads + o.queue + 4);
+  // Debian's cpp-httplib (a compiled library) listens with a backlog of 5:
+  // 32 clients connecting at once overflowed it, and a connection the kernel
+  // dropped failed its client's first write after ~1 s. The socket is kept
+  // here and its backlog raised after binding (Bind).
+  h.set_socket_options([impl = impl_.get()](socket_t sock) {
+    httplib::default_socket_options(sock);
+    impl->listen_socket = sock;
+  });
   h.new_task_queue = [http_threads] { return new httplib::ThreadPool(http_threads); };
   impl_->Routes();
 }
@@ -785,6 +797,9 @@ int Server::Bind() {
     if (impl_->port < 0) Fail("serve: cannot listen on {}", impl_->host);
   } else if (!impl_->http.bind_to_port(impl_->host, impl_->port)) {
     Fail("serve: cannot listen on {}:{}", impl_->host, impl_->port);
+  }
+  if (impl_->listen_socket != INVALID_SOCKET && ::listen(impl_->listen_socket, SOMAXCONN) != 0) {
+    Fail("serve: cannot raise the listen backlog ({})", std::strerror(errno));
   }
   return impl_->port;
 }
