@@ -22,8 +22,11 @@ packages=(
   # extractor) and an offline `pip install` into a virtual environment
   python3 python3-dev python3-venv python3-setuptools python3-wheel pybind11-dev python3-numpy
   python3-pytest python3-opencv
+  chromium  # web: the console's browser test (headless, driven by playwright-core from npm)
   "$@"
 )
+# Node.js and npm for the console (the machine's own when present: Debian 12's is 18, enough).
+command -v npm >/dev/null 2>&1 || packages+=(nodejs npm)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -3,8 +3,9 @@
 # builds (Release) and runs one job.
 #   scripts/run.sh demo    the built-in synthetic demo (no data download)
 #   scripts/run.sh test    every unit and end-to-end test (CTest + GoogleTest), the Python
-#                          package (pip install into a venv, pytest), then the service behind
-#                          nginx with one server killed (scripts/fault_test.sh)
+#                          package (pip install into a venv, pytest), the console in headless
+#                          chromium (web/tests), then the service behind nginx with one server
+#                          killed (scripts/fault_test.sh)
 #   scripts/run.sh bench   the benchmarks (Google Benchmark)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -19,7 +20,8 @@ case "$job" in
   # C++ tests (library, CLI, service), the Python package installed and tested, then the
   # service behind nginx with a server killed.
   test) cmake --build build -j2 && ctest --test-dir build --output-on-failure -j2 &&
-        bash scripts/python_test.sh && bash scripts/fault_test.sh ;;
+        bash scripts/python_test.sh && bash scripts/build_web.sh &&
+        node web/tests/console.test.mjs && bash scripts/fault_test.sh ;;
   bench) cmake --build build -j2 && ./build/linecloud_bench ;;
   *) echo "error: unknown job '$job' (demo, test, bench)" >&2; exit 2 ;;
 esac

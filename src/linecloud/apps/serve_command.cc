@@ -59,6 +59,9 @@ void RegisterServeCommand(CLI::App& app) {
                   "TOKENS.json (SHA-256 of each bearer token, its maps and rate); required off "
                   "loopback");
   cmd->add_option("--threads", o->threads, "Localization workers")->capture_default_str();
+  cmd->add_option("--web", o->web_dir,
+                  "The console's files (default: web/ beside the executable, or the installed "
+                  "share/linecloud/web)");
   cmd->add_option("--connections", o->connections,
                   "Connections served at once (a thread each; more wait unread)")
       ->capture_default_str();

@@ -1,6 +1,8 @@
 #include "linecloud/geometry/plucker.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace linecloud {
 
@@ -50,6 +52,27 @@ bool ClosestPoints(const PluckerLine& a, const PluckerLine& b, Eigen::Vector3d* 
   const double t = (db - c * da) / denom;
   *point_on_a = pa + s * a.v;
   *point_on_b = pb + t * b.v;
+  return true;
+}
+
+bool ClipToBox(const PluckerLine& line, const Eigen::Vector3d& min, const Eigen::Vector3d& max,
+               Eigen::Vector3d* from, Eigen::Vector3d* to) {
+  // Points a + t v with a the anchor: t within every axis' slab.
+  const Eigen::Vector3d a = line.Anchor();
+  double t0 = -std::numeric_limits<double>::infinity(), t1 = -t0;
+  for (int k = 0; k < 3; ++k) {
+    if (std::abs(line.v[k]) < 1e-300) {
+      if (a[k] < min[k] || a[k] > max[k]) return false;
+      continue;
+    }
+    double lo = (min[k] - a[k]) / line.v[k], hi = (max[k] - a[k]) / line.v[k];
+    if (lo > hi) std::swap(lo, hi);
+    t0 = std::max(t0, lo);
+    t1 = std::min(t1, hi);
+  }
+  if (!(t0 <= t1)) return false;
+  *from = a + t0 * line.v;
+  *to = a + t1 * line.v;
   return true;
 }
 

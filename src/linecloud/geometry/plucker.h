@@ -58,4 +58,9 @@ double LineLineDistance(const PluckerLine& a, const PluckerLine& b);
 bool ClosestPoints(const PluckerLine& a, const PluckerLine& b, Eigen::Vector3d* point_on_a,
                    Eigen::Vector3d* point_on_b);
 
+// The segment of `line` inside the axis-aligned box [min, max] (slab
+// clipping); false when the line misses the box.
+bool ClipToBox(const PluckerLine& line, const Eigen::Vector3d& min, const Eigen::Vector3d& max,
+               Eigen::Vector3d* from, Eigen::Vector3d* to);
+
 }  // namespace linecloud

@@ -89,5 +89,28 @@ TEST(PluckerLine, LineLineDistanceMatchesClosestPoints) {
               5.0, 1e-14);
 }
 
+// Clipping to a box: the segment's ends lie on the line and on the box's
+// faces; a line beside the box misses it.
+TEST(Plucker, ClipToBoxGivesTheSegmentInsideTheBox) {
+  const Eigen::Vector3d min(-1, -2, -3), max(1, 2, 3);
+  const PluckerLine line =
+      PluckerLine::FromPointAndDirection({0.5, 0.5, 0.5}, Eigen::Vector3d(1, 2, 0.5));
+  Eigen::Vector3d a, b;
+  ASSERT_TRUE(ClipToBox(line, min, max, &a, &b));
+  for (const Eigen::Vector3d& p : {a, b}) {
+    EXPECT_NEAR(line.DistanceTo(p), 0, 1e-12);
+    EXPECT_TRUE((p.array() >= min.array() - 1e-12).all() &&
+                (p.array() <= max.array() + 1e-12).all());
+    EXPECT_NEAR(std::min((p - min).cwiseAbs().minCoeff(), (p - max).cwiseAbs().minCoeff()), 0,
+                1e-12);
+  }
+  // Parallel to an axis: the whole extent along it.
+  ASSERT_TRUE(
+      ClipToBox(PluckerLine::FromPointAndDirection({0, 0, 0}, {0, 0, 1}), min, max, &a, &b));
+  EXPECT_NEAR((b - a).norm(), 6, 1e-12);
+  EXPECT_FALSE(
+      ClipToBox(PluckerLine::FromPointAndDirection({5, 0, 0}, {0, 1, 0}), min, max, &a, &b));
+}
+
 }  // namespace
 }  // namespace linecloud

@@ -28,6 +28,9 @@
 #include "linecloud/testing/test_util.h"
 #include "linecloud/util/base64.h"
 #include "linecloud/util/file.h"
+#include "linecloud/io/ply.h"
+
+#include <cstring>
 
 #include <fmt/format.h>
 
@@ -213,6 +216,77 @@ TEST(Serve, ClientFeaturesGiveTheTruePoseAndOnlyThePose) {
     }
   }
   EXPECT_TRUE(logged);
+}
+
+// The console's routes: a map's info, its segments (on the lines, inside the
+// anchors' box, a prefix of one fixed order), the owner's audit and the
+// inlier keypoints for admin tokens only.
+TEST(Serve, ConsoleRoutesRevealNothingTheMapDoesNot) {
+  Fixture f;
+  const json audit = {{"density_attack", {{"recovery", {{"points", 400}}}}}};
+  WriteFileAtomically(f.tmp.Path("maps/synth.audit.json"),
+                      [&](std::ostream& os) { os << audit.dump(); });
+  Running server(f.Options());
+  httplib::Client c = server.Client();
+  auto r = c.Get("/v1/maps/synth", Bearer("alice-secret"));
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body;
+  const json info = json::parse(r->body);
+  EXPECT_EQ(info["id"], "synth");
+  EXPECT_EQ(info["num_lines"], 400);
+  EXPECT_EQ(info["descriptors"]["dim"], 128);
+  EXPECT_EQ(c.Get("/v1/maps/other", Bearer("alice-secret"))->status, 404);
+
+  r = c.Get("/v1/maps/synth/segments?limit=150", Bearer("alice-secret"));
+  ASSERT_EQ(r->status, 200) << r->body;
+  EXPECT_EQ(r->get_header_value("X-Linecloud-Lines"), "400");
+  EXPECT_EQ(r->get_header_value("X-Linecloud-Segments"), "150");
+  ASSERT_EQ(r->body.size(), 150 * 6 * sizeof(float));
+  std::vector<float> seg(150 * 6);
+  std::memcpy(seg.data(), r->body.data(), r->body.size());
+  Eigen::Vector3d min, max;
+  AnchorBoundingBox(f.scene.cloud, &min, &max);
+  for (size_t k = 0; k < 150; ++k) {
+    const Eigen::Vector3d a(seg[6 * k], seg[6 * k + 1], seg[6 * k + 2]);
+    const Eigen::Vector3d b(seg[6 * k + 3], seg[6 * k + 4], seg[6 * k + 5]);
+    // Each segment lies on one of the map's lines, inside the box.
+    double best = 1e9;
+    for (const PluckerLine& line : f.scene.cloud.lines) {
+      best = std::min(best, line.DistanceTo(a) + line.DistanceTo(b));
+    }
+    EXPECT_LT(best, 1e-4) << k;
+    for (const Eigen::Vector3d& p : {a, b}) {
+      EXPECT_TRUE((p.array() >= min.array() - 1e-4).all() &&
+                  (p.array() <= max.array() + 1e-4).all());
+    }
+  }
+  // The whole map by default here (fewer than 20 000 lines); a prefix of the same order.
+  r = c.Get("/v1/maps/synth/segments", Bearer("alice-secret"));
+  ASSERT_EQ(r->body.size(), 400 * 6 * sizeof(float));
+  EXPECT_EQ(std::memcmp(r->body.data(), seg.data(), seg.size() * sizeof(float)), 0);
+  EXPECT_EQ(c.Get("/v1/maps/synth/segments?limit=abc", Bearer("alice-secret"))->status, 400);
+  EXPECT_EQ(c.Get("/v1/maps/other/segments", Bearer("alice-secret"))->status, 404);
+
+  // The audit: the owner's only.
+  EXPECT_EQ(c.Get("/v1/maps/synth/audit", Bearer("alice-secret"))->status, 404);
+  r = c.Get("/v1/maps/synth/audit", Bearer("root-secret"));
+  ASSERT_EQ(r->status, 200);
+  EXPECT_EQ(json::parse(r->body), audit);
+  EXPECT_EQ(c.Get("/v1/maps/other/audit", Bearer("root-secret"))->status, 404);  // none there
+
+  // Inlier keypoints: the owner's answer has one per inlier, at the client's pixels.
+  const std::string body = FeaturesBody(f.scene).dump();
+  r = c.Post("/v1/maps/synth/localize", Bearer("root-secret"), body, "application/json");
+  ASSERT_EQ(r->status, 200);
+  const json owner = json::parse(r->body);
+  ASSERT_EQ(owner["inlier_keypoints"].size(), owner["num_inliers"].get<size_t>());
+  for (const json& k : owner["inlier_keypoints"]) {
+    bool found = false;
+    for (const auto& kp : f.scene.keypoints) found = found || (kp[0] == k[0] && kp[1] == k[1]);
+    EXPECT_TRUE(found) << k;
+  }
+  r = c.Post("/v1/maps/synth/localize", Bearer("alice-secret"), body, "application/json");
+  EXPECT_FALSE(json::parse(r->body).contains("inlier_keypoints"));
 }
 
 TEST(Serve, EveryDocumentedErrorStatus) {

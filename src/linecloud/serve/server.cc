@@ -18,6 +18,8 @@
 #include <iostream>
 #include <map>
 #include <mutex>
+#include <random>
+#include <numeric>
 #include <thread>
 
 #include <fmt/format.h>
@@ -25,6 +27,9 @@
 
 #include "linecloud/features/image.h"
 #include "linecloud/io/lcm_format.h"
+#include "linecloud/geometry/plucker.h"
+#include "linecloud/io/ply.h"
+#include "linecloud/io/line_cloud_info.h"
 #include "linecloud/localize/image_query.h"
 #include "linecloud/localize/query_json.h"
 #include "linecloud/pipeline/localizer.h"
@@ -183,7 +188,12 @@ class Metrics {
 struct LoadedMap {
   std::string id;
   std::unique_ptr<Localizer> localizer;
-  json info;
+  json info;     // GET /v1/maps
+  json details;  // GET /v1/maps/{id}: what `linecloud info --json` says, and the geo-anchor
+  // GET /v1/maps/{id}/segments: every line clipped to the box of the lines'
+  // anchors, x0 y0 z0 x1 y1 z1 as float32, in a fixed pseudo-random order (a
+  // prefix is a uniform subset). What the .lcm holds, nothing more.
+  std::vector<float> segments;
   std::optional<GeoAnchor> anchor;
   std::pair<uintmax_t, int64_t> stamp;  // size, mtime: unchanged files are kept on reload
 };
@@ -196,7 +206,29 @@ std::pair<uintmax_t, int64_t> FileStamp(const std::string& path) {
           static_cast<int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec};
 }
 
-json PoseJson(const LocalizerResult& r) {
+// The segments of LoadedMap::segments.
+std::vector<float> MapSegments(const LineCloud& cloud) {
+  Eigen::Vector3d min, max;
+  AnchorBoundingBox(cloud, &min, &max);
+  std::vector<size_t> order(cloud.size());
+  std::iota(order.begin(), order.end(), size_t{0});
+  std::shuffle(order.begin(), order.end(), std::mt19937_64(20261125));
+  std::vector<float> out;
+  out.reserve(6 * order.size());
+  for (const size_t i : order) {
+    Eigen::Vector3d a, b;
+    if (!ClipToBox(cloud.lines[i], min, max, &a, &b)) a = b = cloud.lines[i].Anchor();
+    for (const Eigen::Vector3d& p : {a, b}) {
+      for (int k = 0; k < 3; ++k) out.push_back(static_cast<float>(p[k]));
+    }
+  }
+  return out;
+}
+
+// The pose (cam_from_world) and its statistics; `inlier_keypoints` (the
+// inliers' pixels in the photo) only for the map's owner (an admin token):
+// with the pose and the lines they would let anyone pin the map's points.
+json PoseJson(const LocalizerResult& r, bool inlier_keypoints = false) {
   if (!r.success()) return {{"success", false}, {"reason", r.reason}};
   const Sim3d& p = r.pose.query_from_world;
   const Eigen::Vector3d c = p.Inverse().translation;
@@ -205,17 +237,39 @@ json PoseJson(const LocalizerResult& r) {
   json times = {{"decode", r.times.decode_ms}, {"extract", r.times.extract_ms},
                 {"match", r.times.match_ms},   {"ransac", r.times.ransac_ms},
                 {"refine", r.times.refine_ms}, {"total", r.times.total_ms}};
-  return {{"success", true},
-          {"q", {q.w(), q.x(), q.y(), q.z()}},
-          {"t", {p.translation.x(), p.translation.y(), p.translation.z()}},
-          {"center", {c.x(), c.y(), c.z()}},
-          {"num_matches", matches},
-          {"num_inliers", r.pose.inliers.size()},
-          {"inlier_ratio", matches ? double(r.pose.inliers.size()) / matches : 0.0},
-          {"uncertainty",
-           {{"rotation_deg", r.pose.uncertainty.rotation_deg},
-            {"position", r.pose.uncertainty.position}}},
-          {"times_ms", times}};
+  json j = {{"success", true},
+            {"q", {q.w(), q.x(), q.y(), q.z()}},
+            {"t", {p.translation.x(), p.translation.y(), p.translation.z()}},
+            {"center", {c.x(), c.y(), c.z()}},
+            {"num_matches", matches},
+            {"num_inliers", r.pose.inliers.size()},
+            {"inlier_ratio", matches ? double(r.pose.inliers.size()) / matches : 0.0},
+            {"uncertainty",
+             {{"rotation_deg", r.pose.uncertainty.rotation_deg},
+              {"position", r.pose.uncertainty.position}}},
+            {"times_ms", times}};
+  if (inlier_keypoints) {
+    json k = json::array();
+    for (const int i : r.pose.inliers) {
+      const Eigen::Vector2d& xy = r.query.observations[i].xy;
+      k.push_back({xy.x(), xy.y()});
+    }
+    j["inlier_keypoints"] = std::move(k);
+  }
+  return j;
+}
+
+// The console's files beside the executable (build tree) or installed with
+// it; empty when neither exists.
+std::string DefaultWebDir() {
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (ec) return "";
+  for (const fs::path& dir : {exe.parent_path() / "web",
+                              exe.parent_path().parent_path() / "share" / "linecloud" / "web"}) {
+    if (fs::is_regular_file(dir / "index.html", ec)) return dir.string();
+  }
+  return "";
 }
 
 bool IsLoopback(const std::string& host) {
@@ -301,6 +355,10 @@ struct Server::Impl {
                {"encoding", std::string(LineEncodingName(cloud.encoding))},
                {"gravity", cloud.gravity.has_value()},
                {"geo_anchored", m->anchor.has_value()}};
+    m->details = LineCloudInfo(cloud);
+    m->details["id"] = id;
+    if (m->anchor) m->details["geo_anchor"] = json::parse(ReadFilePrefix(anchor_path, 1 << 16));
+    m->segments = MapSegments(cloud);
     return m;
   }
 
@@ -486,7 +544,7 @@ struct Server::Impl {
                           {"ransac", r.times.ransac_ms},
                           {"total", r.times.total_ms}};
     (*log)["success"] = r.success();
-    return PoseJson(r);
+    return PoseJson(r, !token || token->admin);
   }
 
   std::function<LocalizerResult()> FeaturesJob(const std::string& body,
@@ -545,6 +603,46 @@ struct Server::Impl {
     return [map, features, camera, r] {
       return map->localizer->LocalizeFeatures(*features, camera, r);
     };
+  }
+
+  // GET /v1/maps/{id}/segments?limit=N: float32 segments (MapSegments), the
+  // first N of the map's fixed order (default 20 000).
+  std::string Segments(const httplib::Request& req, httplib::Response& res, json* log) {
+    const auto token = Authorize(req);
+    if (token) (*log)["token"] = token->id;
+    const auto map = FindMap(req.matches[1], token);
+    (*log)["map"] = map->id;
+    Throttle(token);
+    const size_t total = map->segments.size() / 6;
+    size_t limit = std::min<size_t>(total, 20000);
+    if (req.has_param("limit")) {
+      const std::string v = req.get_param_value("limit");
+      if (v.empty() || v.size() > 9 || !std::all_of(v.begin(), v.end(), ::isdigit)) {
+        Throw(400, "limit: expected a number of segments");
+      }
+      limit = std::min<size_t>(total, std::stoul(v));
+    }
+    res.set_header("X-Linecloud-Lines", std::to_string(total));
+    res.set_header("X-Linecloud-Segments", std::to_string(limit));
+    return std::string(reinterpret_cast<const char*>(map->segments.data()),
+                       limit * 6 * sizeof(float));
+  }
+
+  // GET /v1/maps/{id}/audit: the owner's audit report (DIR/ID.audit.json,
+  // `linecloud audit --out` writes it as report.json); admin tokens only.
+  json Audit(const httplib::Request& req, json* log) {
+    const auto token = Authorize(req);
+    if (token) (*log)["token"] = token->id;
+    const auto map = FindMap(req.matches[1], token);
+    (*log)["map"] = map->id;
+    if (token && !token->admin) Throw(404, "no audit for this token");
+    const std::string path = JoinPaths(options.maps_dir, map->id + ".audit.json");
+    if (!FileExists(path)) Throw(404, "no audit report next to the map (ID.audit.json)");
+    try {
+      return json::parse(ReadFilePrefix(path, 1 << 22));
+    } catch (const json::exception& e) {
+      Throw(500, fmt::format("{}: not JSON ({})", map->id + ".audit.json", e.what()));
+    }
   }
 
   // POST /geopose (OSCP GeoPose Protocol v2)
@@ -735,6 +833,28 @@ struct Server::Impl {
         return json{{"maps", list}};
       });
     });
+    http.Get(R"(/v1/maps/([^/]+))", [this](const httplib::Request& req, httplib::Response& res) {
+      Handle("/v1/maps/{id}", req, res, [&](json* log) {
+        const auto token = Authorize(req);
+        if (token) (*log)["token"] = token->id;
+        const auto map = FindMap(req.matches[1], token);
+        (*log)["map"] = map->id;
+        return map->details;
+      });
+    });
+    http.Get(R"(/v1/maps/([^/]+)/segments)",
+             [this](const httplib::Request& req, httplib::Response& res) {
+               std::string bytes;
+               Handle("/v1/maps/{id}/segments", req, res, [&](json* log) {
+                 bytes = Segments(req, res, log);
+                 return json();
+               });
+               if (res.status == 200) res.set_content(bytes, "application/octet-stream");
+             });
+    http.Get(R"(/v1/maps/([^/]+)/audit)",
+             [this](const httplib::Request& req, httplib::Response& res) {
+               Handle("/v1/maps/{id}/audit", req, res, [&](json* log) { return Audit(req, log); });
+             });
     http.Post(R"(/v1/maps/([^/]+)/localize)", [this](const httplib::Request& req,
                                                      httplib::Response& res) {
       Handle("/v1/maps/{id}/localize", req, res, [&](json* log) { return Localize(req, log); });
@@ -787,6 +907,18 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   });
   h.new_task_queue = [http_threads] { return new httplib::ThreadPool(http_threads); };
   impl_->Routes();
+  const std::string web = o.web_dir.empty() ? DefaultWebDir() : o.web_dir;
+  if (!web.empty() && fs::is_regular_file(fs::path(web) / "index.html")) {
+    h.set_mount_point("/", web);
+    // Debian's cpp-httplib compresses every text/* and application/javascript
+    // answer for a browser with brotli at its slowest quality: three.js took
+    // 4.8 s to arrive. Another of the HTML standard's JavaScript MIME types,
+    // which the library leaves uncompressed: the page loads in ~0.1 s.
+    h.set_file_extension_and_mimetype_mapping("js", "application/x-javascript");
+    impl_->Log(json{{"notice", "console at /"}, {"web", web}}.dump());
+  } else if (!o.web_dir.empty()) {
+    Fail("serve: --web {}: no index.html there (build it: bash scripts/build_web.sh)", o.web_dir);
+  }
 }
 
 Server::~Server() { Stop(); }

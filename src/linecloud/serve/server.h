@@ -33,6 +33,10 @@ struct ServeOptions {
   uint64_t max_pixels = 50'000'000;
   double request_seconds = 10;  // deadline of a localization (queue wait included)
   double read_timeout_s = 5, write_timeout_s = 5;  // a slow client's socket
+  // The console's static files (index.html, app.js, vendor/) served at `/`.
+  // Empty: `web` beside the executable (the build tree), else
+  // `../share/linecloud/web` from it (an install); none found: no console.
+  std::string web_dir;
   // Access log lines (JSON) and notices; default: standard error.
   std::function<void(const std::string&)> log;
 
