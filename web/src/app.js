@@ -220,31 +220,6 @@ window.linecloudViewPixels = () => {
   return { lit: lit / n, mean, std: Math.sqrt(sum2 / n - mean * mean) };
 };
 
-// Frames drawn per second over `ms` milliseconds (the browser test reads it).
-// Pixel statistics of the view, drawn and read in one go (the browser test
-// checks that the canvas is not blank): share of lit pixels, mean, std.
-window.linecloudViewPixels = () => {
-  const view = state.view;
-  if (!view) return null;
-  view.renderer.render(view.scene, view.camera);
-  const gl = view.renderer.domElement;
-  const c = document.createElement("canvas");
-  c.width = gl.width;
-  c.height = gl.height;
-  const ctx = c.getContext("2d");
-  ctx.drawImage(gl, 0, 0);
-  const d = ctx.getImageData(0, 0, c.width, c.height).data;
-  let lit = 0, sum = 0, sum2 = 0;
-  for (let i = 0; i < d.length; i += 4) {
-    const v = d[i] + d[i + 1] + d[i + 2];
-    lit += v > 30 ? 1 : 0;
-    sum += v;
-    sum2 += v * v;
-  }
-  const n = d.length / 4, mean = sum / n;
-  return { lit: lit / n, mean, std: Math.sqrt(sum2 / n - mean * mean) };
-};
-
 // Frames drawn per second over `ms` milliseconds of continuous drawing while
 // the view turns (the browser test reads it).
 window.linecloudFps = async (ms = 2000) => {
