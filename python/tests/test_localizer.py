@@ -30,6 +30,23 @@ def test_localize_query_equals_the_cli(demo):
             assert rotation_error_deg(ours["q"], truth["q"]) < 1.0
 
 
+def test_a_rig_query_equals_the_cli(demo):
+    """Three cameras of a rig as one generalized camera (m-p6L), as `localize` does it."""
+    localizer = lc.Localizer(demo / "map.lcm")
+    rig_path = sorted((demo / "rig_queries").glob("*.json"))[0]
+    query = json.loads(rig_path.read_text())
+    assert len(query["cameras"]) > 1
+    ours = localizer.localize_query(query, method="m-p6L")
+    cli = json.loads(run_cli("localize", "--map", demo / "map.lcm", "--query", rig_path,
+                             "--method", "m-p6L", "--quiet"))
+    assert ours["success"] and cli["success"]
+    np.testing.assert_allclose(ours["q"], cli["q"], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ours["t"], cli["t"], rtol=0, atol=1e-12)
+    truth = query["ground_truth"]
+    truth = truth.get("rig_from_world", truth.get("cam_from_world"))
+    assert rotation_error_deg(ours["q"], truth["q"]) < 1.0
+
+
 def test_result_dict_has_the_documented_keys(demo):
     query = json.loads(sorted((demo / "queries").glob("*.json"))[0].read_text())
     r = lc.Localizer(demo / "map.lcm").localize_query(query)

@@ -544,7 +544,7 @@ struct Server::Impl {
                           {"ransac", r.times.ransac_ms},
                           {"total", r.times.total_ms}};
     (*log)["success"] = r.success();
-    return PoseJson(r, !token || token->admin);
+    return PoseJson(r, token && token->admin);
   }
 
   std::function<LocalizerResult()> FeaturesJob(const std::string& body,
