@@ -112,9 +112,38 @@ async function loadAudit(id) {
       row.insertCell().textContent = `${(100 * share).toFixed(1)} %`;
     }
     $("audit").hidden = false;
+    await loadRecoveredPoints(id);
   } catch (e) {
     if (e.status !== 404) setStatus(`Audit: ${e.message}`, true);
   }
+}
+
+// The points the audit's attack recovered, coloured by their error (the
+// audit's colours), beside the lines.
+async function loadRecoveredPoints(id) {
+  const view = state.view;
+  if (view?.recovered) {
+    view.scene.remove(view.recovered);
+    view.recovered = null;
+  }
+  $("audit-points-count").textContent = "";
+  let answer;
+  try {
+    answer = await api(`/v1/maps/${encodeURIComponent(id)}/audit/points`, { binary: true });
+  } catch (e) {
+    if (e.status === 404) return;
+    throw e;
+  }
+  const n = Number(answer.headers.get("X-Linecloud-Points"));
+  $("audit-points-count").textContent = `${n.toLocaleString("en")} points recovered by the attack`;
+  if (!view) return;
+  const geometry = new THREE.BufferGeometry();
+  geometry.setAttribute("position", new THREE.BufferAttribute(new Float32Array(answer.bytes, 0, 3 * n), 3));
+  geometry.setAttribute("color", new THREE.BufferAttribute(new Uint8Array(answer.bytes, 12 * n, 3 * n), 3, true));
+  view.recovered = new THREE.Points(geometry, new THREE.PointsMaterial({ size: 4, sizeAttenuation: false, vertexColors: true, depthTest: false }));
+  view.recovered.visible = $("show-recovered").checked;
+  view.scene.add(view.recovered);
+  view.dirty = true;
 }
 
 // ---- the 3D view ----------------------------------------------------------
@@ -359,6 +388,12 @@ drop.addEventListener("drop", (ev) => {
   localize(ev.dataTransfer.files[0]);
 });
 drop.addEventListener("keydown", (ev) => { if (ev.key === "Enter" || ev.key === " ") $("photo").click(); });
+$("show-recovered").addEventListener("change", () => {
+  if (state.view?.recovered) {
+    state.view.recovered.visible = $("show-recovered").checked;
+    state.view.dirty = true;
+  }
+});
 fillRecentCameras();
 $("token").value = state.token;
 if (!webglAvailable()) $("webgl-missing").hidden = false;

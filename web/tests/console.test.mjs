@@ -42,6 +42,7 @@ run(["lift", "--model", `${work}/groups/g00/map`, "--database", `${work}/colmap/
 run(["audit", "--map", `${tmp}/maps/fountain.lcm`, "--model", `${work}/groups/g00/map`,
      "--out", `${tmp}/audit`, "--quiet"]);
 copyFileSync(`${tmp}/audit/report.json`, `${tmp}/maps/fountain.audit.json`);
+copyFileSync(`${tmp}/audit/recovered.ply`, `${tmp}/maps/fountain.audit.ply`);
 execFileSync("/usr/bin/python3", ["-c", `
 import numpy as np, linecloud as lc
 rng = np.random.default_rng(1)
@@ -105,6 +106,7 @@ try {
   await page.click('#maps button[data-map="fountain"]');
   await page.waitForFunction(() => /lines shown/.test(document.querySelector("#view-count").textContent));
   await page.waitForSelector("#audit:not([hidden])");
+  await page.waitForFunction(() => /12,827 points recovered/.test(document.querySelector("#audit-points-count").textContent));
   await page.waitForTimeout(500);
   const pixels = await page.evaluate(() => window.linecloudViewPixels());
   results.view_pixels = pixels;
@@ -141,8 +143,10 @@ try {
                                       { method: "POST", body: readerForm, headers: { Authorization: `Bearer ${reader}` } })).json();
   assert.deepEqual(asReader.q, api.q);
   assert.equal(asReader.inlier_keypoints, undefined);
-  const audit = await fetch(`${base}/v1/maps/fountain/audit`, { headers: { Authorization: `Bearer ${reader}` } });
-  assert.equal(audit.status, 404);
+  for (const route of ["audit", "audit/points"]) {
+    const audit = await fetch(`${base}/v1/maps/fountain/${route}`, { headers: { Authorization: `Bearer ${reader}` } });
+    assert.equal(audit.status, 404, route);
+  }
   const segs = await fetch(`${base}/v1/maps/big/segments?limit=10`, { headers: { Authorization: `Bearer ${reader}` } });
   assert.equal(segs.status, 404, "a map this token may not use does not exist for it");
 

@@ -1,5 +1,12 @@
 #include "linecloud/io/ply.h"
 
+#include <bit>
+#include <cmath>
+
+#include <sstream>
+
+#include <cstring>
+
 #include <array>
 #include <ostream>
 #include <utility>
@@ -72,6 +79,54 @@ void WritePointsPly(const std::string& path, const std::vector<Eigen::Vector3d>&
       if (!colors.empty()) out.write(reinterpret_cast<const char*>(colors[i].data()), 3);
     }
   });
+}
+
+void ReadColoredPointsPly(const std::string& path, size_t max_points, std::vector<float>* xyz,
+                          std::vector<uint8_t>* rgb) {
+  const std::string data = ReadFileToString(path);
+  const size_t end = data.find("end_header\n");
+  if (data.rfind("ply\nformat binary_little_endian 1.0\n", 0) != 0 || end == std::string::npos) {
+    Fail("{}: not a binary little-endian PLY file", path);
+  }
+  std::istringstream header(data.substr(0, end));
+  std::string line, properties;
+  size_t n = 0;
+  bool counted = false;
+  while (std::getline(header, line)) {
+    if (line.rfind("element vertex ", 0) == 0) {
+      const std::string count = line.substr(15);
+      if (count.empty() || count.size() > 12 ||
+          count.find_first_not_of("0123456789") != std::string::npos) {
+        Fail("{}: bad vertex count", path);
+      }
+      n = std::stoull(count);
+      counted = true;
+    } else if (line.rfind("property ", 0) == 0) {
+      properties += line + "\n";
+    } else if (line.rfind("element ", 0) == 0) {
+      Fail("{}: only vertices expected", path);
+    }
+  }
+  if (!counted || properties !=
+                      "property float x\nproperty float y\nproperty float z\n"
+                      "property uchar red\nproperty uchar green\nproperty uchar blue\n") {
+    Fail("{}: expected vertices of float x, y, z and uchar red, green, blue", path);
+  }
+  if (n > max_points) Fail("{}: {} points, more than {}", path, n, max_points);
+  const size_t body = end + 11;
+  if (data.size() - body != n * 15) {
+    Fail("{}: {} bytes of vertices, {} points need {}", path, data.size() - body, n, n * 15);
+  }
+  xyz->resize(3 * n);
+  rgb->resize(3 * n);
+  for (size_t i = 0; i < n; ++i) {
+    static_assert(std::endian::native == std::endian::little, "PLY floats are read as stored");
+    std::memcpy(xyz->data() + 3 * i, data.data() + body + 15 * i, 12);
+    std::memcpy(rgb->data() + 3 * i, data.data() + body + 15 * i + 12, 3);
+    for (int k = 0; k < 3; ++k) {
+      if (!std::isfinite((*xyz)[3 * i + k])) Fail("{}: point {} is not finite", path, i);
+    }
+  }
 }
 
 void WriteModelPly(const Reconstruction& rec, const std::string& path) {

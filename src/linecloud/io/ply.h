@@ -25,6 +25,13 @@ void WriteModelPly(const Reconstruction& reconstruction, const std::string& path
 void WritePointsPly(const std::string& path, const std::vector<Eigen::Vector3d>& points,
                     const std::vector<std::array<uint8_t, 3>>& colors, const std::string& comment);
 
+// Reads back what WritePointsPly wrote with colours (binary little-endian,
+// float x y z, uchar red green blue): xyz N x 3, rgb N x 3. Throws Error
+// naming `path` for anything else, a truncated file or more than
+// `max_points` points.
+void ReadColoredPointsPly(const std::string& path, size_t max_points, std::vector<float>* xyz,
+                          std::vector<uint8_t>* rgb);
+
 // A localized camera to draw: its frustum (centre and the rays through the
 // image corners, cut at `depth` world units) in world coordinates.
 struct PlyCamera {

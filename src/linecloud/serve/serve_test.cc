@@ -273,6 +273,26 @@ TEST(Serve, ConsoleRoutesRevealNothingTheMapDoesNot) {
   ASSERT_EQ(r->status, 200);
   EXPECT_EQ(json::parse(r->body), audit);
   EXPECT_EQ(c.Get("/v1/maps/other/audit", Bearer("root-secret"))->status, 404);  // none there
+  // The recovered points (the audit's recovered.ply), coloured: read back exactly.
+  const std::vector<Eigen::Vector3d> points = {{1, 2, 3}, {-4.5, 0.25, 8}};
+  WritePointsPly(f.tmp.Path("maps/synth.audit.ply"), points, {{{0, 255, 0}}, {{255, 0, 0}}},
+                 "test");
+  EXPECT_EQ(c.Get("/v1/maps/synth/audit/points", Bearer("alice-secret"))->status, 404);
+  r = c.Get("/v1/maps/synth/audit/points", Bearer("root-secret"));
+  ASSERT_EQ(r->status, 200) << r->body;
+  EXPECT_EQ(r->get_header_value("X-Linecloud-Points"), "2");
+  ASSERT_EQ(r->body.size(), 2 * 12 + 2 * 3);
+  float xyz[6];
+  std::memcpy(xyz, r->body.data(), sizeof(xyz));
+  EXPECT_EQ(std::vector<float>(xyz, xyz + 6), (std::vector<float>{1, 2, 3, -4.5f, 0.25f, 8}));
+  EXPECT_EQ(r->body.substr(24), std::string("\x00\xff\x00\xff\x00\x00", 6));
+  // A truncated file is an error naming it, not a crash.
+  const std::string ply = ReadFileToString(f.tmp.Path("maps/synth.audit.ply"));
+  WriteFileAtomically(f.tmp.Path("maps/synth.audit.ply"),
+                      [&](std::ostream& os) { os << ply.substr(0, ply.size() - 1); });
+  r = c.Get("/v1/maps/synth/audit/points", Bearer("root-secret"));
+  EXPECT_EQ(r->status, 500);
+  EXPECT_NE(r->body.find("synth.audit.ply"), std::string::npos) << r->body;
 
   // Inlier keypoints: the owner's answer has one per inlier, at the client's pixels.
   const std::string body = FeaturesBody(f.scene).dump();

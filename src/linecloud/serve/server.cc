@@ -645,6 +645,31 @@ struct Server::Impl {
     }
   }
 
+  // GET /v1/maps/{id}/audit/points: the points the audit's attack recovered
+  // (DIR/ID.audit.ply, the recovered.ply of `linecloud audit --out`), coloured
+  // by error; admin tokens only. N x 3 float32 then N x 3 uint8.
+  std::string AuditPoints(const httplib::Request& req, httplib::Response& res, json* log) {
+    const auto token = Authorize(req);
+    if (token) (*log)["token"] = token->id;
+    const auto map = FindMap(req.matches[1], token);
+    (*log)["map"] = map->id;
+    if (token && !token->admin) Throw(404, "no audit for this token");
+    const std::string path = JoinPaths(options.maps_dir, map->id + ".audit.ply");
+    if (!FileExists(path)) Throw(404, "no recovered points next to the map (ID.audit.ply)");
+    std::vector<float> xyz;
+    std::vector<uint8_t> rgb;
+    try {
+      ReadColoredPointsPly(path, 10'000'000, &xyz, &rgb);
+    } catch (const Error& e) {
+      Throw(500, fmt::format("{}.audit.ply: {}", map->id,
+                             e.what()));  // the server's file, not the request
+    }
+    res.set_header("X-Linecloud-Points", std::to_string(xyz.size() / 3));
+    std::string body(reinterpret_cast<const char*>(xyz.data()), xyz.size() * sizeof(float));
+    body.append(reinterpret_cast<const char*>(rgb.data()), rgb.size());
+    return body;
+  }
+
   // POST /geopose (OSCP GeoPose Protocol v2)
   json GeoPoseRoute(const httplib::Request& req, json* log) {
     const auto token = Authorize(req);
@@ -847,6 +872,15 @@ struct Server::Impl {
                std::string bytes;
                Handle("/v1/maps/{id}/segments", req, res, [&](json* log) {
                  bytes = Segments(req, res, log);
+                 return json();
+               });
+               if (res.status == 200) res.set_content(bytes, "application/octet-stream");
+             });
+    http.Get(R"(/v1/maps/([^/]+)/audit/points)",
+             [this](const httplib::Request& req, httplib::Response& res) {
+               std::string bytes;
+               Handle("/v1/maps/{id}/audit/points", req, res, [&](json* log) {
+                 bytes = AuditPoints(req, res, log);
                  return json();
                });
                if (res.status == 200) res.set_content(bytes, "application/octet-stream");
