@@ -826,6 +826,19 @@ struct Server::Impl {
     Log(log.dump());
   }
 
+  // A GET route answering bytes (application/octet-stream), errors as JSON.
+  using BytesRoute = std::string (Impl::*)(const httplib::Request&, httplib::Response&, json*);
+  void GetBytes(const std::string& pattern, const std::string& route, BytesRoute answer) {
+    http.Get(pattern, [this, route, answer](const httplib::Request& req, httplib::Response& res) {
+      std::string bytes;
+      Handle(route, req, res, [&](json* log) {
+        bytes = (this->*answer)(req, res, log);
+        return json();
+      });
+      if (res.status == 200) res.set_content(bytes, "application/octet-stream");
+    });
+  }
+
   void Routes() {
     http.Get("/healthz", [this](const httplib::Request& req, httplib::Response& res) {
       Handle("/healthz", req, res, [](json*) { return json{{"status", "ok"}}; });
@@ -867,24 +880,8 @@ struct Server::Impl {
         return map->details;
       });
     });
-    http.Get(R"(/v1/maps/([^/]+)/segments)",
-             [this](const httplib::Request& req, httplib::Response& res) {
-               std::string bytes;
-               Handle("/v1/maps/{id}/segments", req, res, [&](json* log) {
-                 bytes = Segments(req, res, log);
-                 return json();
-               });
-               if (res.status == 200) res.set_content(bytes, "application/octet-stream");
-             });
-    http.Get(R"(/v1/maps/([^/]+)/audit/points)",
-             [this](const httplib::Request& req, httplib::Response& res) {
-               std::string bytes;
-               Handle("/v1/maps/{id}/audit/points", req, res, [&](json* log) {
-                 bytes = AuditPoints(req, res, log);
-                 return json();
-               });
-               if (res.status == 200) res.set_content(bytes, "application/octet-stream");
-             });
+    GetBytes(R"(/v1/maps/([^/]+)/segments)", "/v1/maps/{id}/segments", &Impl::Segments);
+    GetBytes(R"(/v1/maps/([^/]+)/audit/points)", "/v1/maps/{id}/audit/points", &Impl::AuditPoints);
     http.Get(R"(/v1/maps/([^/]+)/audit)",
              [this](const httplib::Request& req, httplib::Response& res) {
                Handle("/v1/maps/{id}/audit", req, res, [&](json* log) { return Audit(req, log); });
