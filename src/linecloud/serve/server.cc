@@ -605,13 +605,29 @@ struct Server::Impl {
     };
   }
 
+  // A map route's caller and map (401 / 404 as Authorize and FindMap), logged.
+  std::pair<std::optional<TokenEntry>, std::shared_ptr<const LoadedMap>> RequestMap(
+      const httplib::Request& req, json* log) const {
+    const auto token = Authorize(req);
+    if (token) (*log)["token"] = token->id;
+    auto map = FindMap(req.matches[1], token);
+    (*log)["map"] = map->id;
+    return {token, std::move(map)};
+  }
+
+  // The owner's file `ID + suffix` beside the map: admin tokens only, 404 when absent.
+  std::string OwnerFile(const std::optional<TokenEntry>& token, const LoadedMap& map,
+                        const std::string& suffix) const {
+    if (token && !token->admin) Throw(404, "no audit for this token");
+    const std::string path = JoinPaths(options.maps_dir, map.id + suffix);
+    if (!FileExists(path)) Throw(404, fmt::format("no {} next to the map", "ID" + suffix));
+    return path;
+  }
+
   // GET /v1/maps/{id}/segments?limit=N: float32 segments (MapSegments), the
   // first N of the map's fixed order (default 20 000).
   std::string Segments(const httplib::Request& req, httplib::Response& res, json* log) {
-    const auto token = Authorize(req);
-    if (token) (*log)["token"] = token->id;
-    const auto map = FindMap(req.matches[1], token);
-    (*log)["map"] = map->id;
+    const auto [token, map] = RequestMap(req, log);
     Throttle(token);
     const size_t total = map->segments.size() / 6;
     size_t limit = std::min<size_t>(total, 20000);
@@ -631,13 +647,8 @@ struct Server::Impl {
   // GET /v1/maps/{id}/audit: the owner's audit report (DIR/ID.audit.json,
   // `linecloud audit --out` writes it as report.json); admin tokens only.
   json Audit(const httplib::Request& req, json* log) {
-    const auto token = Authorize(req);
-    if (token) (*log)["token"] = token->id;
-    const auto map = FindMap(req.matches[1], token);
-    (*log)["map"] = map->id;
-    if (token && !token->admin) Throw(404, "no audit for this token");
-    const std::string path = JoinPaths(options.maps_dir, map->id + ".audit.json");
-    if (!FileExists(path)) Throw(404, "no audit report next to the map (ID.audit.json)");
+    const auto [token, map] = RequestMap(req, log);
+    const std::string path = OwnerFile(token, *map, ".audit.json");
     try {
       return json::parse(ReadFilePrefix(path, 1 << 22));
     } catch (const json::exception& e) {
@@ -649,13 +660,8 @@ struct Server::Impl {
   // (DIR/ID.audit.ply, the recovered.ply of `linecloud audit --out`), coloured
   // by error; admin tokens only. N x 3 float32 then N x 3 uint8.
   std::string AuditPoints(const httplib::Request& req, httplib::Response& res, json* log) {
-    const auto token = Authorize(req);
-    if (token) (*log)["token"] = token->id;
-    const auto map = FindMap(req.matches[1], token);
-    (*log)["map"] = map->id;
-    if (token && !token->admin) Throw(404, "no audit for this token");
-    const std::string path = JoinPaths(options.maps_dir, map->id + ".audit.ply");
-    if (!FileExists(path)) Throw(404, "no recovered points next to the map (ID.audit.ply)");
+    const auto [token, map] = RequestMap(req, log);
+    const std::string path = OwnerFile(token, *map, ".audit.ply");
     std::vector<float> xyz;
     std::vector<uint8_t> rgb;
     try {
@@ -872,13 +878,8 @@ struct Server::Impl {
       });
     });
     http.Get(R"(/v1/maps/([^/]+))", [this](const httplib::Request& req, httplib::Response& res) {
-      Handle("/v1/maps/{id}", req, res, [&](json* log) {
-        const auto token = Authorize(req);
-        if (token) (*log)["token"] = token->id;
-        const auto map = FindMap(req.matches[1], token);
-        (*log)["map"] = map->id;
-        return map->details;
-      });
+      Handle("/v1/maps/{id}", req, res,
+             [&](json* log) { return RequestMap(req, log).second->details; });
     });
     GetBytes(R"(/v1/maps/([^/]+)/segments)", "/v1/maps/{id}/segments", &Impl::Segments);
     GetBytes(R"(/v1/maps/([^/]+)/audit/points)", "/v1/maps/{id}/audit/points", &Impl::AuditPoints);
