@@ -10,7 +10,9 @@ extern "C" {
 #include <memory>
 
 #include "linecloud/features/sift_opencv.h"
+#include "linecloud/features/sift_scale_space.h"
 #include "linecloud/util/error.h"
+#include "linecloud/util/parallel.h"
 
 namespace linecloud {
 namespace {
@@ -20,6 +22,31 @@ namespace {
 void VlFeatToUbc(const float* in, float* out) {
   for (int cell = 0; cell < 16; ++cell) {
     for (int k = 0; k < 8; ++k) out[8 * cell + (8 - k) % 8] = in[8 * cell + k];
+  }
+}
+
+// A keypoint's orientations (VLFeat's first local maxima, at most the
+// options' count) and a descriptor in COLMAP's bytes for each.
+struct Oriented {
+  int count = 0;
+  double angles[4] = {};
+  std::array<std::array<uint8_t, 128>, 4> descriptors;
+};
+
+// Reads the filter only once its gradients are up to date: any thread.
+// `own`: our descriptor (DescribeKeypoint, the same bits) instead of VLFeat's.
+void Orient(VlSiftFilt* f, const VlSiftKeypoint& k, int max_orientations, bool own, Oriented* out) {
+  const int found = vl_sift_calc_keypoint_orientations(f, out->angles, &k);
+  out->count = std::min(found, max_orientations);
+  std::array<float, 128> raw, ubc;
+  for (int o = 0; o < out->count; ++o) {
+    if (own) {
+      DescribeKeypoint(f, k, out->angles[o], raw.data());
+    } else {
+      vl_sift_calc_keypoint_descriptor(f, raw.data(), &k, out->angles[o]);
+    }
+    VlFeatToUbc(raw.data(), ubc.data());
+    RootSiftBytes(ubc.data(), out->descriptors[o].data());
   }
 }
 
@@ -71,6 +98,7 @@ void SiftOptions::Check() const {
   if (max_num_orientations < 1 || max_num_orientations > 4) {
     Fail("SIFT max_num_orientations must be 1 to 4, got {}", max_num_orientations);
   }
+  if (threads < 1) Fail("SIFT threads must be at least 1, got {}", threads);
 }
 
 SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& options) {
@@ -82,6 +110,10 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
   const float scale_x = static_cast<float>(input.width) / image.width;
   const float scale_y = static_cast<float>(input.height) / image.height;
 
+  if (std::min(image.width, image.height) >> (options.first_octave + options.num_octaves - 1) < 2) {
+    Fail("image of {}x{} pixels is too small for {} SIFT octaves", image.width, image.height,
+         options.num_octaves);
+  }
   std::unique_ptr<VlSiftFilt, void (*)(VlSiftFilt*)> sift(
       vl_sift_new(image.width, image.height, options.num_octaves, options.octave_resolution,
                   options.first_octave),
@@ -89,17 +121,30 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
   if (!sift) Fail("VLFeat could not set up SIFT for a {}x{} image", image.width, image.height);
   vl_sift_set_peak_thresh(sift.get(), options.peak_threshold);
   vl_sift_set_edge_thresh(sift.get(), options.edge_threshold);
+  VlSiftFilt* f = sift.get();
 
   std::vector<float> pixels(image.pixels.size());
   for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = image.pixels[i] / 255.0f;
 
+  // VLFeat's own scale space computes the gradients lazily inside the first
+  // orientation call, so it runs on one thread; it alone takes first octaves
+  // below -1 (sift_scale_space.h).
+  const bool own = !options.vlfeat_scale_space && options.first_octave >= -1;
+  const int threads = own ? options.threads : 1;
   std::vector<LevelFeatures> levels;  // one entry per DoG level with detections
-  std::array<float, 128> raw, ubc;
-  for (int err = vl_sift_process_first_octave(sift.get(), pixels.data()); err != VL_ERR_EOF;
-       err = vl_sift_process_next_octave(sift.get())) {
-    vl_sift_detect(sift.get());
-    const VlSiftKeypoint* keypoints = vl_sift_get_keypoints(sift.get());
-    const int n = vl_sift_get_nkeypoints(sift.get());
+  std::vector<Oriented> oriented;
+  for (bool more = own ? ProcessFirstOctave(f, pixels.data(), threads)
+                       : vl_sift_process_first_octave(f, pixels.data()) != VL_ERR_EOF;
+       more;
+       more = own ? ProcessNextOctave(f, threads) : vl_sift_process_next_octave(f) != VL_ERR_EOF) {
+    vl_sift_detect(f);
+    if (own) UpdateGradients(f, threads);
+    const VlSiftKeypoint* keypoints = vl_sift_get_keypoints(f);
+    const int n = vl_sift_get_nkeypoints(f);
+    oriented.assign(n, {});
+    ParallelFor(n, threads, [&](size_t i, int) {
+      Orient(f, keypoints[i], options.max_num_orientations, own, &oriented[i]);
+    });
     int previous_level = -1;
     for (int i = 0; i < n; ++i) {
       const VlSiftKeypoint& k = keypoints[i];
@@ -107,15 +152,12 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
       previous_level = k.is;
       LevelFeatures& level = levels.back();
       ++level.detections;
-      double angles[4];
-      const int found = vl_sift_calc_keypoint_orientations(sift.get(), angles, &k);
-      for (int o = 0; o < std::min(found, options.max_num_orientations); ++o) {
+      const Oriented& o = oriented[i];
+      for (int j = 0; j < o.count; ++j) {
         level.keypoints.push_back({(k.x + 0.5f) * scale_x, (k.y + 0.5f) * scale_y,
-                                   k.sigma * scale_x, static_cast<float>(angles[o])});
-        vl_sift_calc_keypoint_descriptor(sift.get(), raw.data(), &k, angles[o]);
-        VlFeatToUbc(raw.data(), ubc.data());
-        level.descriptors.resize(level.descriptors.size() + 128);
-        RootSiftBytes(ubc.data(), level.descriptors.data() + level.descriptors.size() - 128);
+                                   k.sigma * scale_x, static_cast<float>(o.angles[j])});
+        level.descriptors.insert(level.descriptors.end(), o.descriptors[j].begin(),
+                                 o.descriptors[j].end());
       }
     }
   }

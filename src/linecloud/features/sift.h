@@ -11,7 +11,10 @@
 //   - descriptors reordered from VLFeat's bin order to the UBC / SiftGPU
 //     order, L1-normalised, square-rooted (RootSIFT), scaled by 512, rounded
 //     and clamped to bytes.
-// A faster extractor, OpenCV's SIFT (Lowe's detector and descriptor, OpenCV
+// The scale space and gradients that VLFeat computes on one scalar thread are
+// computed here to the same bits, vectorised and threaded (sift_scale_space.h);
+// VLFeat's detector, orientations and descriptors run on them.
+// Another extractor, OpenCV's SIFT (Lowe's detector and descriptor, OpenCV
 // 4.6 from Debian: SIMD, threaded), gives descriptors in the same layout and
 // normalisation (sift_opencv.h); `SiftOptions::extractor` chooses.
 #pragma once
@@ -43,6 +46,14 @@ struct SiftOptions {
   double peak_threshold = 0.02 / 3;
   double edge_threshold = 10.0;
   int max_num_orientations = 2;
+  // The colmap extractor's threads (rows of the scale space, keypoints'
+  // descriptors); the same features on any count. OpenCV's extractor uses
+  // its process-wide pool instead (SetOpenCVThreads).
+  int threads = 1;
+  // The colmap extractor with VLFeat's own scale space and gradients (one
+  // thread, ~2x slower, the same features): the reference of tests and
+  // benchmarks (sift_scale_space.h).
+  bool vlfeat_scale_space = false;
 
   void Check() const;
 };

@@ -114,7 +114,9 @@ void ExtractImageFeatures(const GreyImage& image, const std::string& name,
         fmt::format("extracting SIFT from {} ({}x{})", name, image.width, image.height));
   }
   const auto start = Clock::now();
-  q->features = ExtractSift(image, options.sift);
+  SiftOptions sift = options.sift;
+  sift.threads = options.threads;  // the colmap extractor's; OpenCV's pool is process-wide
+  q->features = ExtractSift(image, sift);
   q->times.extract_ms = MsSince(start);
 }
 

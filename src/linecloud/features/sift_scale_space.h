@@ -1,0 +1,59 @@
+// VLFeat's SIFT scale space computed faster, to the same bits: the Gaussian
+// octaves (the doubled image, the smoothing of each level, the halving to the
+// next octave) and the gradient images (modulus and angle) that VLFeat's
+// `vl_sift_process_first_octave`, `vl_sift_process_next_octave` and its
+// internal gradient update compute. They fill the same buffers of a
+// `VlSiftFilt`, so VLFeat's own detector (`vl_sift_detect`), orientations and
+// descriptors then run on them unchanged.
+//
+// VLFeat (0.9.21, Debian's build) smooths with a scalar column filter that
+// takes 60 % of COLMAP's CPU extraction; here each output pixel gets the same
+// float operations in the same order (products and sums rounded one by one,
+// taps in ascending order, borders continued), vectorised across pixels and
+// split over threads by rows. Contracting a product and a sum into one fused
+// operation would change the bits: this file is compiled with
+// -ffp-contract=off. The tests compare every pixel of every level with
+// VLFeat's (sift_scale_space_test.cc).
+#pragma once
+
+#include <vector>
+
+typedef struct _VlSiftFilt VlSiftFilt;
+typedef struct _VlSiftKeypoint VlSiftKeypoint;
+
+namespace linecloud {
+
+// VLFeat's Gaussian filter of standard deviation `sigma`: 2W + 1 taps,
+// W = max(ceil(4 sigma), 1), normalised to sum 1 in float.
+std::vector<float> VlFeatGaussianFilter(double sigma);
+
+// `out` = `in` (width x height, row-major) smoothed by the separable filter
+// `filter` (odd length, symmetric), columns first, borders continued: VLFeat's
+// `_vl_sift_smooth`. `in` and `out` must not overlap.
+void SmoothGaussian(const float* in, float* out, int width, int height,
+                    const std::vector<float>& filter, int threads);
+
+// The first octave of `image` (the filter's width x height, values in
+// [0, 1]) into `sift`'s octave buffer, as `vl_sift_process_first_octave`.
+// Returns false when the filter has no octave. First octaves below -1 are
+// refused: VLFeat's second doubling reads non-square images with the sides
+// swapped, which this does not reproduce (ExtractSiftColmap leaves them to
+// VLFeat).
+bool ProcessFirstOctave(VlSiftFilt* sift, const float* image, int threads);
+// The next octave, as `vl_sift_process_next_octave`; false after the last.
+bool ProcessNextOctave(VlSiftFilt* sift, int threads);
+// The current octave's gradient images, as VLFeat computes them on its first
+// orientation or descriptor call; afterwards VLFeat's orientation and
+// descriptor calls of this octave only read the filter (any thread).
+void UpdateGradients(VlSiftFilt* sift, int threads);
+
+// Keypoint `k`'s descriptor at orientation `angle` (radians) from the current
+// octave's gradients, in VLFeat's bin order: `vl_sift_calc_keypoint_descriptor`
+// to the bit, ~4x faster — the same float and double operations sample by
+// sample, but the samples whose weight falls outside the 4 x 4 grid (half of
+// VLFeat's square window) skipped before their weight is computed. All zero
+// where VLFeat leaves the output untouched (a keypoint outside the octave).
+void DescribeKeypoint(const VlSiftFilt* sift, const VlSiftKeypoint& k, double angle,
+                      float* descriptor);
+
+}  // namespace linecloud
