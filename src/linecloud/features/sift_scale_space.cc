@@ -9,6 +9,7 @@ extern "C" {
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <utility>
 
 #include "linecloud/util/error.h"
 #include "linecloud/util/multiversion.h"
@@ -124,6 +125,8 @@ float FastSqrtZeroBelow() {
 typedef int32_t Ints8 __attribute__((vector_size(32), aligned(4)));
 typedef double Doubles8 __attribute__((vector_size(64), aligned(8)));
 
+constexpr int32_t kMagnitudeBits = 0x7fffffff;  // & clears the sign: fabsf lane by lane
+
 // Modulus and angle in [0, 2 pi) of n gradients, interleaved into `out`:
 // vl_fast_sqrt_f(gx^2 + gy^2) and vl_mod_2pi_f(vl_fast_atan2_f(gy, gx) + 2 pi),
 // eight at a time with the same operations (the arc tangent lies within
@@ -144,7 +147,7 @@ LINECLOUD_TARGET_CLONES void GradientPolar(const float* gx, const float* gy, int
     const Floats8 zero = {};
     const Floats8 mod = m2 < zero_below ? zero : m2 * r;
     // vl_fast_atan2_f.
-    const Floats8 abs_y = (Floats8)((Ints8)y & 0x7fffffff) + VL_EPSILON_F;
+    const Floats8 abs_y = (Floats8)((Ints8)y & kMagnitudeBits) + VL_EPSILON_F;
     const auto right = x >= 0;
     const Floats8 t = (right ? x - abs_y : x + abs_y) / (right ? x + abs_y : abs_y - x);
     Floats8 angle =
@@ -221,30 +224,143 @@ void NormalizeDescriptor(float* d) {
   NormalizeHistogram(d, n);
 }
 
-// One row of samples, dx = x0 + i: VLFeat's rotated and scaled offsets
-// (double arithmetic rounded to float as VLFeat's) and the window's argument.
-LINECLOUD_TARGET_CLONES void RotateRow(double x0, int n, double ct0, double st0, double sdy,
-                                       double cdy, double spatial_bin, double window_scale,
-                                       float* __restrict nx, float* __restrict ny,
-                                       double* __restrict r2) {
-  for (int i = 0; i < n; ++i) {
-    const float dx = static_cast<float>(x0 + i);
-    const float a = static_cast<float>((ct0 * dx + sdy) / spatial_bin);
-    const float b = static_cast<float>((-st0 * dx + cdy) / spatial_bin);
-    nx[i] = a;
-    ny[i] = b;
-    r2[i] = (a * a + b * b) / window_scale;
+// What VLFeat's descriptor computes for one sample before adding it to the
+// histogram: the lower bins along x, y and angle and the sample's weight in
+// each of the eight bins around it (x, y, angle offsets 0 or 1, angle
+// fastest). bx = by = kOutside when no bin of the grid gets any.
+constexpr int kOutside = -100;
+struct RowSamples {
+  std::vector<int32_t> bx, by, bt;
+  std::vector<float> weights[8];  // [4 ex + 2 ey + et][sample]
+};
+
+// One row of samples (dx = x0 + i, i < n) of a descriptor window, eight at a
+// time: VLFeat's arithmetic lane by lane (double where it computes in double,
+// rounded to float where it stores floats, no fused operations). `grad`
+// points to the row's first sample (modulus, angle pairs).
+struct DescriptorFrame {
+  double ct0, st0, angle0, spatial_bin, window_scale;
+};
+LINECLOUD_TARGET_CLONES void SampleRow(const DescriptorFrame& frame, double x0, float dy,
+                                       const float* grad, const double* expn_table, int n,
+                                       RowSamples* out) {
+  const int padded = (n + 7) / 8 * 8;
+  if (out->bx.size() < static_cast<size_t>(padded)) {
+    out->bx.resize(padded);
+    out->by.resize(padded);
+    out->bt.resize(padded);
+    for (std::vector<float>& w : out->weights) w.resize(padded);
+  }
+  const float two_pi = static_cast<float>(2 * VL_PI);
+  const double sdy = frame.st0 * dy, cdy = frame.ct0 * dy;
+  const Floats8 zero = {}, one = zero + 1.0f;
+  const Ints8 zero_ints = {};
+  for (int i = 0; i < n; i += 8) {
+    const int lanes = std::min(8, n - i);
+    Floats8 mod = zero, angle = zero, dxf = zero;
+    if (lanes == 8) {  // (modulus, angle) pairs apart
+      const Floats8* pairs = reinterpret_cast<const Floats8*>(grad + 2 * i);
+      mod = __builtin_shufflevector(pairs[0], pairs[1], 0, 2, 4, 6, 8, 10, 12, 14);
+      angle = __builtin_shufflevector(pairs[0], pairs[1], 1, 3, 5, 7, 9, 11, 13, 15);
+    } else {
+      for (int j = 0; j < lanes; ++j) {
+        mod[j] = grad[2 * (i + j)];
+        angle[j] = grad[2 * (i + j) + 1];
+      }
+    }
+    for (int j = 0; j < 8; ++j) dxf[j] = static_cast<float>(x0 + (i + j));
+    const Doubles8 dx = __builtin_convertvector(dxf, Doubles8);
+    const Floats8 nx = __builtin_convertvector((frame.ct0 * dx + sdy) / frame.spatial_bin, Floats8);
+    const Floats8 ny =
+        __builtin_convertvector((-frame.st0 * dx + cdy) / frame.spatial_bin, Floats8);
+    // vl_floor_f of (float) (n - 0.5): truncation, less one below zero off the integers.
+    const Floats8 sx = __builtin_convertvector(__builtin_convertvector(nx, Doubles8) - 0.5, Floats8);
+    const Floats8 sy = __builtin_convertvector(__builtin_convertvector(ny, Doubles8) - 0.5, Floats8);
+    Ints8 bx = __builtin_convertvector(sx, Ints8), by = __builtin_convertvector(sy, Ints8);
+    bx += sx < __builtin_convertvector(bx, Floats8);  // true is -1
+    by += sy < __builtin_convertvector(by, Floats8);
+    // vl_mod_2pi_f of the angle to the keypoint's orientation.
+    Floats8 theta = __builtin_convertvector(
+        __builtin_convertvector(angle, Doubles8) - frame.angle0, Floats8);
+    theta = theta > two_pi ? theta - two_pi : theta;
+    theta = theta < 0 ? theta + two_pi : theta;
+    for (int j = 0; j < lanes; ++j) {
+      if (theta[j] < 0 || theta[j] > two_pi) {  // beyond one turn: VLFeat's loop
+        theta[j] = vl_mod_2pi_f(static_cast<float>(grad[2 * (i + j) + 1] - frame.angle0));
+      }
+    }
+    const Floats8 nt = __builtin_convertvector(
+        __builtin_convertvector(8.0f * theta, Doubles8) / (2 * VL_PI), Floats8);
+    const Ints8 bt = __builtin_convertvector(nt, Ints8);  // nt >= 0: floor
+    const Floats8 rx = __builtin_convertvector(
+        __builtin_convertvector(nx, Doubles8) - (__builtin_convertvector(bx, Doubles8) + 0.5),
+        Floats8);
+    const Floats8 ry = __builtin_convertvector(
+        __builtin_convertvector(ny, Doubles8) - (__builtin_convertvector(by, Doubles8) + 0.5),
+        Floats8);
+    const Floats8 rt = nt - __builtin_convertvector(bt, Floats8);
+    // fast_expn of the squared distance over the window's 2 sigma^2.
+    const Doubles8 r2 = __builtin_convertvector(nx * nx + ny * ny, Doubles8) / frame.window_scale;
+    Floats8 win = zero;
+    for (int j = 0; j < lanes; ++j) {
+      if (r2[j] > 25.0) continue;
+      const double x = r2[j] * (256 / 25.0);
+      const int k = static_cast<int>(x);  // x >= 0: floor
+      const double r = x - k;
+      win[j] = static_cast<float>(expn_table[k] + r * (expn_table[k + 1] - expn_table[k]));
+    }
+    // win * mod * |1 - ex - rx| * |1 - ey - ry| * |1 - et - rt|, left to right.
+    const Floats8 w0 = win * mod;
+    const Floats8 ax[2] = {(Floats8)((Ints8)(one - rx) & kMagnitudeBits),
+                           (Floats8)((Ints8)(zero - rx) & kMagnitudeBits)};
+    const Floats8 ay[2] = {(Floats8)((Ints8)(one - ry) & kMagnitudeBits),
+                           (Floats8)((Ints8)(zero - ry) & kMagnitudeBits)};
+    const Floats8 at[2] = {(Floats8)((Ints8)(one - rt) & kMagnitudeBits),
+                           (Floats8)((Ints8)(zero - rt) & kMagnitudeBits)};
+    Floats8 w[8];
+    for (int ex = 0; ex < 2; ++ex) {
+      for (int ey = 0; ey < 2; ++ey) {
+        const Floats8 wxy = w0 * ax[ex] * ay[ey];
+        w[4 * ex + 2 * ey] = wxy * at[0];
+        w[4 * ex + 2 * ey + 1] = wxy * at[1];
+      }
+    }
+    // Samples whose eight bins all fall outside the grid add nothing.
+    const Ints8 inside = (bx >= -3) & (bx <= 1) & (by >= -3) & (by <= 1);
+    const Ints8 outside = zero_ints + kOutside;
+    *reinterpret_cast<Ints8*>(out->bx.data() + i) = inside ? bx : outside;
+    *reinterpret_cast<Ints8*>(out->by.data() + i) = by;
+    *reinterpret_cast<Ints8*>(out->bt.data() + i) = bt;
+    for (int c = 0; c < 8; ++c) *reinterpret_cast<Floats8*>(out->weights[c].data() + i) = w[c];
   }
 }
 
-// Per-thread rows of DescribeKeypoint.
-struct RowScratch {
-  std::vector<float> nx, ny;
-  std::vector<double> r2;
-};
-RowScratch& Scratch() {
-  thread_local RowScratch scratch;
-  return scratch;
+// The columns [first, last] of [begin, end] (offsets from the keypoint's
+// pixel, `offset` = its position within that pixel) whose samples of the row
+// dy can fall within the descriptor's 4 x 4 bins: |n| < 2.5 bins along both
+// of the rotated axes, plus a margin of 0.01 bins and one column.
+std::pair<int, int> GridColumns(const DescriptorFrame& frame, double offset, float dy, int begin,
+                                int end) {
+  const double reach = (2.5 + 0.01) * frame.spatial_bin;
+  double lo = -1e300, hi = 1e300;  // dx bounds
+  // Each rotated coordinate is a * dx + b: within [-reach, reach].
+  const auto bound = [&](double a, double b) {
+    if (std::abs(a) < 1e-9) {
+      if (std::abs(b) > reach) lo = 1, hi = 0;
+      return;
+    }
+    double u = (-reach - b) / a, v = (reach - b) / a;
+    if (u > v) std::swap(u, v);
+    lo = std::max(lo, u);
+    hi = std::min(hi, v);
+  };
+  bound(frame.ct0, frame.st0 * dy);
+  bound(-frame.st0, frame.ct0 * dy);
+  if (lo > hi) return {1, 0};
+  // dx = dxi - offset.
+  const int first = static_cast<int>(std::max<double>(begin, std::floor(lo + offset) - 1));
+  const int last = static_cast<int>(std::min<double>(end, std::ceil(hi + offset) + 1));
+  return {first, last};
 }
 
 }  // namespace
@@ -372,46 +488,29 @@ void DescribeKeypoint(const VlSiftFilt* f, const VlSiftKeypoint& k, double angle
   // Bin (bx, by, bt) of the 4 x 4 x 8 histogram, bx and by in [-2, 2).
   float* centre = descriptor + (kBins / 2) * kBins * kAngles + (kBins / 2) * kAngles;
   const int x_begin = std::max(-radius, 1 - xi), x_end = std::min(radius, w - xi - 2);
-  if (x_end < x_begin) return NormalizeDescriptor(descriptor);
-  std::vector<float>& nx = Scratch().nx;
-  std::vector<float>& ny = Scratch().ny;
-  std::vector<double>& r2 = Scratch().r2;
-  nx.resize(x_end - x_begin + 1);
-  ny.resize(nx.size());
-  r2.resize(nx.size());
-  for (int dyi = std::max(-radius, 1 - yi); dyi <= std::min(radius, h - yi - 2); ++dyi) {
+  const int n = x_end - x_begin + 1;
+  const DescriptorFrame frame{ct0, st0, angle0, spatial_bin, window_scale};
+  thread_local RowSamples samples;
+  for (int dyi = std::max(-radius, 1 - yi); n > 0 && dyi <= std::min(radius, h - yi - 2); ++dyi) {
     const float dy = static_cast<float>(yi + dyi - y);
-    // The sample's position in the descriptor's frame (bins) and its squared
-    // distance over the window's 2 sigma^2, for the whole row (vectorised).
-    const double sdy = st0 * dy, cdy = ct0 * dy;
-    RotateRow(xi + x_begin - x, static_cast<int>(nx.size()), ct0, st0, sdy, cdy, spatial_bin,
-              window_scale, nx.data(), ny.data(), r2.data());
-    for (int dxi = x_begin; dxi <= x_end; ++dxi) {
-      const int i = dxi - x_begin;
-      const int binx = static_cast<int>(vl_floor_f(static_cast<float>(nx[i] - 0.5)));
-      const int biny = static_cast<int>(vl_floor_f(static_cast<float>(ny[i] - 0.5)));
-      // Samples whose eight bins all fall outside the grid add nothing.
-      if (binx < -3 || binx > 1 || biny < -3 || biny > 1) continue;
-      const float* g = grad + 2 * (static_cast<ptrdiff_t>(dyi) * w + dxi);
-      const float mod = g[0];
-      const float theta = vl_mod_2pi_f(static_cast<float>(g[1] - angle0));
-      const float nt = static_cast<float>(kAngles * theta / (2 * VL_PI));
-      const float win = static_cast<float>(expn(r2[i]));
-      const int bint = static_cast<int>(vl_floor_f(nt));
-      const float rbinx = static_cast<float>(nx[i] - (binx + 0.5));
-      const float rbiny = static_cast<float>(ny[i] - (biny + 0.5));
-      const float rbint = nt - bint;
+    // VLFeat visits the whole square; only the columns of the rotated grid
+    // (and a margin far wider than rounding) can reach a bin.
+    const auto [first, last] = GridColumns(frame, x - xi, dy, x_begin, x_end);
+    if (first > last) continue;
+    const int m = last - first + 1;
+    SampleRow(frame, xi + first - x, dy, grad + 2 * (static_cast<ptrdiff_t>(dyi) * w + first),
+              expn.samples, m, &samples);
+    // The samples added in VLFeat's order, each to its eight bins (x, y, angle).
+    for (int i = 0; i < m; ++i) {
+      const int bx = samples.bx[i], by = samples.by[i], bt = samples.bt[i];
+      if (bx == kOutside) continue;
       for (int ex = 0; ex < 2; ++ex) {
+        if (bx + ex < -kBins / 2 || bx + ex >= kBins / 2) continue;
         for (int ey = 0; ey < 2; ++ey) {
-          for (int et = 0; et < 2; ++et) {
-            if (binx + ex >= -kBins / 2 && binx + ex < kBins / 2 && biny + ey >= -kBins / 2 &&
-                biny + ey < kBins / 2) {
-              const float weight = win * mod * std::abs(1 - ex - rbinx) * std::abs(1 - ey - rbiny) *
-                                   std::abs(1 - et - rbint);
-              centre[(bint + et) % kAngles + (biny + ey) * kBins * kAngles +
-                     (binx + ex) * kAngles] += weight;
-            }
-          }
+          if (by + ey < -kBins / 2 || by + ey >= kBins / 2) continue;
+          float* bin = centre + (by + ey) * kBins * kAngles + (bx + ex) * kAngles;
+          bin[bt % kAngles] += samples.weights[4 * ex + 2 * ey][i];
+          bin[(bt + 1) % kAngles] += samples.weights[4 * ex + 2 * ey + 1][i];
         }
       }
     }
