@@ -114,14 +114,11 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
     Fail("image of {}x{} pixels is too small for {} SIFT octaves", image.width, image.height,
          options.num_octaves);
   }
-  std::unique_ptr<VlSiftFilt, void (*)(VlSiftFilt*)> sift(
-      vl_sift_new(image.width, image.height, options.num_octaves, options.octave_resolution,
-                  options.first_octave),
-      vl_sift_delete);
-  if (!sift) Fail("VLFeat could not set up SIFT for a {}x{} image", image.width, image.height);
-  vl_sift_set_peak_thresh(sift.get(), options.peak_threshold);
-  vl_sift_set_edge_thresh(sift.get(), options.edge_threshold);
+  const SiftFilter sift(image.width, image.height, options.num_octaves, options.octave_resolution,
+                        options.first_octave);
   VlSiftFilt* f = sift.get();
+  vl_sift_set_peak_thresh(f, options.peak_threshold);
+  vl_sift_set_edge_thresh(f, options.edge_threshold);
 
   std::vector<float> pixels(image.pixels.size());
   for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = image.pixels[i] / 255.0f;
