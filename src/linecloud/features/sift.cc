@@ -50,11 +50,68 @@ void Orient(VlSiftFilt* f, const VlSiftKeypoint& k, int max_orientations, bool o
   }
 }
 
-struct LevelFeatures {
-  int detections = 0;  // keypoints before orientations
+// The keypoints VLFeat detected on one DoG level (one octave's, in its order),
+// and once described, the features they give.
+struct Level {
+  int octave = 0;  // index into the octaves processed
+  std::vector<VlSiftKeypoint> detected;
   std::vector<SiftKeypoint> keypoints;
   std::vector<uint8_t> descriptors;
 };
+
+// Where a described octave's gradients are, to describe its keypoints later.
+struct OctaveGradients {
+  int o = 0, width = 0, height = 0;
+  float* gradients = nullptr;
+};
+
+// The current octave's detections appended, one Level per run of keypoints
+// on the same DoG level.
+void AppendLevels(const VlSiftFilt* f, int octave, std::vector<Level>* levels) {
+  const VlSiftKeypoint* keypoints = vl_sift_get_keypoints(const_cast<VlSiftFilt*>(f));
+  const int n = vl_sift_get_nkeypoints(const_cast<VlSiftFilt*>(f));
+  int previous = -1;
+  for (int i = 0; i < n; ++i) {
+    if (keypoints[i].is != previous || i == 0) {
+      levels->emplace_back();
+      levels->back().octave = octave;
+    }
+    previous = keypoints[i].is;
+    levels->back().detected.push_back(keypoints[i]);
+  }
+}
+
+// COLMAP's cap: the coarsest levels kept while the detections (before
+// orientations) stay within `max_features`; the level crossing it is kept
+// whole. Returns the index of the finest level kept.
+size_t FirstKeptLevel(const std::vector<Level>& levels, int max_features) {
+  size_t detections = 0;
+  for (size_t i = levels.size(); i-- > 0;) {
+    detections += levels[i].detected.size();
+    if (detections > static_cast<size_t>(max_features)) return i;
+  }
+  return 0;
+}
+
+// Orientations and descriptors of a level's keypoints, the filter set to its
+// octave (on `threads` threads: the gradients are computed already).
+void DescribeLevel(VlSiftFilt* f, const SiftOptions& options, bool own, int threads, float scale_x,
+                   float scale_y, Level* level) {
+  const std::vector<VlSiftKeypoint>& detected = level->detected;
+  std::vector<Oriented> oriented(detected.size());
+  ParallelFor(detected.size(), threads, [&](size_t i, int) {
+    Orient(f, detected[i], options.max_num_orientations, own, &oriented[i]);
+  });
+  for (size_t i = 0; i < detected.size(); ++i) {
+    const VlSiftKeypoint& k = detected[i];
+    for (int j = 0; j < oriented[i].count; ++j) {
+      level->keypoints.push_back({(k.x + 0.5f) * scale_x, (k.y + 0.5f) * scale_y, k.sigma * scale_x,
+                                  static_cast<float>(oriented[i].angles[j])});
+      level->descriptors.insert(level->descriptors.end(), oriented[i].descriptors[j].begin(),
+                                oriented[i].descriptors[j].end());
+    }
+  }
+}
 
 }  // namespace
 
@@ -114,8 +171,8 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
     Fail("image of {}x{} pixels is too small for {} SIFT octaves", image.width, image.height,
          options.num_octaves);
   }
-  const SiftFilter sift(image.width, image.height, options.num_octaves, options.octave_resolution,
-                        options.first_octave);
+  SiftFilter sift(image.width, image.height, options.num_octaves, options.octave_resolution,
+                  options.first_octave);
   VlSiftFilt* f = sift.get();
   vl_sift_set_peak_thresh(f, options.peak_threshold);
   vl_sift_set_edge_thresh(f, options.edge_threshold);
@@ -123,52 +180,46 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
   std::vector<float> pixels(image.pixels.size());
   for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = image.pixels[i] / 255.0f;
 
-  // VLFeat's own scale space computes the gradients lazily inside the first
-  // orientation call, so it runs on one thread; it alone takes first octaves
+  // Our scale space keeps each octave's gradients, so that only the levels
+  // the cap keeps are described (a third of the detections on the Strecha
+  // photos are on the finest level, which the cap drops). VLFeat's own
+  // computes them lazily inside the first orientation call into one buffer:
+  // one thread, each octave described at once. It alone takes first octaves
   // below -1 (sift_scale_space.h).
   const bool own = !options.vlfeat_scale_space && options.first_octave >= -1;
   const int threads = own ? options.threads : 1;
-  std::vector<LevelFeatures> levels;  // one entry per DoG level with detections
-  std::vector<Oriented> oriented;
+  std::vector<Level> levels;
+  std::vector<OctaveGradients> octaves;
   for (bool more = own ? ProcessFirstOctave(f, pixels.data(), threads)
                        : vl_sift_process_first_octave(f, pixels.data()) != VL_ERR_EOF;
        more;
        more = own ? ProcessNextOctave(f, threads) : vl_sift_process_next_octave(f) != VL_ERR_EOF) {
     vl_sift_detect(f);
-    if (own) UpdateGradients(f, threads);
-    const VlSiftKeypoint* keypoints = vl_sift_get_keypoints(f);
-    const int n = vl_sift_get_nkeypoints(f);
-    oriented.assign(n, {});
-    ParallelFor(n, threads, [&](size_t i, int) {
-      Orient(f, keypoints[i], options.max_num_orientations, own, &oriented[i]);
-    });
-    int previous_level = -1;
-    for (int i = 0; i < n; ++i) {
-      const VlSiftKeypoint& k = keypoints[i];
-      if (k.is != previous_level || levels.empty()) levels.emplace_back();
-      previous_level = k.is;
-      LevelFeatures& level = levels.back();
-      ++level.detections;
-      const Oriented& o = oriented[i];
-      for (int j = 0; j < o.count; ++j) {
-        level.keypoints.push_back({(k.x + 0.5f) * scale_x, (k.y + 0.5f) * scale_y,
-                                   k.sigma * scale_x, static_cast<float>(o.angles[j])});
-        level.descriptors.insert(level.descriptors.end(), o.descriptors[j].begin(),
-                                 o.descriptors[j].end());
-      }
+    const size_t first_new = levels.size();
+    AppendLevels(f, static_cast<int>(octaves.size()), &levels);
+    if (own) {
+      const size_t pixels_here = static_cast<size_t>(f->octave_width) * f->octave_height;
+      f->grad = sift.Allocate(2 * (f->s_max - f->s_min - 2) * pixels_here);
+      f->grad_o = f->o_min - 1;  // not computed yet
+      UpdateGradients(f, threads);
+      octaves.push_back({f->o_cur, f->octave_width, f->octave_height, f->grad});
+    } else {
+      for (size_t i = first_new; i < levels.size(); ++i)
+        DescribeLevel(f, options, false, 1, scale_x, scale_y, &levels[i]);
+    }
+  }
+  const size_t first_kept = FirstKeptLevel(levels, options.max_num_features);
+  if (own) {
+    for (size_t i = first_kept; i < levels.size(); ++i) {
+      const OctaveGradients& octave = octaves[levels[i].octave];
+      f->o_cur = f->grad_o = octave.o;
+      f->octave_width = octave.width;
+      f->octave_height = octave.height;
+      f->grad = octave.gradients;
+      DescribeLevel(f, options, true, threads, scale_x, scale_y, &levels[i]);
     }
   }
 
-  // Keep the coarsest levels; the level that crosses the cap is kept whole.
-  size_t first_kept = 0;
-  int detections = 0;
-  for (size_t i = levels.size(); i-- > 0;) {
-    detections += levels[i].detections;
-    if (detections > options.max_num_features) {
-      first_kept = i;
-      break;
-    }
-  }
   SiftFeatures features;
   features.image_width = input.width;
   features.image_height = input.height;

@@ -382,10 +382,10 @@ SiftFilter::SiftFilter(int width, int height, int octaves, int levels, int first
   vl_free(f->dog);
   vl_free(f->grad);
   f->temp = f->octave = f->dog = f->grad = nullptr;
-  f->temp = Map(pixels);
-  f->octave = Map(pixels * levels_kept);
-  f->dog = Map(pixels * (levels_kept - 1));
-  f->grad = Map(2 * pixels * (levels_kept - 1));
+  f->temp = Allocate(pixels);
+  f->octave = Allocate(pixels * levels_kept);
+  f->dog = Allocate(pixels * (levels_kept - 1));
+  f->grad = Allocate(2 * pixels * (levels_kept - 1));
 }
 
 SiftFilter::~SiftFilter() { Release(); }
@@ -400,12 +400,12 @@ void SiftFilter::Release() {
   mappings_.clear();
 }
 
-float* SiftFilter::Map(size_t floats) {
+float* SiftFilter::Allocate(size_t floats) {
   constexpr size_t kHugePage = size_t{2} << 20;
   const size_t bytes = floats * sizeof(float) + kHugePage;
   void* address = mmap(nullptr, bytes, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
   if (address == MAP_FAILED) {
-    Release();  // the constructor throws: no destructor runs
+    Release();  // also when the constructor throws (no destructor runs then)
     Fail("could not map {} MB for SIFT's scale space", bytes >> 20);
   }
   mappings_.emplace_back(address, bytes);

@@ -36,9 +36,10 @@ class SiftFilter {
   SiftFilter(const SiftFilter&) = delete;
   SiftFilter& operator=(const SiftFilter&) = delete;
   VlSiftFilt* get() const { return filter_; }
+  // Another buffer of `floats` floats in huge pages, valid while this lives.
+  float* Allocate(size_t floats);
 
  private:
-  float* Map(size_t floats);
   void Release();
   VlSiftFilt* filter_ = nullptr;
   std::vector<std::pair<void*, size_t>> mappings_;
