@@ -238,7 +238,7 @@ void RegisterBenchCommand(CLI::App& app) {
   auto photo = std::make_shared<PhotoBenchOptions>();
   auto photo_json = std::make_shared<bool>(false);
   auto photo_features =
-      std::make_shared<std::vector<std::string>>(std::vector<std::string>{"opencv", "colmap"});
+      std::make_shared<std::vector<std::string>>(std::vector<std::string>{"colmap", "opencv"});
   CLI::App* ph = bench->add_subcommand(
       "photo",
       "A photo to a pose (JPEG bytes, decode, SIFT, matching, RANSAC, LM) on an eval work's "

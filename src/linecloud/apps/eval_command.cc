@@ -161,9 +161,9 @@ void RegisterEvalCommand(CLI::App& app) {
   run->add_flag("--no-sweeps", *no_sweeps, "skip the density and noise sweeps (and their plots)");
   run->add_flag("!--no-direct-matching", run_options->direct_matching,
                 "skip the direct-matching protocol (query images' own SIFT features)");
-  auto features = std::make_shared<std::string>("opencv");
+  auto features = std::make_shared<std::string>(SiftExtractorName(SiftOptions{}.extractor));
   run->add_option("--features", *features,
-                  "direct matching's SIFT: opencv, or colmap (identical to COLMAP's extractor)")
+                  "direct matching's SIFT: colmap (identical to COLMAP's extractor) or opencv")
       ->capture_default_str();
   run->callback([run_options, no_sweeps, sparsify_mode, features] {
     EvalRunOptions o = *run_options;

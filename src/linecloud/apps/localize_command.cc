@@ -30,7 +30,7 @@ struct LocalizeArgs {
   std::vector<std::string> cameras;
   std::string rig;
   bool exact_matching = false;
-  std::string features = "opencv", index = "ivf";
+  std::string features = SiftExtractorName(SiftOptions{}.extractor), index = "ivf";
   std::string database;
   ImageQueryOptions image;
   std::string method;
@@ -251,8 +251,8 @@ void RegisterLocalizeCommand(CLI::App& app) {
                 "Match exactly even on large maps (default: maps of 4 096 descriptors or more "
                 "use the approximate index, cached as MAP.lcm.index)");
   cmd->add_option("--features", args->features,
-                  "SIFT extractor: opencv (fast) or colmap (identical to COLMAP 3.8's CPU "
-                  "extractor)")
+                  "SIFT extractor: colmap (COLMAP 3.8's CPU extractor's features, to the bit) "
+                  "or opencv (OpenCV's SIFT, close to them)")
       ->capture_default_str();
   cmd->add_option("--index", args->index,
                   "Approximate index: ivf, faiss-ivf, faiss-hnsw, hnswlib or flann")

@@ -116,8 +116,9 @@ void RegisterServeCommand(CLI::App& app) {
       "A photo's SIFT features as the JSON body of a client-features request to `serve`");
   fc->add_option("--image", (*features)[0], "The photo (JPEG or PNG)")->required();
   fc->add_option("--camera", (*features)[1], "\"MODEL W H PARAMS...\"")->required();
-  (*features)[2] = "opencv";
-  fc->add_option("--features", (*features)[2], "opencv or colmap")->capture_default_str();
+  (*features)[2] = SiftExtractorName(SiftOptions{}.extractor);
+  fc->add_option("--features", (*features)[2], "colmap (COLMAP's own features) or opencv")
+      ->capture_default_str();
   fc->add_option("--out", (*features)[3], "Output file")->required();
   fc->add_option("--max-features", *features_max, "SIFT's cap (COLMAP's rule)")
       ->capture_default_str();

@@ -35,7 +35,7 @@ struct EvalRunOptions {
   // matched to the map's descriptors (direct_matching.h).
   bool direct_matching = true;
   // The photos' feature extractor there (opencv, or colmap: COLMAP's own).
-  SiftExtractor features = SiftExtractor::kOpenCV;
+  SiftExtractor features = SiftOptions{}.extractor;
   // Shared by runs that match the same photos to other maps (eval privacy):
   // each photo's SIFT is extracted once.
   std::shared_ptr<ExtractedPhotos> extracted_photos;

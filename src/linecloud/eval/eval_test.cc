@@ -536,29 +536,34 @@ namespace {
 // scenes: 0.91-1.70x, fountain-P11 0.91-1.22x locally, m-p6L 1.61x over CI's
 // five rigs of 2026-11-25; docs/fast_photo.md) and, for single photos, below
 // the resolution of the reference (its own distance to Strecha's truth).
-TEST(EvalReport, FastFeaturesLocalizeWhatColmapFeaturesDo) {
-  const char* fast = std::getenv("LINECLOUD_EVAL_REPORT");
-  const char* reference = std::getenv("LINECLOUD_EVAL_COLMAP_FEATURES_REPORT");
-  if (!fast || !reference) {
-    GTEST_SKIP() << "LINECLOUD_EVAL_REPORT / LINECLOUD_EVAL_COLMAP_FEATURES_REPORT are not set "
+// The default extractor gives COLMAP's own features (bit tests in
+// features/sift_scale_space_test.cc) at OpenCV's speed; OpenCV's SIFT, the
+// other choice, localizes the same photos about as well.
+TEST(EvalReport, ColmapFeaturesAtOpenCVsSpeedAndOpenCVsLocalizeAlike) {
+  const char* main_report = std::getenv("LINECLOUD_EVAL_REPORT");
+  const char* other = std::getenv("LINECLOUD_EVAL_OPENCV_FEATURES_REPORT");
+  if (!main_report || !other) {
+    GTEST_SKIP() << "LINECLOUD_EVAL_REPORT / LINECLOUD_EVAL_OPENCV_FEATURES_REPORT are not set "
                     "(CI runs eval run with each extractor)";
   }
-  const nlohmann::json report = ReadJsonFile(fast);
+  const nlohmann::json report = ReadJsonFile(main_report);
   const double resolution = Number(report, "/reconstruction/ground_truth/max_rotation_deg");
-  const nlohmann::json f = report["direct_matching"];
-  const nlohmann::json c = ReadJsonFile(reference)["direct_matching"];
-  ASSERT_EQ(f["features"], "opencv");
+  const nlohmann::json c = report["direct_matching"];
+  const nlohmann::json o = ReadJsonFile(other)["direct_matching"];
   ASSERT_EQ(c["features"], "colmap");
+  ASSERT_EQ(o["features"], "opencv");
   for (const char* m : {"p6L", "p3P", "m-p6L", "m-p3P"}) {
     const std::string at = std::string("/methods/") + m;
-    EXPECT_GE(Number(f, at + "/localized"), Number(c, at + "/localized")) << m;
-    EXPECT_LE(Number(f, at + "/median_rotation_deg"), 2.0 * Number(c, at + "/median_rotation_deg"))
+    EXPECT_GE(Number(o, at + "/localized"), Number(c, at + "/localized")) << m;
+    EXPECT_LE(Number(o, at + "/median_rotation_deg"), 2.0 * Number(c, at + "/median_rotation_deg"))
         << m;
     // A rig's pose inherits its local reconstruction's error (up to 0.3 deg).
     if (m[0] != 'm') {
-      EXPECT_LT(Number(f, at + "/median_rotation_deg"), resolution) << m;
+      EXPECT_LT(Number(c, at + "/median_rotation_deg"), resolution) << m;
+      EXPECT_LT(Number(o, at + "/median_rotation_deg"), resolution) << m;
     }
-    EXPECT_LT(Number(f, at + "/mean_ms/extract"), 0.5 * Number(c, at + "/mean_ms/extract")) << m;
+    // VLFeat's own code took 4.6x OpenCV's time; ours is within 1.3x of it.
+    EXPECT_LT(Number(c, at + "/mean_ms/extract"), 1.3 * Number(o, at + "/mean_ms/extract")) << m;
   }
 }
 

@@ -24,7 +24,7 @@ struct PhotoBenchOptions {
   // Photos whose descriptors pad the maps (other scenes): JPEG / PNG files
   // under this folder outside the work's dataset.
   std::string padding_dir;
-  std::vector<SiftExtractor> extractors = {SiftExtractor::kOpenCV, SiftExtractor::kColmap};
+  std::vector<SiftExtractor> extractors = {SiftExtractor::kColmap, SiftExtractor::kOpenCV};
   std::vector<int> threads = {1, 2};
   int max_image_size = 3200;      // photos with a larger side are downscaled first (SIFT)
   size_t max_photos = 0;          // 0: every query photo of the work

@@ -171,8 +171,15 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
     Fail("image of {}x{} pixels is too small for {} SIFT octaves", image.width, image.height,
          options.num_octaves);
   }
+  // VLFeat's own scale space (the reference, and first octaves below -1,
+  // sift_scale_space.h) computes the gradients lazily into one buffer inside
+  // the first orientation call: one thread, each octave described at once.
+  // Ours keeps each octave's gradients, so that only the levels the cap keeps
+  // are described (a third of the Strecha photos' detections are on the
+  // finest level, which the cap drops).
+  const bool own = !options.vlfeat_scale_space && options.first_octave >= -1;
   SiftFilter sift(image.width, image.height, options.num_octaves, options.octave_resolution,
-                  options.first_octave);
+                  options.first_octave, /*vlfeat_gradients=*/!own);
   VlSiftFilt* f = sift.get();
   vl_sift_set_peak_thresh(f, options.peak_threshold);
   vl_sift_set_edge_thresh(f, options.edge_threshold);
@@ -180,13 +187,6 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
   std::vector<float> pixels(image.pixels.size());
   for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = image.pixels[i] / 255.0f;
 
-  // Our scale space keeps each octave's gradients, so that only the levels
-  // the cap keeps are described (a third of the detections on the Strecha
-  // photos are on the finest level, which the cap drops). VLFeat's own
-  // computes them lazily inside the first orientation call into one buffer:
-  // one thread, each octave described at once. It alone takes first octaves
-  // below -1 (sift_scale_space.h).
-  const bool own = !options.vlfeat_scale_space && options.first_octave >= -1;
   const int threads = own ? options.threads : 1;
   std::vector<Level> levels;
   std::vector<OctaveGradients> octaves;

@@ -28,8 +28,8 @@
 namespace linecloud {
 
 enum class SiftExtractor {
-  kColmap,  // VLFeat as COLMAP 3.8's CPU extractor: identical features (the reference)
-  kOpenCV,  // OpenCV's SIFT, same thresholds and octaves: ~10x faster (docs/fast_photo.md)
+  kColmap,  // COLMAP 3.8's CPU extractor's features, to the bit (VLFeat's, our scale space)
+  kOpenCV,  // OpenCV's SIFT, same thresholds and octaves: close, not identical (sift_opencv.h)
 };
 
 // "colmap" or "opencv"; throws Error naming `option` otherwise.
@@ -37,7 +37,9 @@ SiftExtractor ParseSiftExtractor(const std::string& name, const std::string& opt
 const char* SiftExtractorName(SiftExtractor extractor);
 
 struct SiftOptions {
-  SiftExtractor extractor = SiftExtractor::kOpenCV;
+  // colmap: as fast as OpenCV's and the features COLMAP's maps were built
+  // with (docs/fast_photo.md).
+  SiftExtractor extractor = SiftExtractor::kColmap;
   int max_image_size = 3200;  // larger images are downscaled first
   int max_num_features = 8192;
   int first_octave = -1;

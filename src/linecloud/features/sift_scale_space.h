@@ -25,24 +25,37 @@ typedef struct _VlSiftKeypoint VlSiftKeypoint;
 
 namespace linecloud {
 
+// A memory mapping for SIFT's scale space: `data` (2 MB aligned, `bytes`
+// long) inside [base, base + mapped).
+struct Mapping {
+  void* base = nullptr;
+  size_t mapped = 0;
+  float* data = nullptr;
+  size_t bytes = 0;
+};
+
 // A VLFeat SIFT filter (vl_sift_new's) whose image buffers — hundreds of MB
-// for a doubled photo — are anonymous mappings advised to use huge pages:
-// the kernel then faults them in 2 MB at a time instead of 4 kB (a sixth of
-// the extraction's time went to page faults). Not copyable.
+// for a doubled photo — are anonymous mappings advised to use huge pages and
+// kept in a process-wide pool (up to 2 GB) for the next filters: no page
+// faults or zeroing once warm (a sixth of the extraction's time otherwise).
+// VLFeat's one gradient buffer only with `vlfeat_gradients` (VLFeat's own
+// code computes into it; ours keeps one per octave, see Allocate).
 class SiftFilter {
  public:
-  SiftFilter(int width, int height, int octaves, int levels, int first_octave);
+  SiftFilter(int width, int height, int octaves, int levels, int first_octave,
+             bool vlfeat_gradients);
   ~SiftFilter();
   SiftFilter(const SiftFilter&) = delete;
   SiftFilter& operator=(const SiftFilter&) = delete;
   VlSiftFilt* get() const { return filter_; }
-  // Another buffer of `floats` floats in huge pages, valid while this lives.
+  // Another buffer of `floats` floats, valid while this lives. Its contents
+  // are undefined (a pooled buffer keeps an earlier image's values).
   float* Allocate(size_t floats);
 
  private:
   void Release();
   VlSiftFilt* filter_ = nullptr;
-  std::vector<std::pair<void*, size_t>> mappings_;
+  std::vector<Mapping> mappings_;
 };
 
 // VLFeat's Gaussian filter of standard deviation `sigma`: 2W + 1 taps,

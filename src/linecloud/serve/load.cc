@@ -118,7 +118,7 @@ json RunLoad(const LoadOptions& o) {
   const int port = server.Bind();
   std::thread runner([&] { server.Run(); });
   const std::string features =
-      ClientFeaturesJson(o.photo, o.camera, SiftExtractor::kOpenCV, o.max_features);
+      ClientFeaturesJson(o.photo, o.camera, SiftOptions{}.extractor, o.max_features);
   const size_t num_features = json::parse(features)["keypoints"].size();
   const std::string photo = ReadFileToString(o.photo);
   const std::string path = "/v1/maps/" + o.map_id + "/localize";

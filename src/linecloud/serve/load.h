@@ -39,7 +39,7 @@ nlohmann::json RunLoad(const LoadOptions& options);
 // `max_features` caps the detections as COLMAP does (whole levels from the
 // coarsest; a device's budget).
 std::string ClientFeaturesJson(const std::string& photo, const std::string& camera,
-                               SiftExtractor extractor = SiftExtractor::kOpenCV,
+                               SiftExtractor extractor = SiftExtractor::kColmap,
                                int max_features = 8192);
 std::string LoadMarkdown(const nlohmann::json& report);
 
