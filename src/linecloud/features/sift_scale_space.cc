@@ -388,14 +388,19 @@ class MappingPool {
   }
 
   // A 2 MB-aligned mapping of at least `bytes` (advised to use huge pages):
-  // the smallest pooled one that fits, or a new one. nullptr if none can be made.
+  // the smallest pooled one that fits and is at most twice as large (a
+  // photo's large buffers are not spent on a small one's), or a new one;
+  // data is nullptr if none can be made.
   Mapping Take(size_t bytes) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       size_t best = free_.size();
       for (size_t i = 0; i < free_.size(); ++i) {
-        if (free_[i].bytes >= bytes && (best == free_.size() || free_[i].bytes < free_[best].bytes))
+        const size_t have = free_[i].bytes;
+        if (have >= bytes && have <= 2 * bytes + kHugePage &&
+            (best == free_.size() || have < free_[best].bytes)) {
           best = i;
+        }
       }
       if (best < free_.size()) {
         const Mapping m = free_[best];

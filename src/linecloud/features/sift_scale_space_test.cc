@@ -161,6 +161,31 @@ TEST(SiftScaleSpace, ExtractorGivesVlFeatsFeaturesOnAnyThreadCount) {
   }
 }
 
+// The scale-space buffers are pooled across extractions: a photo's features
+// do not depend on the photo extracted before it.
+TEST(SiftScaleSpace, PooledBuffersKeepNoTraceOfThePreviousPhoto) {
+  LINECLOUD_REQUIRE_DATA("strecha/fountain-P11/images/0000.jpg");
+  LINECLOUD_REQUIRE_DATA("strecha/entry-P10/images/0004.jpg");
+  const GreyImage a = ReadGreyImage(SharedDataPath("strecha/entry-P10/images/0004.jpg"));
+  const GreyImage b = ReadGreyImage(SharedDataPath("strecha/fountain-P11/images/0000.jpg"));
+  ASSERT_EQ(a.width, b.width);  // the same buffer sizes: each is reused
+  SiftOptions options;
+  options.extractor = SiftExtractor::kColmap;
+  const SiftFeatures first = ExtractSift(a, options);
+  ExtractSift(b, options);
+  const SiftFeatures again = ExtractSift(a, options);
+  ASSERT_GT(first.size(), 5000u);
+  ASSERT_EQ(again.size(), first.size());
+  EXPECT_EQ(again.descriptors, first.descriptors);
+  size_t moved = 0;
+  for (size_t i = 0; i < first.size(); ++i) {
+    moved += again.keypoints[i].x != first.keypoints[i].x ||
+             again.keypoints[i].y != first.keypoints[i].y ||
+             again.keypoints[i].orientation != first.keypoints[i].orientation;
+  }
+  EXPECT_EQ(moved, 0u);
+}
+
 TEST(SiftScaleSpace, RefusesImagesTooSmallForTheOctaves) {
   GreyImage tiny;
   tiny.width = 12;
