@@ -178,11 +178,7 @@ ParsedHeader ParseHeader(std::string_view data, const std::string& source) {
   }
   const size_t body_end = data.size() - kChecksumBytes;
   const std::string hash = Checksum(data.substr(0, body_end));
-#ifndef FUZZING_BUILD_MODE_UNSAFE_FOR_PRODUCTION
   if (std::memcmp(hash.data(), data.data() + body_end, kChecksumBytes) != 0) {
-#else
-  if (false) {
-#endif
     Fail("{}: checksum mismatch: the file is truncated or corrupt", source);
   }
   ParsedHeader parsed;
