@@ -167,7 +167,10 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
   const float scale_x = static_cast<float>(input.width) / image.width;
   const float scale_y = static_cast<float>(input.height) / image.height;
 
-  if (std::min(image.width, image.height) >> (options.first_octave + options.num_octaves - 1) < 2) {
+  // The last octave must keep 2 x 2 pixels (VLFeat's gradients and ours need a neighbour).
+  const int last_octave = options.first_octave + options.num_octaves - 1;
+  if (last_octave >= 30 ||
+      (last_octave > 0 && (std::min(image.width, image.height) >> last_octave) < 2)) {
     Fail("image of {}x{} pixels is too small for {} SIFT octaves", image.width, image.height,
          options.num_octaves);
   }
