@@ -189,6 +189,24 @@ void GradientRow(const float* level, int w, int h, int y, float* gx, float* gy, 
   GradientPolar(gx, gy, w, zero_below, out);
 }
 
+// VLFeat's normalize_histogram: divided by its (fast) L2 norm.
+void NormalizeHistogram(float* h, int n) {
+  float norm = 0.0f;
+  for (int i = 0; i < n; ++i) norm += h[i] * h[i];
+  norm = vl_fast_sqrt_f(norm) + VL_EPSILON_F;
+  for (int i = 0; i < n; ++i) h[i] /= norm;
+}
+
+// Normalised, truncated at 0.2, normalised again (VLFeat's norm threshold is 0).
+void NormalizeDescriptor(float* d) {
+  constexpr int n = 128;
+  NormalizeHistogram(d, n);
+  for (int i = 0; i < n; ++i) {
+    if (d[i] > 0.2) d[i] = 0.2f;
+  }
+  NormalizeHistogram(d, n);
+}
+
 // VLFeat's fast_expn: exp(-x) for x in [0, 25] by linear interpolation in a
 // table of 257 samples, 0 beyond.
 struct ExpTable {
@@ -209,24 +227,6 @@ const ExpTable& FastExpn() {
   return table;
 }
 
-// VLFeat's normalize_histogram: divided by its (fast) L2 norm.
-void NormalizeHistogram(float* h, int n) {
-  float norm = 0.0f;
-  for (int i = 0; i < n; ++i) norm += h[i] * h[i];
-  norm = vl_fast_sqrt_f(norm) + VL_EPSILON_F;
-  for (int i = 0; i < n; ++i) h[i] /= norm;
-}
-
-// Normalised, truncated at 0.2, normalised again (VLFeat's norm threshold is 0).
-void NormalizeDescriptor(float* d) {
-  constexpr int n = 128;
-  NormalizeHistogram(d, n);
-  for (int i = 0; i < n; ++i) {
-    if (d[i] > 0.2) d[i] = 0.2f;
-  }
-  NormalizeHistogram(d, n);
-}
-
 // What VLFeat's descriptor computes for one sample before adding it to the
 // histogram: the lower bins along x, y and angle and the sample's weight in
 // each of the eight bins around it (x, y, angle offsets 0 or 1, angle
@@ -245,7 +245,7 @@ struct DescriptorFrame {
   double ct0, st0, angle0, spatial_bin, window_scale;
 };
 LINECLOUD_TARGET_CLONES void SampleRow(const DescriptorFrame& frame, double x0, float dy,
-                                       const float* grad, const double* expn_table, int n,
+                                       const float* grad, const ExpTable& expn, int n,
                                        RowSamples* out) {
   const int padded = (n + 7) / 8 * 8;
   if (out->bx.size() < static_cast<size_t>(padded)) {
@@ -308,11 +308,7 @@ LINECLOUD_TARGET_CLONES void SampleRow(const DescriptorFrame& frame, double x0, 
     const Doubles8 r2 = __builtin_convertvector(nx * nx + ny * ny, Doubles8) / frame.window_scale;
     Floats8 win = zero;
     for (int j = 0; j < lanes; ++j) {
-      if (r2[j] > 25.0) continue;
-      const double x = r2[j] * (256 / 25.0);
-      const int k = static_cast<int>(x);  // x >= 0: floor
-      const double r = x - k;
-      win[j] = static_cast<float>(expn_table[k] + r * (expn_table[k + 1] - expn_table[k]));
+      win[j] = static_cast<float>(expn(r2[j]));
     }
     // win * mod * |1 - ex - rx| * |1 - ey - ry| * |1 - et - rt|, left to right.
     const Floats8 w0 = win * mod;
@@ -617,8 +613,8 @@ void DescribeKeypoint(const VlSiftFilt* f, const VlSiftKeypoint& k, double angle
     const auto [first, last] = GridColumns(frame, x - xi, dy, x_begin, x_end);
     if (first > last) continue;
     const int m = last - first + 1;
-    SampleRow(frame, xi + first - x, dy, grad + 2 * (static_cast<ptrdiff_t>(dyi) * w + first),
-              expn.samples, m, &samples);
+    SampleRow(frame, xi + first - x, dy, grad + 2 * (static_cast<ptrdiff_t>(dyi) * w + first), expn,
+              m, &samples);
     // The samples added in VLFeat's order, each to its eight bins (x, y, angle).
     for (int i = 0; i < m; ++i) {
       const int bx = samples.bx[i], by = samples.by[i], bt = samples.bt[i];
