@@ -7,7 +7,6 @@ extern "C" {
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <memory>
 
 #include "linecloud/features/sift_opencv.h"
 #include "linecloud/features/sift_scale_space.h"
