@@ -51,6 +51,18 @@ void RunLift(LiftArgs args) {
       r.seconds, args.options.out_path);
   std::cout << fmt::format("key: {} ({}), fingerprint {}\n", r.key_path, r.key_source,
                            ToHex(cloud.key_fingerprint));
+  const IdentityResult& id = r.identity;
+  std::cout << fmt::format(
+      "identity: {} points keep a released line (observations), {} share a place with another "
+      "point, {} lie on a released line, {} are new{}{}\n",
+      id.from_observations, id.from_same_place, id.from_released_place, id.fresh,
+      id.left_out ? fmt::format(", {} left out (they merge points released with different lines)",
+                                id.left_out)
+                  : "",
+      id.shared_images ? fmt::format("; aligned with the released version through {} images "
+                                     "(points {:.2g} % of the diagonal from their lines)",
+                                     id.shared_images, 100 * id.misalignment)
+                       : "");
   if (r.key_source.starts_with("new")) {
     std::cout << "This key now belongs to the model: every later lift of it (any output, "
                  "encoding or option) reuses it. Keep it secret and never delete it: two "
@@ -99,6 +111,10 @@ void RegisterLiftCommand(CLI::App& app) {
                   "Attack-aware sparsification: drop the points the density attack recovers "
                   "(within 1 % of the diagonal), re-attack, until at most this share is recovered")
       ->check(CLI::Range(0.0, 0.99));
+  cmd->add_option("--same-place", o.identity.same_place,
+                  "points closer than this share of the scene diagonal count as one place: they "
+                  "get parallel lines, within this map and against the lines released before")
+      ->capture_default_str();
   cmd->add_flag("--quiet", args->quiet, "no progress on standard error");
   cmd->add_flag("--allow-shared-key", o.allow_shared_key,
                 "Accept a key file that other users can read");

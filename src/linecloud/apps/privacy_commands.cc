@@ -97,7 +97,9 @@ void RegisterAuditCommand(CLI::App& app) {
   cmd->add_option("--model", options->model_dir, "the secret COLMAP model the map was lifted from")
       ->required();
   cmd->add_option("--other", options->other_map_path,
-                  "a second lifting of the model (another key): the two-key attack");
+                  "another lifting or version of the model (e.g. re-triangulated, renumbered): "
+                  "its lines paired with the map's by equal id, nearest descriptor and crossing, "
+                  "then intersected");
   cmd->add_option("--out", options->out_dir, "output folder");
   cmd->add_option("--key-file", options->key_file, "the model's key (default: the key store's)");
   cmd->add_option("--key-store", options->key_store, "per-user key store");
@@ -106,6 +108,13 @@ void RegisterAuditCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--no-density-attack", options->skip_density_attack,
                 "only the two-key attack (with --other)");
+  cmd->add_option("--crossing-tolerance", options->crossing_tolerance,
+                  "pairing attacks: intersect lines passing within this share of the scene "
+                  "diagonal of each other")
+      ->capture_default_str();
+  cmd->add_option("--recovered-within", options->recovered_within,
+                  "pairing attacks: a point counts as recovered within this share of the diagonal")
+      ->capture_default_str();
   AddAttackOptions(cmd, options->attack);
   cmd->add_flag("--quiet", *quiet, "no progress on standard error");
   cmd->callback([options, quiet] { RunAuditCommand(*options, *quiet); });

@@ -6,11 +6,13 @@
 #include <chrono>
 #include <filesystem>
 #include <iostream>
+#include <unordered_map>
 
 #include "linecloud/io/colmap_database.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/lifting/lifting.h"
+#include "linecloud/lifting/release_ledger.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
@@ -21,6 +23,8 @@ struct ResolvedKey {
   LiftingKey key;
   std::string path;
   std::string source;
+  bool create = false;  // the key file is still to be written
+  std::optional<LiftingKey::Id> retire;
 };
 
 // Refuses an output that would replace a key or an entry of the key store
@@ -37,42 +41,46 @@ void RefuseOutputInKeyStore(const LiftModelOptions& o, const KeyStore& store) {
   }
 }
 
-ResolvedKey ResolveKey(const LiftModelOptions& o, const std::vector<uint64_t>& elements) {
-  const KeyStore store(o.key_store.empty() ? KeyStore::DefaultDirectory() : o.key_store);
-  RefuseOutputInKeyStore(o, store);
-  // Find-or-create under one lock: two lifts of a new model started at once
-  // must not create two keys.
-  const KeyStore::Lock lock = store.LockExclusive();
+// The key of this lifting, found or (only in memory) made; `create` /
+// `create_file` say what Persist must still write.
+ResolvedKey ResolveKey(const LiftModelOptions& o, const KeyStore& store,
+                       const std::vector<uint64_t>& elements, const std::string& key_file) {
   const std::optional<KeyStoreMatch> known = store.Find(elements, o.allow_shared_key);
   const DirectionSet directions = o.compact ? DirectionSet::kCompact256 : DirectionSet::kSphere;
-  if (o.key_file.empty()) {
-    if (known) return {known->key, known->key_path, "key store"};
+  if (key_file.empty()) {
+    if (known) return {known->key, known->key_path, "key store", false, std::nullopt};
     // Before the key store, the default key lived next to the output.
     const std::string legacy = o.out_path + ".key";
     if (!o.out_path.empty() && FileExists(legacy)) {
-      const LiftingKey key = ReadKeyFile(legacy, o.allow_shared_key);
-      store.Register(key, legacy, elements);
-      return {key, legacy, "legacy key file"};
+      return {ReadKeyFile(legacy, o.allow_shared_key), legacy, "legacy key file", false,
+              std::nullopt};
     }
-    const KeyStoreMatch created = store.CreateKey(directions, elements);
-    return {created.key, created.key_path, "new key in the key store"};
+    const LiftingKey key = LiftingKey::Generate(directions);
+    return {key, JoinPaths(store.dir(), ToHex(key.Fingerprint()) + ".key"),
+            "new key in the key store", true, std::nullopt};
   }
-  const bool create = !FileExists(o.key_file);
-  if (create) WriteKeyFile(o.key_file, LiftingKey::Generate(directions));
-  const LiftingKey key = ReadKeyFile(o.key_file, o.allow_shared_key);
+  const bool create = !FileExists(key_file);
+  const LiftingKey key =
+      create ? LiftingKey::Generate(directions) : ReadKeyFile(key_file, o.allow_shared_key);
   if (known && known->key.Fingerprint() != key.Fingerprint() && !o.force) {
-    if (create) std::remove(o.key_file.c_str());
     Fail(
         "{}: this model was lifted before with the key {} (fingerprint {}); lifting it with {} "
         "too would reveal every point the two maps share (their lines intersect there). Use "
         "that key, or pass --force if nothing lifted with it was ever shared",
-        o.model_dir, known->key_path, ToHex(known->key.Fingerprint()), o.key_file);
+        o.model_dir, known->key_path, ToHex(known->key.Fingerprint()), key_file);
   }
+  ResolvedKey r{key, key_file, create ? "new key file" : "key file", create, std::nullopt};
+  if (known && known->key.Fingerprint() != key.Fingerprint()) r.retire = known->key.Fingerprint();
+  return r;
+}
+
+// After every check passed: the new key written, the model registered.
+void PersistKey(const KeyStore& store, const ResolvedKey& key,
+                const std::vector<uint64_t>& elements) {
+  if (key.create) WriteKeyFile(key.path, key.key);
   // --force: the new key replaces the old one for this model.
-  if (known && known->key.Fingerprint() != key.Fingerprint())
-    store.Retire(known->key.Fingerprint());
-  store.Register(key, o.key_file, elements);
-  return {key, o.key_file, create ? "new key file" : "key file"};
+  if (key.retire) store.Retire(*key.retire);
+  store.Register(key.key, key.path, elements);
 }
 
 // Refuses to replace a map whose lines differ from the new ones: the old and
@@ -121,12 +129,47 @@ std::vector<uint64_t> ModelSketchElements(const Reconstruction& model) {
     if (point.track.empty()) elements.push_back(SketchElement(id, ""));
     for (const TrackElement& t : point.track) {
       const auto im = model.images.find(t.image_id);
-      elements.push_back(SketchElement(id, im == model.images.end() ? "" : im->second.name));
+      const std::string_view name = im == model.images.end() ? "" : im->second.name;
+      elements.push_back(SketchElement(id, name));
       // Names can change (a folder prefix) while the tracks stay.
       elements.push_back(SketchTrackElement(id, t.image_id, t.point2D_idx));
+      // Point ids change (re-triangulation, a mapper re-run, renumbering)
+      // while the observations stay.
+      elements.push_back(SketchObservationElement(name, t.point2D_idx));
     }
   }
   return elements;
+}
+
+IdentityInputData MakeIdentityInput(const Reconstruction& model, const LiftingKey& key,
+                                    std::span<const uint64_t> ids) {
+  const ObservationHasher hasher(key);
+  IdentityInputData d;
+  std::unordered_map<uint32_t, uint64_t> image_hash;
+  for (const auto& [image_id, image] : model.images) {
+    const uint64_t h = hasher.Image(image.name);
+    image_hash[image_id] = h;
+    d.images.push_back({h, image.cam_from_world.Center()});
+  }
+  d.points.reserve(ids.size());
+  d.observation_start.reserve(ids.size() + 1);
+  for (const uint64_t id : ids) {
+    const Point3D& p = model.points3D.at(id);
+    d.points.push_back(p.xyz);
+    d.observation_start.push_back(static_cast<uint32_t>(d.observations.size()));
+    for (const TrackElement& t : p.track) {
+      const auto h = image_hash.find(t.image_id);
+      if (h != image_hash.end()) d.observations.push_back(hasher.Observation(h->second, t.point2D_idx));
+    }
+  }
+  if (d.observations.size() >= (size_t{1} << 32)) Fail("lift: too many observations");
+  d.observation_start.push_back(static_cast<uint32_t>(d.observations.size()));
+  d.input.ids = ids;
+  d.input.points = d.points;
+  d.input.observation_start = d.observation_start;
+  d.input.observations = d.observations;
+  d.input.images = d.images;
+  return d;
 }
 
 LiftingKey ModelKey(const Reconstruction& model, const std::string& model_name,
@@ -155,32 +198,56 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
     const ColmapDatabase db(o.database);
     descriptors = ComputePointDescriptors(rec, ids, db, o.aggregation);
   }
-  const ResolvedKey key = ResolveKey(o, ModelSketchElements(rec));
+  const KeyStore store(o.key_store.empty() ? KeyStore::DefaultDirectory() : o.key_store);
+  RefuseOutputInKeyStore(o, store);
+  // The whole lift under one lock of the store: two lifts of one model must
+  // neither make two keys nor release two lines of one point.
+  const KeyStore::Lock lock = store.LockExclusive();
+  const std::vector<uint64_t> elements = ModelSketchElements(rec);
+  const ResolvedKey key = ResolveKey(o, store, elements, o.key_file);
 
-  std::vector<Eigen::Vector3d> points;
-  points.reserve(ids.size());
-  for (const uint64_t id : ids) points.push_back(rec.points3D.at(id).xyz);
-  LiftingOptions lifting;
-  lifting.encoding = o.compact ? LineEncoding::kCompact : LineEncoding::kPlucker;
+  // One physical point, one line (identity.h): directions from the key's
+  // release ledger.
+  const std::string ledger_path = LedgerPath(store.dir(), key.key.Fingerprint());
+  ReleaseLedger ledger = ReadLedger(ledger_path);
+  const IdentityInputData identity_input = MakeIdentityInput(rec, key.key, ids);
   LiftModelResult result;
-  // A sparse map holds a subset of the full map's lines (sparsify.h).
+  result.identity = AssignDirections(key.key, identity_input.input, ledger, o.identity);
+  const IdentityResult& identity = result.identity;
+
   std::vector<uint64_t> kept_ids;
   std::vector<Eigen::Vector3d> kept_points;
-  for (const size_t i : SparsifyPoints(key.key, ids, points, o.sparsify, o.sparsify_mode)) {
+  std::vector<size_t> kept_rows;  // rows of `ids`
+  // A sparse map holds a subset of the full map's lines (sparsify.h).
+  for (const size_t i : SparsifyPoints(key.key, ids, identity_input.points, o.sparsify,
+                                       o.sparsify_mode)) {
+    if (!identity.keep[i]) continue;
     kept_ids.push_back(ids[i]);
-    kept_points.push_back(points[i]);
+    kept_points.push_back(identity_input.points[i]);
+    kept_rows.push_back(i);
   }
   if (o.select_points) {
     std::vector<uint64_t> selected_ids;
     std::vector<Eigen::Vector3d> selected_points;
+    std::vector<size_t> selected_rows;
     for (const size_t k : o.select_points(key.key, kept_ids, kept_points)) {
       selected_ids.push_back(kept_ids.at(k));
       selected_points.push_back(kept_points.at(k));
+      selected_rows.push_back(kept_rows.at(k));
     }
     kept_ids.swap(selected_ids);
     kept_points.swap(selected_points);
+    kept_rows.swap(selected_rows);
   }
-  result.cloud = LiftPoints(kept_ids, kept_points, key.key, lifting);
+  std::vector<Eigen::Vector3d> directions;
+  std::vector<uint8_t> compact;
+  for (const size_t i : kept_rows) {
+    directions.push_back(identity.directions[i]);
+    compact.push_back(identity.compact[i]);
+  }
+  LiftingOptions lifting;
+  lifting.encoding = o.compact ? LineEncoding::kCompact : LineEncoding::kPlucker;
+  result.cloud = LiftPoints(kept_ids, kept_points, key.key, lifting, directions, compact);
   if (descriptors.dim > 0) {
     // Descriptors follow the lines' (line-id) order; `ids` (their rows) is sorted.
     LineCloud& c = result.cloud;
@@ -202,6 +269,12 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
     result.cloud.gravity = o.gravity->normalized();
   }
   CheckExistingOutput(o, result.cloud, key.key);
+  // Every check passed: the key, the model's registration and the ledger
+  // (before the map: a release recorded but never written is harmless, a map
+  // written but not recorded is not), then the map.
+  PersistKey(store, key, elements);
+  RecordRelease(identity_input.input, identity, kept_rows, &ledger);
+  WriteLedger(ledger_path, ledger);
   if (!o.out_path.empty()) WriteLineCloud(result.cloud, o.out_path);
   result.num_points = ids.size();
   result.key_path = key.path;

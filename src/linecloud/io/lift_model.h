@@ -17,6 +17,7 @@
 #include <Eigen/Core>
 
 #include "linecloud/io/track_descriptors.h"
+#include "linecloud/lifting/identity.h"
 #include "linecloud/lifting/key_store.h"
 #include "linecloud/lifting/line_cloud.h"
 #include "linecloud/lifting/sparsify.h"
@@ -36,6 +37,7 @@ struct LiftModelOptions {
   std::optional<Eigen::Vector3d> gravity;  // the model frame's gravity direction
   double sparsify = 0;                     // share of the points dropped (sparsify.h)
   SparsifyMode sparsify_mode = SparsifyMode::kUniform;
+  IdentityOptions identity;  // how a point keeps its line across versions
   // Optional further selection after sparsifying (e.g. privacy/resist.h):
   // indices into (ids, points) of the points to keep.
   std::function<std::vector<size_t>(const LiftingKey&, std::span<const uint64_t>,
@@ -52,11 +54,29 @@ struct LiftModelResult {
   // "new key in the key store", "key store", "new key file", "key file",
   // or "legacy key file" (OUT.key from before the key store).
   std::string key_source;
+  IdentityResult identity;  // where each point's direction came from
   double seconds = 0;
 };
 
-// The sketch elements of a model: one per (point id, observing image name).
+// The sketch elements of a model: per observation of a point, hashes of
+// (point id, image name), (point id, image id, keypoint) and (image name,
+// keypoint) — the last survives renumbered points.
 std::vector<uint64_t> ModelSketchElements(const Reconstruction& model);
+
+// A model's points `ids` (sorted) as the identity rule sees them: positions,
+// keyed observation hashes, image centres (identity.h).
+struct IdentityInputData {
+  std::vector<Eigen::Vector3d> points;
+  std::vector<uint32_t> observation_start;
+  std::vector<uint64_t> observations;
+  std::vector<std::pair<uint64_t, Eigen::Vector3d>> images;
+  IdentityInput input;  // views of the above
+  IdentityInputData() = default;
+  IdentityInputData(const IdentityInputData&) = delete;
+  IdentityInputData(IdentityInputData&&) = default;
+};
+IdentityInputData MakeIdentityInput(const Reconstruction& model, const LiftingKey& key,
+                                    std::span<const uint64_t> ids);
 
 LiftModelResult LiftModel(const LiftModelOptions& options);
 

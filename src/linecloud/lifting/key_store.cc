@@ -106,6 +106,22 @@ uint64_t SketchElement(uint64_t point_id, std::string_view image_name) {
   return out;
 }
 
+uint64_t SketchObservationElement(std::string_view image_name, uint32_t point2D_idx) {
+  EnsureSodiumInitialized();
+  static constexpr std::string_view kContext = "linecloud/model-sketch/observation/v1";
+  crypto_generichash_state state;
+  crypto_generichash_init(&state, reinterpret_cast<const unsigned char*>(kContext.data()),
+                          kContext.size(), 8);
+  unsigned char idx[4];
+  std::memcpy(idx, &point2D_idx, 4);
+  crypto_generichash_update(&state, idx, 4);
+  crypto_generichash_update(&state, reinterpret_cast<const unsigned char*>(image_name.data()),
+                            image_name.size());
+  uint64_t out;
+  crypto_generichash_final(&state, reinterpret_cast<unsigned char*>(&out), 8);
+  return out;
+}
+
 uint64_t SketchTrackElement(uint64_t point_id, uint32_t image_id, uint32_t point2D_idx) {
   EnsureSodiumInitialized();
   static constexpr std::string_view kContext = "linecloud/model-sketch/track/v1";

@@ -139,6 +139,17 @@ void KeyedDirections(const LiftingKey& key, std::span<const uint64_t> ids,
 LineCloud LiftPoints(std::span<const uint64_t> ids, std::span<const Eigen::Vector3d> points,
                      const LiftingKey& key, const LiftingOptions& options) {
   EnsureSodiumInitialized();
+  std::vector<Eigen::Vector3d> directions(ids.size());
+  std::vector<uint8_t> indices(ids.size());
+  KeyedDirections(key, ids, directions.data(), indices.data());
+  return LiftPoints(ids, points, key, options, directions, indices);
+}
+
+LineCloud LiftPoints(std::span<const uint64_t> ids, std::span<const Eigen::Vector3d> points,
+                     const LiftingKey& key, const LiftingOptions& options,
+                     std::span<const Eigen::Vector3d> directions,
+                     std::span<const uint8_t> indices) {
+  EnsureSodiumInitialized();
   if (ids.size() != points.size()) {
     Fail("lifting: {} ids but {} points", ids.size(), points.size());
   }
@@ -155,9 +166,15 @@ LineCloud LiftPoints(std::span<const uint64_t> ids, std::span<const Eigen::Vecto
         "the full encoding (no --compact); only a model whose key was created with --compact "
         "can be stored compactly");
   }
-  std::vector<Eigen::Vector3d> directions(ids.size());
-  std::vector<uint8_t> indices(compact_key ? ids.size() : 0);
-  KeyedDirections(key, ids, directions.data(), compact_key ? indices.data() : nullptr);
+  if (directions.size() != ids.size() || (compact_key && indices.size() != ids.size())) {
+    Fail("lifting: {} ids but {} directions and {} compact indices", ids.size(), directions.size(),
+         indices.size());
+  }
+  for (size_t i = 0; i < directions.size() && !compact_key; ++i) {
+    if (!(std::abs(directions[i].norm() - 1) <= 1e-9)) {
+      Fail("lifting: the direction of point {} is not a unit vector", ids[i]);
+    }
+  }
   // Stored in increasing line-id order: a pseudo-random order of the points.
   // (line id, input index) pairs sort contiguously.
   std::vector<std::pair<uint64_t, size_t>> order(ids.size());

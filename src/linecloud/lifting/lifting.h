@@ -56,5 +56,12 @@ uint64_t Speck64Encrypt(const std::array<uint32_t, 4>& key, uint64_t block);
 // repeated ids, mismatched sizes, or the compact encoding under a sphere key.
 LineCloud LiftPoints(std::span<const uint64_t> ids, std::span<const Eigen::Vector3d> points,
                      const LiftingKey& key, const LiftingOptions& options);
+// The same with the points' directions given (identity.h: a direction that
+// follows a point across versions of its model): unit `directions` for a
+// sphere key, `compact_indices` for a compact256 key (one per point each).
+LineCloud LiftPoints(std::span<const uint64_t> ids, std::span<const Eigen::Vector3d> points,
+                     const LiftingKey& key, const LiftingOptions& options,
+                     std::span<const Eigen::Vector3d> directions,
+                     std::span<const uint8_t> compact_indices);
 
 }  // namespace linecloud

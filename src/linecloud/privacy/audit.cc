@@ -1,11 +1,15 @@
 #include "linecloud/privacy/audit.h"
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <optional>
 #include <filesystem>
 #include <unordered_map>
 
 #include <fmt/format.h>
 
+#include "linecloud/geometry/line_grid.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/io/lift_model.h"
 #include "linecloud/io/ply.h"
@@ -72,6 +76,78 @@ ojson TwoKeyJson(const TwoLiftingsAttack& attack, const std::vector<Eigen::Vecto
   return j;
 }
 
+// The points of `a` (the audited map) an attack recovers: those with an
+// intersection within `within` of their secret point (also the partner's,
+// for one map's own crossings).
+size_t CountRecovered(const TwoLiftingsAttack& attack, const std::vector<size_t>* partner,
+                      const std::vector<Eigen::Vector3d>& secret, double within,
+                      std::vector<uint8_t>* recovered) {
+  recovered->assign(secret.size(), 0);
+  for (size_t k = 0; k < attack.points.size(); ++k) {
+    const size_t i = attack.indices[k];
+    if ((attack.points[k] - secret[i]).norm() <= within) (*recovered)[i] = 1;
+    if (partner) {
+      const size_t j = (*partner)[k];
+      if ((attack.points[k] - secret[j]).norm() <= within) (*recovered)[j] = 1;
+    }
+  }
+  return static_cast<size_t>(std::count(recovered->begin(), recovered->end(), 1));
+}
+
+ojson PairingJson(const TwoLiftingsAttack& attack, const std::vector<size_t>* partner,
+                  const std::vector<Eigen::Vector3d>& secret, double within, double seconds) {
+  std::vector<uint8_t> recovered;
+  const size_t n = CountRecovered(attack, partner, secret, within, &recovered);
+  return {{"pairing", attack.pairing},
+          {"pairs", attack.shared_ids},
+          {"parallel_pairs", attack.parallel},
+          {"intersections", attack.points.size()},
+          {"recovered", n},
+          {"share_recovered", secret.empty() ? 0.0 : static_cast<double>(n) / secret.size()},
+          {"seconds", seconds}};
+}
+
+double SecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// What one map's own lines give away (points at one place lifted with
+// different directions cross there), and with `other` (another version or
+// lifting of the model) what pairing the two maps by equal id, by nearest
+// descriptor and by crossing lines recovers.
+ojson PairingAttacksJson(const LineCloud& cloud, const LineCloud* other,
+                         const std::vector<Eigen::Vector3d>& secret, double diagonal,
+                         const AuditOptions& o) {
+  const Eigen::AlignedBox3d box = RobustBox(secret, 0.005, 0.05);
+  const double tolerance = o.crossing_tolerance * diagonal;
+  const double within = o.recovered_within * diagonal;
+  ojson j = {{"crossing_tolerance_diagonal", o.crossing_tolerance},
+             {"recovered_within_diagonal", o.recovered_within}};
+  auto start = std::chrono::steady_clock::now();
+  std::vector<size_t> partner;
+  const TwoLiftingsAttack self = IntersectSelfCrossings(cloud, box, tolerance, &partner);
+  j["self_crossings"] = PairingJson(self, &partner, secret, within, SecondsSince(start));
+  if (!other) return j;
+  start = std::chrono::steady_clock::now();
+  j["by_id"] = PairingJson(IntersectLinesOfEqualId(cloud, *other), nullptr, secret, within,
+                           SecondsSince(start));
+  if (cloud.has_descriptors() && other->has_descriptors() &&
+      cloud.descriptor_dim == other->descriptor_dim) {
+    start = std::chrono::steady_clock::now();
+    j["by_descriptor"] = PairingJson(IntersectLinesOfNearestDescriptor(cloud, *other), nullptr,
+                                     secret, within, SecondsSince(start));
+  }
+  start = std::chrono::steady_clock::now();
+  j["by_crossing"] = PairingJson(IntersectCrossingLinesInBox(cloud, *other, box, tolerance),
+                                 nullptr, secret, within, SecondsSince(start));
+  size_t worst = 0;
+  for (const char* name : {"self_crossings", "by_id", "by_descriptor", "by_crossing"}) {
+    if (j.contains(name)) worst = std::max(worst, j[name]["recovered"].get<size_t>());
+  }
+  j["most_recovered"] = worst;
+  return j;
+}
+
 std::string Percent(double share) { return fmt::format("{:.1f} %", 100 * share); }
 
 }  // namespace
@@ -87,6 +163,12 @@ void AuditOptions::Check() const {
     Fail("audit: nothing to do (--no-density-attack without --other)");
   }
   attack.Check();
+  if (!(crossing_tolerance > 0 && crossing_tolerance < 0.1)) {
+    Fail("--crossing-tolerance: {} is not a share of the diagonal in (0, 0.1)", crossing_tolerance);
+  }
+  if (!(recovered_within > 0 && recovered_within < 0.1)) {
+    Fail("--recovered-within: {} is not a share of the diagonal in (0, 0.1)", recovered_within);
+  }
 }
 
 std::vector<Eigen::Vector3d> SecretPointsOfLines(const LineCloud& cloud,
@@ -175,11 +257,14 @@ ojson RunAudit(const LineCloud& cloud, const AuditOptions& o) {
                        100 * score.median_error / diagonal)});
     }
   }
+  std::optional<LineCloud> other;
   if (!o.other_map_path.empty()) {
-    const LineCloud other = ReadLineCloud(o.other_map_path);
-    const TwoLiftingsAttack attack = AttackTwoLiftings(cloud, other, o.attack.threads);
+    other = ReadLineCloud(o.other_map_path);
+    const TwoLiftingsAttack attack = AttackTwoLiftings(cloud, *other, o.attack.threads);
     report["two_keys"] = TwoKeyJson(attack, secret, diagonal, cloud.size(), o.other_map_path);
   }
+  report["pairing_attacks"] =
+      PairingAttacksJson(cloud, other ? &*other : nullptr, secret, diagonal, o);
   if (!o.out_dir.empty()) {
     CreateDirectories(o.out_dir);
     WriteFileAtomically(JoinPaths(o.out_dir, "report.json"),
@@ -241,6 +326,22 @@ std::string AuditMarkdown(const ojson& r) {
     if (t.contains("why_nothing"))
       md += fmt::format("Nothing recovered: {}.\n", t["why_nothing"].get<std::string>());
     md += "\nThis is why a model must only ever be lifted with its one key.\n";
+  }
+  if (r.contains("pairing_attacks")) {
+    const ojson& p = r["pairing_attacks"];
+    md += fmt::format(
+        "\n## Pairing attacks\n\nLines paired as an attacker would, intersected; a point counts "
+        "as recovered when an intersection lies within {:g} of the scene diagonal of it (crossings: "
+        "lines within {:g} of the diagonal of each other).\n\n| pairing | pairs | recovered | share "
+        "|\n|---|---|---|---|\n",
+        p["recovered_within_diagonal"].get<double>(), p["crossing_tolerance_diagonal"].get<double>());
+    for (const char* name : {"self_crossings", "by_id", "by_descriptor", "by_crossing"}) {
+      if (!p.contains(name)) continue;
+      const ojson& a = p[name];
+      md += fmt::format("| {} | {} | {} | {} |\n", a["pairing"].get<std::string>(),
+                        a["pairs"].get<size_t>(), a["recovered"].get<size_t>(),
+                        Percent(a["share_recovered"].get<double>()));
+    }
   }
   return md;
 }

@@ -30,6 +30,12 @@ struct AuditOptions {
   std::string key_store;
   double metric_scale = 0;  // metres per model unit; 0: not metric
   bool skip_density_attack = false;
+  // The pairing attacks (two versions; one map's own lines): lines passing
+  // within crossing_tolerance × the scene diagonal of each other are
+  // intersected; a point counts as recovered when an intersection lies within
+  // recovered_within × the diagonal of it.
+  double crossing_tolerance = 1e-3;
+  double recovered_within = 1e-4;
   DensityAttackOptions attack;
 
   void Check() const;  // throws Error naming the option

@@ -4,7 +4,10 @@
 #include <limits>
 #include <unordered_map>
 
+#include "linecloud/features/matching.h"
+#include "linecloud/geometry/line_grid.h"
 #include "linecloud/privacy/line_neighbours.h"
+#include "linecloud/util/error.h"
 #include "linecloud/privacy/recovery_score.h"
 #include "linecloud/util/parallel.h"
 
@@ -95,6 +98,65 @@ TwoLiftingsAttack IntersectCrossingLines(const LineCloud& a, const LineCloud& b,
   for (size_t i = 0; i < a.size(); ++i) {
     if (partner[i] >= 0) Intersect(a, i, b.lines[partner[i]], 0.0, &result);
   }
+  return result;
+}
+
+TwoLiftingsAttack IntersectLinesOfNearestDescriptor(const LineCloud& a, const LineCloud& b,
+                                                    double min_angle_rad) {
+  TwoLiftingsAttack result;
+  result.pairing = "nearest descriptor";
+  if (!a.has_descriptors() || !b.has_descriptors() || a.descriptor_dim != b.descriptor_dim) {
+    Fail("pairing by descriptor: both maps need descriptors of one size ({} and {})",
+         a.descriptor_dim, b.descriptor_dim);
+  }
+  DescriptorMatchOptions o;
+  o.dim = a.descriptor_dim;
+  o.max_ratio = 1.0;          // no ratio test: the nearest, whatever the second
+  o.max_distance = 3.2;       // no distance test (angles are at most π)
+  // A tie (ratio exactly 1) is refused by the ratio test; the attacker keeps
+  // the nearest anyway: ties are rare among real descriptors.
+  const std::vector<DescriptorMatch> matches = MatchDescriptors(a.descriptors, b.descriptors, o);
+  const double min_sin = std::sin(min_angle_rad);
+  for (const DescriptorMatch& m : matches) Intersect(a, m.query, b.lines[m.map], min_sin, &result);
+  return result;
+}
+
+TwoLiftingsAttack IntersectCrossingLinesInBox(const LineCloud& a, const LineCloud& b,
+                                              const Eigen::AlignedBox3d& box, double tolerance,
+                                              double min_angle_rad) {
+  TwoLiftingsAttack result;
+  result.pairing = "crossing lines";
+  std::vector<PluckerLine> lines(a.lines.begin(), a.lines.end());
+  lines.insert(lines.end(), b.lines.begin(), b.lines.end());
+  std::vector<uint8_t> group(a.size(), 0);
+  group.resize(lines.size(), 1);
+  const LineGrid grid(lines, box, tolerance);
+  grid.CrossingPairs(min_angle_rad, group,
+                     [&](uint32_t i, uint32_t j, const Eigen::Vector3d& mid, double) {
+                       ++result.shared_ids;
+                       result.ids.push_back(a.ids[i]);
+                       result.indices.push_back(i);
+                       result.points.push_back(mid);
+                       (void)j;
+                     });
+  return result;
+}
+
+TwoLiftingsAttack IntersectSelfCrossings(const LineCloud& a, const Eigen::AlignedBox3d& box,
+                                         double tolerance, std::vector<size_t>* partner,
+                                         double min_angle_rad) {
+  TwoLiftingsAttack result;
+  result.pairing = "crossing lines of one map";
+  partner->clear();
+  const LineGrid grid(a.lines, box, tolerance);
+  grid.CrossingPairs(min_angle_rad, {},
+                     [&](uint32_t i, uint32_t j, const Eigen::Vector3d& mid, double) {
+                       ++result.shared_ids;
+                       result.ids.push_back(a.ids[i]);
+                       result.indices.push_back(i);
+                       result.points.push_back(mid);
+                       partner->push_back(j);
+                     });
   return result;
 }
 

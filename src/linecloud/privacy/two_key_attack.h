@@ -9,6 +9,8 @@
 // under the same line ids, to show what it gives back.
 #pragma once
 
+#include <Eigen/Geometry>
+
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -42,6 +44,27 @@ TwoLiftingsAttack IntersectLinesOfEqualId(const LineCloud& a, const LineCloud& b
 // anchors' diagonal is intersected. Brute force, O(|a|·|b|), on `threads`.
 TwoLiftingsAttack IntersectCrossingLines(const LineCloud& a, const LineCloud& b,
                                          double max_relative_distance = 1e-6, int threads = 0);
+
+// By nearest descriptor: each line of `a` paired with the line of `b` whose
+// descriptor is nearest (no ratio test: every line gets a partner), and the
+// pair intersected. Versions of one map share descriptors for the same
+// physical point whatever their ids. Both clouds need descriptors.
+TwoLiftingsAttack IntersectLinesOfNearestDescriptor(const LineCloud& a, const LineCloud& b,
+                                                    double min_angle_rad = 1e-6);
+
+// Every pair (line of a, line of b) passing within `tolerance` (model units)
+// of each other inside `box`, found through a spatial index of the lines
+// (geometry/line_grid.h), intersected. A point may be recovered several times.
+TwoLiftingsAttack IntersectCrossingLinesInBox(const LineCloud& a, const LineCloud& b,
+                                              const Eigen::AlignedBox3d& box, double tolerance,
+                                              double min_angle_rad = 1e-6);
+
+// The same within one cloud (pairs of its own lines): two points at one place
+// lifted with different directions cross there. `indices` holds the first
+// line of each pair, `partner` the second.
+TwoLiftingsAttack IntersectSelfCrossings(const LineCloud& a, const Eigen::AlignedBox3d& box,
+                                         double tolerance, std::vector<size_t>* partner,
+                                         double min_angle_rad = 1e-6);
 
 // Equal ids when at least half of a's ids are in b, else crossing lines
 // (within 1e-9 of the diagonal for full-precision maps, 1e-6 for compact ones).

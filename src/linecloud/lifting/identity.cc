@@ -1,0 +1,305 @@
+#include "linecloud/lifting/identity.h"
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <random>
+#include <unordered_map>
+
+#include <Eigen/Geometry>
+
+#include "linecloud/geometry/line_grid.h"
+#include "linecloud/lifting/lifting.h"
+#include "linecloud/lifting/line_cloud.h"
+#include "linecloud/util/error.h"
+
+namespace linecloud {
+namespace {
+
+Eigen::Vector3d Apply(const Sim3d& t, const Eigen::Vector3d& x) { return t * x; }
+
+// Similarity ledger_from_model through the shared images' centres: RANSAC
+// over triples (fixed seed) of Eigen's umeyama, refitted on the inliers.
+Sim3d AlignThroughImages(const std::vector<Eigen::Vector3d>& model,
+                         const std::vector<Eigen::Vector3d>& ledger) {
+  const size_t n = model.size();
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& c : ledger) mean += c;
+  mean /= static_cast<double>(n);
+  double spread = 0;
+  for (const auto& c : ledger) spread += (c - mean).squaredNorm();
+  spread = std::sqrt(spread / static_cast<double>(n));
+  const double tolerance = 0.02 * spread;
+  const auto fit = [&](const std::vector<size_t>& idx) {
+    Eigen::Matrix3Xd src(3, idx.size()), dst(3, idx.size());
+    for (size_t k = 0; k < idx.size(); ++k) {
+      src.col(k) = model[idx[k]];
+      dst.col(k) = ledger[idx[k]];
+    }
+    const Eigen::Matrix4d m = Eigen::umeyama(src, dst, true);
+    const Eigen::Matrix3d sr = m.topLeftCorner<3, 3>();
+    const double s = std::cbrt(sr.determinant());
+    Sim3d t;
+    t.scale = s;
+    t.rotation = Eigen::Quaterniond(sr / s).normalized();
+    t.translation = m.topRightCorner<3, 1>();
+    return t;
+  };
+  const auto inliers = [&](const Sim3d& t) {
+    std::vector<size_t> in;
+    for (size_t k = 0; k < n; ++k) {
+      if ((Apply(t, model[k]) - ledger[k]).norm() <= tolerance) in.push_back(k);
+    }
+    return in;
+  };
+  std::vector<size_t> all(n);
+  for (size_t k = 0; k < n; ++k) all[k] = k;
+  Sim3d best = fit(all);
+  std::vector<size_t> best_in = inliers(best);
+  std::mt19937_64 rng(7);
+  for (int iter = 0; iter < 300 && best_in.size() < n; ++iter) {
+    std::vector<size_t> sample;
+    std::sample(all.begin(), all.end(), std::back_inserter(sample), 3, rng);
+    const Sim3d t = fit(sample);
+    if (!(t.scale > 0) || !t.translation.allFinite()) continue;
+    std::vector<size_t> in = inliers(t);
+    if (in.size() > best_in.size()) {
+      best = t;
+      best_in = std::move(in);
+    }
+  }
+  if (best_in.size() >= 3) best = fit(best_in);
+  return best;
+}
+
+struct CellKey {
+  int64_t x, y, z;
+  bool operator==(const CellKey&) const = default;
+};
+struct CellHash {
+  size_t operator()(const CellKey& c) const {
+    return static_cast<size_t>(static_cast<uint64_t>(c.x) * 73856093u ^
+                               static_cast<uint64_t>(c.y) * 19349663u ^
+                               static_cast<uint64_t>(c.z) * 83492791u);
+  }
+};
+
+bool SameDirection(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  return a.cross(b).norm() <= 1e-9;
+}
+
+}  // namespace
+
+void IdentityOptions::Check() const {
+  if (!(same_place > 0 && same_place < 0.1)) {
+    Fail("identity: same_place {} is not a share of the diagonal in (0, 0.1)", same_place);
+  }
+  if (!(max_misalignment > 0 && max_misalignment < 1)) {
+    Fail("identity: max_misalignment {} is not a share in (0, 1)", max_misalignment);
+  }
+}
+
+IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
+                                const ReleaseLedger& ledger, const IdentityOptions& o) {
+  o.Check();
+  const size_t n = in.ids.size();
+  if (in.points.size() != n || in.observation_start.size() != n + 1 ||
+      in.observation_start[n] != in.observations.size()) {
+    Fail("identity: {} ids, {} points, {} observation starts for {} observations", n,
+         in.points.size(), in.observation_start.size(), in.observations.size());
+  }
+  const bool compact_key = key.directions() == DirectionSet::kCompact256;
+  IdentityResult r;
+  r.directions.resize(n);
+  r.compact.assign(n, 0);
+  r.ledger_line.assign(n, -1);
+  r.keep.assign(n, 1);
+  // Fresh keyed directions: what every point gets without a released identity.
+  std::vector<Eigen::Vector3d> fresh(n);
+  std::vector<uint8_t> fresh_compact(n);
+  KeyedDirections(key, in.ids, fresh.data(), fresh_compact.data());
+  if (compact_key) {
+    for (size_t i = 0; i < n; ++i) fresh[i] = CompactDirections()[fresh_compact[i]];
+  }
+  const double diagonal = RobustBox(in.points, 0.005, 0.0).diagonal().norm();
+  r.same_place_distance = std::max(o.same_place * diagonal, 1e-12);
+
+  // 1. Alignment and observations.
+  if (!ledger.empty()) {
+    std::vector<Eigen::Vector3d> model_c, ledger_c;
+    for (const auto& [hash, centre] : in.images) {
+      if (const Eigen::Vector3d* c = ledger.ImageCentre(hash)) {
+        model_c.push_back(centre);
+        ledger_c.push_back(*c);
+      }
+    }
+    r.shared_images = model_c.size();
+    if (model_c.size() >= 3) r.ledger_from_model = AlignThroughImages(model_c, ledger_c);
+  }
+  const Eigen::Matrix3d rotation = r.ledger_from_model.rotation.toRotationMatrix();
+  const bool rotated = (rotation - Eigen::Matrix3d::Identity()).norm() > 1e-9;
+  std::vector<double> distances;
+  std::vector<std::pair<int64_t, int>> votes;
+  for (size_t i = 0; i < n && !ledger.empty(); ++i) {
+    votes.clear();
+    for (uint32_t k = in.observation_start[i]; k < in.observation_start[i + 1]; ++k) {
+      const int64_t line = ledger.LineOfObservation(in.observations[k]);
+      if (line < 0) continue;
+      auto it = std::find_if(votes.begin(), votes.end(), [&](const auto& v) { return v.first == line; });
+      if (it == votes.end()) votes.push_back({line, 1});
+      else ++it->second;
+    }
+    if (votes.empty()) continue;
+    const auto best = *std::max_element(votes.begin(), votes.end(), [](const auto& a, const auto& b) {
+      return a.second < b.second || (a.second == b.second && a.first > b.first);
+    });
+    const PluckerLine& line = ledger.lines[best.first];
+    bool conflict = false;
+    for (const auto& v : votes) conflict |= !SameDirection(ledger.lines[v.first].v, line.v);
+    if (conflict) {
+      r.keep[i] = 0;
+      ++r.left_out;
+      continue;
+    }
+    r.ledger_line[i] = best.first;
+    r.directions[i] = rotation.transpose() * line.v;
+    r.compact[i] = ledger.compact[best.first];
+    ++r.from_observations;
+    distances.push_back(line.DistanceTo(Apply(r.ledger_from_model, in.points[i])) /
+                        (r.ledger_from_model.scale * std::max(diagonal, 1e-300)));
+  }
+  if (!distances.empty()) {
+    std::nth_element(distances.begin(), distances.begin() + distances.size() / 2, distances.end());
+    r.misalignment = distances[distances.size() / 2];
+    if (!(r.misalignment <= o.max_misalignment)) {
+      Fail(
+          "this version of the model shares {} observations with its released version but "
+          "cannot be aligned with it ({} shared images; after alignment its points lie {:.2g} % "
+          "of the scene diagonal from their released lines, median): lifting it would give "
+          "those points crossing lines. Keep the released images' names, or lift it under a "
+          "key of its own if it is not the same place",
+          r.from_observations, r.shared_images, 100 * r.misalignment);
+    }
+    if (compact_key && rotated) {
+      Fail(
+          "this version of the model has another gauge than its released version, and a "
+          "compact256 key's 256 directions cannot follow the rotation between them: align it "
+          "to the released model first (colmap model_aligner), or lift with a sphere key");
+    }
+  }
+
+  // 2. Same place: points of this version, then released lines.
+  const double eps = r.same_place_distance;
+  std::unordered_map<CellKey, std::vector<uint32_t>, CellHash> grid;
+  const auto cell_of = [&](const Eigen::Vector3d& x) {
+    return CellKey{static_cast<int64_t>(std::floor(x.x() / eps)),
+                   static_cast<int64_t>(std::floor(x.y() / eps)),
+                   static_cast<int64_t>(std::floor(x.z() / eps))};
+  };
+  std::vector<uint8_t> assigned(n, 0);
+  for (size_t i = 0; i < n; ++i) {
+    grid[cell_of(in.points[i])].push_back(static_cast<uint32_t>(i));
+    assigned[i] = r.ledger_line[i] >= 0;
+  }
+  std::unique_ptr<LineGrid> released;
+  std::vector<uint32_t> near;
+  for (size_t i = 0; i < n; ++i) {
+    if (assigned[i] || !r.keep[i]) continue;
+    const CellKey c = cell_of(in.points[i]);
+    double best_d = std::numeric_limits<double>::infinity();
+    int64_t best_j = -1;
+    for (int64_t dz = -1; dz <= 1; ++dz) {
+      for (int64_t dy = -1; dy <= 1; ++dy) {
+        for (int64_t dx = -1; dx <= 1; ++dx) {
+          const auto it = grid.find({c.x + dx, c.y + dy, c.z + dz});
+          if (it == grid.end()) continue;
+          for (const uint32_t j : it->second) {
+            // Only from a point with a direction of its own (no chains: a
+            // bundle of parallel lines stays within `same_place` of its seed).
+            if (j == i || assigned[j] != 1 || !r.keep[j]) continue;
+            const double d = (in.points[j] - in.points[i]).norm();
+            if (d <= eps && d < best_d) best_d = d, best_j = j;
+          }
+        }
+      }
+    }
+    if (best_j >= 0) {
+      r.directions[i] = r.directions[best_j];
+      r.compact[i] = r.compact[best_j];
+      r.ledger_line[i] = r.ledger_line[best_j];
+      assigned[i] = 2;
+      ++r.from_same_place;
+      continue;
+    }
+    if (!ledger.empty() && !(compact_key && rotated)) {
+      if (!released) {
+        // The released lines near this version's points (in the ledger frame).
+        std::vector<Eigen::Vector3d> in_ledger(n);
+        for (size_t k = 0; k < n; ++k) in_ledger[k] = Apply(r.ledger_from_model, in.points[k]);
+        released = std::make_unique<LineGrid>(ledger.lines, RobustBox(in_ledger, 0.005, 0.05),
+                                              eps * r.ledger_from_model.scale);
+      }
+      const Eigen::Vector3d x = Apply(r.ledger_from_model, in.points[i]);
+      released->LinesNear(x, &near);
+      int64_t best_line = -1;
+      for (const uint32_t l : near) {
+        const double d = ledger.lines[l].DistanceTo(x);
+        if (d < best_d) best_d = d, best_line = l;
+      }
+      if (best_line >= 0) {
+        r.directions[i] = rotation.transpose() * ledger.lines[best_line].v;
+        r.compact[i] = ledger.compact[best_line];
+        r.ledger_line[i] = best_line;
+        assigned[i] = 1;
+        ++r.from_released_place;
+        continue;
+      }
+    }
+    r.directions[i] = fresh[i];
+    r.compact[i] = fresh_compact[i];
+    assigned[i] = 1;
+    ++r.fresh;
+  }
+  return r;
+}
+
+void RecordRelease(const IdentityInput& in, const IdentityResult& r,
+                   std::span<const size_t> released, ReleaseLedger* ledger) {
+  const Sim3d& t = r.ledger_from_model;
+  const Eigen::Matrix3d rotation = t.rotation.toRotationMatrix();
+  std::vector<std::pair<uint64_t, uint32_t>> added;
+  for (const size_t i : released) {
+    if (i >= r.keep.size() || !r.keep[i]) Fail("identity: point {} was not given a line", i);
+    int64_t line = r.ledger_line[i];
+    if (line < 0) {
+      const Eigen::Vector3d v = (rotation * r.directions[i]).normalized();
+      ledger->lines.push_back(PluckerLine::FromPointAndDirection(Apply(t, in.points[i]), v));
+      ledger->compact.push_back(r.compact[i]);
+      line = static_cast<int64_t>(ledger->lines.size()) - 1;
+    }
+    for (uint32_t k = in.observation_start[i]; k < in.observation_start[i + 1]; ++k) {
+      if (ledger->LineOfObservation(in.observations[k]) < 0) {
+        added.push_back({in.observations[k], static_cast<uint32_t>(line)});
+      }
+    }
+  }
+  ledger->observations.insert(ledger->observations.end(), added.begin(), added.end());
+  std::stable_sort(ledger->observations.begin(), ledger->observations.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  ledger->observations.erase(
+      std::unique(ledger->observations.begin(), ledger->observations.end(),
+                  [](const auto& a, const auto& b) { return a.first == b.first; }),
+      ledger->observations.end());
+  std::vector<std::pair<uint64_t, Eigen::Vector3d>> new_images;
+  for (const auto& [hash, centre] : in.images) {
+    if (!ledger->ImageCentre(hash)) new_images.push_back({hash, Apply(t, centre)});
+  }
+  ledger->images.insert(ledger->images.end(), new_images.begin(), new_images.end());
+  std::stable_sort(ledger->images.begin(), ledger->images.end(),
+                   [](const auto& a, const auto& b) { return a.first < b.first; });
+  ledger->images.erase(std::unique(ledger->images.begin(), ledger->images.end(),
+                                   [](const auto& a, const auto& b) { return a.first == b.first; }),
+                       ledger->images.end());
+}
+
+}  // namespace linecloud

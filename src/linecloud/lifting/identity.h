@@ -1,0 +1,85 @@
+// One physical point, one line — whatever the reconstruction calls it.
+//
+// Two lines with different directions through one point reveal it where they
+// cross (Speciale et al., CVPR 2019, Sec. 3.1: lifting must be permanent).
+// COLMAP's point ids do not name physical points: a re-triangulation, a
+// mapper re-run (another gauge), an update or an export renumbers them. So a
+// point's direction follows what stays across versions, recorded in the
+// key's release ledger (release_ledger.h):
+//   1. its observations: a point seen in an (image, keypoint) that a released
+//      point was seen in keeps that point's direction, rotated into this
+//      version's frame (the two reconstructions are aligned by a similarity
+//      through the centres of their shared images, and checked on the matched
+//      points): its line is parallel to the released one, and parallel lines
+//      do not cross, wherever the point moved;
+//   2. its place: a point within `same_place` (of the scene diagonal) of a
+//      point of this version that already has a direction, or of a released
+//      line, takes that direction (duplicates within one model; a point
+//      re-triangulated from other observations);
+//   3. otherwise a fresh keyed direction of its id (lifting.h) — the lines
+//      of every model lifted before the ledger existed.
+// A point whose observations were released with two different directions
+// (a merge of two released points) cannot be given a line that crosses
+// neither: it is left out of this release.
+#pragma once
+
+#include <cstdint>
+#include <span>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "linecloud/geometry/rigid3.h"
+#include "linecloud/lifting/key.h"
+#include "linecloud/lifting/release_ledger.h"
+
+namespace linecloud {
+
+struct IdentityInput {
+  std::span<const uint64_t> ids;            // point ids
+  std::span<const Eigen::Vector3d> points;  // model frame
+  // Point i's observation hashes (ObservationHasher) are
+  // observations[observation_start[i] .. observation_start[i + 1]).
+  std::span<const uint32_t> observation_start;  // ids.size() + 1 entries
+  std::span<const uint64_t> observations;
+  // (image hash, camera centre in the model frame) of the model's images.
+  std::span<const std::pair<uint64_t, Eigen::Vector3d>> images;
+};
+
+struct IdentityOptions {
+  double same_place = 1e-3;  // share of the scene diagonal
+  // Refuse when the observation-matched points lie farther than this share of
+  // the diagonal (median) from their released lines after alignment.
+  double max_misalignment = 1e-2;
+
+  void Check() const;
+};
+
+struct IdentityResult {
+  std::vector<Eigen::Vector3d> directions;  // per point, model frame (unit)
+  std::vector<uint8_t> compact;             // per point, compact256 keys
+  std::vector<int64_t> ledger_line;         // released line kept, or -1
+  std::vector<uint8_t> keep;                // 0: left out (a merge of two released lines)
+  size_t from_observations = 0;
+  size_t from_same_place = 0;  // a point of this version at the same place
+  size_t from_released_place = 0;
+  size_t fresh = 0;
+  size_t left_out = 0;
+  Sim3d ledger_from_model;  // identity for a first release
+  size_t shared_images = 0;
+  double misalignment = 0;       // median, share of the diagonal
+  double same_place_distance = 0;  // model units
+};
+
+// Throws Error (naming what to do) when the version cannot be aligned with the
+// released one, or when a compact256 key would need a rotated direction.
+IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& input,
+                                const ReleaseLedger& ledger, const IdentityOptions& options);
+
+// Adds the points `released` (indices into `input`) with their directions in
+// `result` to `ledger`: new lines, their observations and the new images.
+void RecordRelease(const IdentityInput& input, const IdentityResult& result,
+                   std::span<const size_t> released, ReleaseLedger* ledger);
+
+}  // namespace linecloud

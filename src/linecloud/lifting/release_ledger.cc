@@ -1,0 +1,172 @@
+#include "linecloud/lifting/release_ledger.h"
+
+#include <sodium.h>
+
+#include <algorithm>
+#include <cstring>
+#include <filesystem>
+
+#include "linecloud/util/error.h"
+#include "linecloud/util/file.h"
+
+namespace linecloud {
+namespace {
+
+constexpr std::string_view kMagic = "linecloud-release-ledger 1\n";
+constexpr size_t kLineBytes = 6 * 8 + 1;
+constexpr size_t kObservationBytes = 8 + 4;
+constexpr size_t kImageBytes = 8 + 3 * 8;
+constexpr size_t kChecksumBytes = 32;
+
+template <typename T>
+void Put(std::string* out, const T& value) {
+  out->append(reinterpret_cast<const char*>(&value), sizeof(T));
+}
+
+template <typename T>
+T Get(const std::string& in, size_t* pos) {
+  T value;
+  std::memcpy(&value, in.data() + *pos, sizeof(T));
+  *pos += sizeof(T);
+  return value;
+}
+
+std::array<unsigned char, kChecksumBytes> Checksum(const char* data, size_t size) {
+  EnsureSodiumInitialized();
+  std::array<unsigned char, kChecksumBytes> sum;
+  crypto_generichash(sum.data(), sum.size(), reinterpret_cast<const unsigned char*>(data), size,
+                     nullptr, 0);
+  return sum;
+}
+
+}  // namespace
+
+int64_t ReleaseLedger::LineOfObservation(uint64_t hash) const {
+  const auto it = std::lower_bound(observations.begin(), observations.end(),
+                                   std::make_pair(hash, uint32_t{0}));
+  return it != observations.end() && it->first == hash ? static_cast<int64_t>(it->second) : -1;
+}
+
+const Eigen::Vector3d* ReleaseLedger::ImageCentre(uint64_t hash) const {
+  const auto it = std::lower_bound(images.begin(), images.end(), hash,
+                                   [](const auto& e, uint64_t h) { return e.first < h; });
+  return it != images.end() && it->first == hash ? &it->second : nullptr;
+}
+
+ObservationHasher::ObservationHasher(const LiftingKey& key) {
+  const LiftingKey::Bytes subkey = key.DeriveSubkey("linecloud/ledger/observation/v1");
+  static_assert(crypto_shorthash_KEYBYTES == 16);
+  std::memcpy(key_, subkey.data(), sizeof(key_));
+}
+
+uint64_t ObservationHasher::Image(std::string_view name) const {
+  uint64_t out;
+  crypto_shorthash(reinterpret_cast<unsigned char*>(&out),
+                   reinterpret_cast<const unsigned char*>(name.data()), name.size(), key_);
+  return out;
+}
+
+uint64_t ObservationHasher::Observation(uint64_t image_hash, uint32_t point2D_idx) const {
+  unsigned char in[12];
+  std::memcpy(in, &image_hash, 8);
+  std::memcpy(in + 8, &point2D_idx, 4);
+  uint64_t out;
+  crypto_shorthash(reinterpret_cast<unsigned char*>(&out), in, sizeof(in), key_);
+  return out;
+}
+
+std::string LedgerPath(const std::string& dir, const LiftingKey::Id& fingerprint) {
+  return JoinPaths(dir, ToHex(fingerprint) + ".ledger");
+}
+
+ReleaseLedger ReadLedger(const std::string& path) {
+  ReleaseLedger ledger;
+  if (!FileExists(path)) return ledger;
+  const size_t header = kMagic.size() + 3 * 8;
+  std::string data = ReadFilePrefix(path, header);
+  if (data.size() < kMagic.size() || data.compare(0, kMagic.size(), kMagic) != 0) {
+    Fail("{}: not a linecloud release ledger", path);
+  }
+  if (data.size() < header) Fail("{}: truncated release ledger (header)", path);
+  size_t pos = kMagic.size();
+  const uint64_t n_lines = Get<uint64_t>(data, &pos);
+  const uint64_t n_obs = Get<uint64_t>(data, &pos);
+  const uint64_t n_images = Get<uint64_t>(data, &pos);
+  constexpr uint64_t kMax = uint64_t{1} << 32;
+  if (n_lines >= kMax || n_obs >= kMax || n_images >= kMax) {
+    Fail("{}: corrupt release ledger (counts {} / {} / {})", path, n_lines, n_obs, n_images);
+  }
+  const uint64_t size = header + n_lines * kLineBytes + n_obs * kObservationBytes +
+                        n_images * kImageBytes + kChecksumBytes;
+  std::error_code ec;
+  const uint64_t on_disk = std::filesystem::file_size(path, ec);
+  if (ec || on_disk != size) {
+    Fail("{}: corrupt release ledger ({} bytes, its counts say {})", path, on_disk, size);
+  }
+  data = ReadFilePrefix(path, size + 1);
+  if (data.size() != size) {
+    Fail("{}: corrupt release ledger ({} bytes, its counts say {})", path, data.size(), size);
+  }
+  const auto sum = Checksum(data.data(), size - kChecksumBytes);
+  if (std::memcmp(sum.data(), data.data() + size - kChecksumBytes, kChecksumBytes) != 0) {
+    Fail("{}: corrupt release ledger (checksum); restore it from a backup", path);
+  }
+  ledger.lines.resize(n_lines);
+  ledger.compact.resize(n_lines);
+  for (uint64_t i = 0; i < n_lines; ++i) {
+    for (int k = 0; k < 3; ++k) ledger.lines[i].v[k] = Get<double>(data, &pos);
+    for (int k = 0; k < 3; ++k) ledger.lines[i].w[k] = Get<double>(data, &pos);
+    ledger.compact[i] = Get<uint8_t>(data, &pos);
+    if (!ledger.lines[i].IsValid(1e-6)) Fail("{}: corrupt release ledger (line {})", path, i);
+  }
+  ledger.observations.resize(n_obs);
+  for (auto& [hash, line] : ledger.observations) {
+    hash = Get<uint64_t>(data, &pos);
+    line = Get<uint32_t>(data, &pos);
+    if (line >= n_lines) Fail("{}: corrupt release ledger (observation of line {})", path, line);
+  }
+  ledger.images.resize(n_images);
+  for (auto& [hash, centre] : ledger.images) {
+    hash = Get<uint64_t>(data, &pos);
+    for (int k = 0; k < 3; ++k) centre[k] = Get<double>(data, &pos);
+  }
+  const auto by_hash = [](const auto& a, const auto& b) { return a.first < b.first; };
+  const auto same_hash = [](const auto& a, const auto& b) { return a.first == b.first; };
+  if (!std::is_sorted(ledger.observations.begin(), ledger.observations.end(), by_hash) ||
+      std::adjacent_find(ledger.observations.begin(), ledger.observations.end(), same_hash) !=
+          ledger.observations.end() ||
+      !std::is_sorted(ledger.images.begin(), ledger.images.end(), by_hash)) {
+    Fail("{}: corrupt release ledger (unsorted)", path);
+  }
+  return ledger;
+}
+
+void WriteLedger(const std::string& path, const ReleaseLedger& ledger) {
+  if (ledger.compact.size() != ledger.lines.size()) {
+    Fail("{}: release ledger with {} lines but {} compact indices", path, ledger.lines.size(),
+         ledger.compact.size());
+  }
+  std::string out(kMagic);
+  Put<uint64_t>(&out, ledger.lines.size());
+  Put<uint64_t>(&out, ledger.observations.size());
+  Put<uint64_t>(&out, ledger.images.size());
+  for (size_t i = 0; i < ledger.lines.size(); ++i) {
+    for (int k = 0; k < 3; ++k) Put<double>(&out, ledger.lines[i].v[k]);
+    for (int k = 0; k < 3; ++k) Put<double>(&out, ledger.lines[i].w[k]);
+    Put<uint8_t>(&out, ledger.compact[i]);
+  }
+  for (const auto& [hash, line] : ledger.observations) {
+    Put<uint64_t>(&out, hash);
+    Put<uint32_t>(&out, line);
+  }
+  for (const auto& [hash, centre] : ledger.images) {
+    Put<uint64_t>(&out, hash);
+    for (int k = 0; k < 3; ++k) Put<double>(&out, centre[k]);
+  }
+  const auto sum = Checksum(out.data(), out.size());
+  out.append(reinterpret_cast<const char*>(sum.data()), sum.size());
+  WriteFileAtomically(
+      path, [&](std::ostream& os) { os << out; }, 0600);
+}
+
+}  // namespace linecloud

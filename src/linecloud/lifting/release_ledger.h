@@ -1,0 +1,68 @@
+// What a key has released, kept beside the key in the key store so that a
+// later version of the model keeps "one point, one line" (identity.h): for
+// each released line its direction and moment in the ledger's frame (the
+// frame of the first release), the observations its point was seen in, and
+// the centres of the images that saw them (to align a re-run reconstruction,
+// which has another gauge, with the released one).
+//
+// Observations and images are named by keyed hashes (SipHash-2-4 under a
+// subkey of the model's key) of (image name, keypoint index) and of the
+// image name: the ledger holds no point, no image name and no descriptor.
+// Its lines are the released lines (what the published maps hold anyway); the
+// image centres are the one geometric addition, kept as private as the key
+// (mode 0600, in the store).
+//
+// File: "linecloud-release-ledger 1\n", then three little-endian u64 counts
+// (lines, observations, images), then the lines (v, w: 6 float64; compact
+// index: u8), the observations (hash u64, line u32), the images (hash u64,
+// centre: 3 float64), then a BLAKE2b-256 of everything before it. Read header
+// → counts → size check → body → checksum: a damaged ledger is an error
+// naming the file, never a silently smaller one.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "linecloud/geometry/plucker.h"
+#include "linecloud/lifting/key.h"
+
+namespace linecloud {
+
+struct ReleaseLedger {
+  std::vector<PluckerLine> lines;     // released lines, ledger frame
+  std::vector<uint8_t> compact;       // their compact direction index (compact256 keys)
+  // (observation hash, line index), sorted by hash, hashes unique.
+  std::vector<std::pair<uint64_t, uint32_t>> observations;
+  // (image hash, camera centre in the ledger frame), sorted by hash, unique.
+  std::vector<std::pair<uint64_t, Eigen::Vector3d>> images;
+
+  bool empty() const { return lines.empty(); }
+  // The line an observation was released with, or -1.
+  int64_t LineOfObservation(uint64_t hash) const;
+  const Eigen::Vector3d* ImageCentre(uint64_t hash) const;
+};
+
+// The keyed hashes naming images and observations in a ledger.
+class ObservationHasher {
+ public:
+  explicit ObservationHasher(const LiftingKey& key);
+  uint64_t Image(std::string_view name) const;
+  uint64_t Observation(uint64_t image_hash, uint32_t point2D_idx) const;
+
+ private:
+  unsigned char key_[16];
+};
+
+// FINGERPRINT.ledger in the key store `dir`.
+std::string LedgerPath(const std::string& dir, const LiftingKey::Id& fingerprint);
+// An absent file is an empty ledger; a damaged one throws Error naming it.
+ReleaseLedger ReadLedger(const std::string& path);
+// Atomically, mode 0600.
+void WriteLedger(const std::string& path, const ReleaseLedger& ledger);
+
+}  // namespace linecloud
