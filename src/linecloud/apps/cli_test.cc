@@ -374,7 +374,10 @@ TEST(Cli, LocalizeImageRejectsBadInput) {
   EXPECT_GT(j["num_features"].get<int>(), 100);
   EXPECT_TRUE(j["times_ms"].contains("extract"));
   // The approximate index (forced on this small map): same kind of result,
-  // and the index cached beside the map for the next photo.
+  // and the index cached for the next photo in the user's cache folder (never
+  // beside the map, where others may plant a link or a FIFO).
+  ::setenv("XDG_CACHE_HOME", tmp.Path("cache").c_str(), 1);
+  const std::string cache_dir = tmp.Path("cache/linecloud/index");
   int first_matches = -1;
   for (int run = 0; run < 2; ++run) {
     const CliResult ann = localize(tmp.Path("m.lcm"), photo, camera, {"--approximate-from", "10"});
@@ -385,8 +388,16 @@ TEST(Cli, LocalizeImageRejectsBadInput) {
       EXPECT_EQ(matches, first_matches);  // the cached index: the same matches
     }
     first_matches = matches;
-    EXPECT_TRUE(FileExists(tmp.Path("m.lcm.index")));
+    EXPECT_FALSE(FileExists(tmp.Path("m.lcm.index")));
+    size_t cached = 0;
+    for (const auto& e : std::filesystem::directory_iterator(cache_dir)) {
+      cached += e.path().extension() == ".index";
+    }
+    EXPECT_EQ(cached, 1u);
+    EXPECT_EQ(std::filesystem::status(cache_dir).permissions() & std::filesystem::perms::all,
+              std::filesystem::perms::owner_all);
   }
+  ::unsetenv("XDG_CACHE_HOME");
   ExpectError(localize(tmp.Path("m.lcm"), photo, camera, {"--features", "vlfeat"}),
               "--features: unknown feature extractor 'vlfeat' (colmap or opencv)");
   ExpectError(localize(tmp.Path("m.lcm"), photo, camera, {"--index", "annoy"}),

@@ -280,19 +280,44 @@ TEST(Guard, LiftNeverWritesIntoTheKeyStore) {
 }
 
 // Row 10: one unreadable entry no longer stops every lift; it is named.
-TEST(Guard, ABadStoreEntryIsNamedAndSkipped) {
+// [identity]: an unreadable entry may be this model's; a new key would put a
+// second line through every point. No key is made, the entry is named; once
+// it is moved away the lift goes on (and another model's lift only warns).
+TEST(Guard, ABadStoreEntryStopsKeyCreationAndIsNamed) {
   LINECLOUD_REQUIRE_DATA(kMaupertuis);
   TempDir tmp;
   const std::string store = tmp.Path("store");
   KeyStore{store};
-  WriteFileAtomically(
-      store + "/x.model", [](std::ostream&) {}, 0600);
-  const Finished f = RunScript(fmt::format("{} lift --model {} --out {}", Tool(),
-                                           SharedDataPath(kMaupertuis), tmp.Path("a.lcm")),
-                               {"LINECLOUD_KEY_STORE=" + store}, tmp);
-  EXPECT_EQ(f.code, 0) << f.err;
-  EXPECT_NE(f.err.find("warning: key store entry skipped"), std::string::npos) << f.err;
+  {
+    const ProtectedWriteScope writing_the_store;
+    WriteFileAtomically(
+        store + "/x.model", [](std::ostream&) {}, 0600);
+  }
+  const auto lift = [&](const std::string& out) {
+    return RunScript(fmt::format("{} lift --model {} --out {}", Tool(), SharedDataPath(kMaupertuis),
+                                 tmp.Path(out)),
+                     {"LINECLOUD_KEY_STORE=" + store}, tmp);
+  };
+  Finished f = lift("a.lcm");
+  EXPECT_NE(f.code, 0);
+  EXPECT_NE(f.err.find("unreadable entry"), std::string::npos) << f.err;
   EXPECT_NE(f.err.find("x.model"), std::string::npos) << f.err;
+  EXPECT_NE(f.err.find("no key was created"), std::string::npos) << f.err;
+  EXPECT_FALSE(FileExists(tmp.Path("a.lcm")));
+  size_t keys = 0;
+  for (const auto& e : std::filesystem::directory_iterator(store))
+    keys += e.path().extension() == ".key";
+  EXPECT_EQ(keys, 0u);
+  // Moved away: the lift makes the model's key.
+  std::filesystem::rename(store + "/x.model", tmp.Path("x.model"));
+  f = lift("a.lcm");
+  ASSERT_EQ(f.code, 0) << f.err;
+  // Back: the model's own entry is found, the bad one only warned about.
+  std::filesystem::rename(tmp.Path("x.model"), store + "/x.model");
+  f = lift("b.lcm");
+  ASSERT_EQ(f.code, 0) << f.err;
+  EXPECT_NE(f.err.find("warning: key store entry skipped"), std::string::npos) << f.err;
+  EXPECT_EQ(ReadFileToString(tmp.Path("a.lcm")), ReadFileToString(tmp.Path("b.lcm")));
 }
 
 // Row 6: outputs under umask 077 (the secret points of export --model among

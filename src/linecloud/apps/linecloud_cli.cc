@@ -1,7 +1,10 @@
+#include <cstdlib>
 #include <iostream>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/lifting/key_store.h"
 #include "linecloud/util/error.h"
+#include "linecloud/util/file.h"
 
 namespace linecloud {
 
@@ -11,6 +14,15 @@ int RunLinecloud(int argc, const char* const* argv) {
       "clouds (Speciale et al., CVPR 2019)",
       "linecloud"};
   app.require_subcommand(1);
+  // No command writes into the user's key store (a --out, --ply or cache
+  // naming a key, directly or through a link): util/file.h.
+  if (const char* home = std::getenv("HOME");
+      (home && *home) || std::getenv("LINECLOUD_KEY_STORE")) {
+    try {
+      ProtectDirectory(KeyStore::DefaultDirectory());
+    } catch (const Error&) {
+    }
+  }
   app.set_version_flag("--version", "linecloud 0.1.0");
   RegisterDemoCommand(app);
   RegisterLiftCommand(app);

@@ -1,5 +1,7 @@
 #include <cstdio>
 #include <filesystem>
+#include <sodium.h>
+
 #include <iostream>
 #include <memory>
 
@@ -80,6 +82,19 @@ void CheckArgs(const LocalizeArgs& args) {
   }
 }
 
+// MAP's descriptor index cache: ~/.cache/linecloud/index/HASH.index, HASH of
+// MAP's absolute path (the cache is authenticated and checked against MAP's
+// descriptors when read).
+std::string IndexCachePath(const std::string& map_path) {
+  std::error_code ec;
+  const std::string abs = std::filesystem::absolute(map_path, ec).lexically_normal().string();
+  EnsureSodiumInitialized();
+  std::array<uint8_t, 16> hash;
+  crypto_generichash(hash.data(), hash.size(), reinterpret_cast<const unsigned char*>(abs.data()),
+                     abs.size(), nullptr, 0);
+  return JoinPaths(UserCacheDirectory("index"), ToHex(hash) + ".index");
+}
+
 // The Localizer's options from the command line: matching, the index cache
 // beside the map (authenticated with this user's secret; no key store, no
 // cache), defaults of every request, the map gravity.
@@ -94,7 +109,9 @@ LocalizerOptions MakeLocalizerOptions(LocalizeArgs& args) {
   if (!args.map_path.empty() && !args.exact_matching && !args.image_paths.empty()) {
     try {
       o.index_cache_key = KeyStore(KeyStore::DefaultDirectory()).CacheSecret();
-      o.index_cache = args.map_path + ".index";
+      // In this user's own cache folder, never beside the map (a folder others
+      // may write into, where a link or a FIFO could be planted).
+      o.index_cache = IndexCachePath(args.map_path);
     } catch (const Error& e) {
       if (!args.quiet) std::cerr << "descriptor index not cached: " << e.what() << "\n";
     }

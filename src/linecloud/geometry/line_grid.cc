@@ -110,7 +110,8 @@ void LineGrid::CellsNear(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
     Eigen::Array3i from, to;
     for (int k = 0; k < 3; ++k) {
       from[k] = std::max(0, static_cast<int>(std::floor((p[k] - reach - origin[k]) / cell_)));
-      to[k] = std::min(dims_[k] - 1, static_cast<int>(std::floor((p[k] + reach - origin[k]) / cell_)));
+      to[k] =
+          std::min(dims_[k] - 1, static_cast<int>(std::floor((p[k] + reach - origin[k]) / cell_)));
     }
     for (int z = from[2]; z <= to[2]; ++z) {
       for (int y = from[1]; y <= to[1]; ++y) {
@@ -150,7 +151,8 @@ void LineGrid::CrossingPairs(
   std::vector<uint32_t> in_cell;
   for (size_t k = 0; k < cells_.size(); ++k) {
     in_cell.clear();
-    for (size_t e = starts_[k]; e < starts_[k + 1]; ++e) in_cell.push_back(static_cast<uint32_t>(entries_[e]));
+    for (size_t e = starts_[k]; e < starts_[k + 1]; ++e)
+      in_cell.push_back(static_cast<uint32_t>(entries_[e]));
     for (size_t p = 0; p < in_cell.size(); ++p) {
       const uint32_t i = in_cell[p];
       for (size_t q = p + 1; q < in_cell.size(); ++q) {

@@ -41,16 +41,17 @@ class LineGrid {
   // parallel, whose closest points' midpoint lies inside the box. When
   // `group` is given, only pairs with group[i] != group[j] are reported
   // (e.g. lines of two maps).
-  void CrossingPairs(double min_angle_rad, std::span<const uint8_t> group,
-                     const std::function<void(uint32_t, uint32_t, const Eigen::Vector3d&, double)>&
-                         pair) const;
+  void CrossingPairs(
+      double min_angle_rad, std::span<const uint8_t> group,
+      const std::function<void(uint32_t, uint32_t, const Eigen::Vector3d&, double)>& pair) const;
 
   double cell() const { return cell_; }
   size_t entries() const { return entries_.size(); }
 
  private:
   int64_t CellOf(const Eigen::Vector3d& x) const;  // -1 outside the grid
-  void CellsNear(const Eigen::Vector3d& a, const Eigen::Vector3d& b, std::vector<int64_t>* out) const;
+  void CellsNear(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                 std::vector<int64_t>* out) const;
 
   std::vector<PluckerLine> centred_;  // the lines relative to the box's centre
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();

@@ -31,7 +31,8 @@ TEST(LineGrid, FindsExactlyThePairsAndLinesABruteForceFinds) {
   const Eigen::Vector3d offset(4e5, -3e5, 120);  // map coordinates far from the origin
   std::vector<Eigen::Vector3d> points;
   const std::vector<PluckerLine> lines = RandomLines(rng, 1500, offset, &points);
-  Eigen::AlignedBox3d box(offset + Eigen::Vector3d(-10, -10, -2), offset + Eigen::Vector3d(10, 10, 2));
+  Eigen::AlignedBox3d box(offset + Eigen::Vector3d(-10, -10, -2),
+                          offset + Eigen::Vector3d(10, 10, 2));
   const double radius = 0.01;
   const LineGrid grid(lines, box, radius);
   ASSERT_GT(grid.entries(), lines.size());
@@ -48,7 +49,8 @@ TEST(LineGrid, FindsExactlyThePairsAndLinesABruteForceFinds) {
     for (uint32_t j = i + 1; j < lines.size(); ++j) {
       Eigen::Vector3d a, b;
       if (!ClosestPoints(lines[i], lines[j], &a, &b)) continue;
-      if ((a - b).norm() <= radius * (1 - 1e-9) && box.contains(0.5 * (a + b))) expected.insert({i, j});
+      if ((a - b).norm() <= radius * (1 - 1e-9) && box.contains(0.5 * (a + b)))
+        expected.insert({i, j});
     }
   }
   EXPECT_GE(expected.size(), 1500u / 7 - 5);  // the planted near-crossings at least

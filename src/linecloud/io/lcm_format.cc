@@ -156,8 +156,8 @@ struct ParsedHeader {
   uint32_t version = 0;
 };
 
-ParsedHeader ParseHeader(std::string_view data, const std::string& source) {
-  EnsureSodiumInitialized();
+// Magic, version and header size (the first 16 bytes), checked.
+std::pair<uint32_t, uint32_t> ParseHeaderStart(std::string_view data, const std::string& source) {
   ByteReader r(data, source);
   const std::string_view magic = r.ReadBytes(8, "magic");
   if (std::memcmp(magic.data(), kMagic, 8) != 0) {
@@ -172,6 +172,14 @@ ParsedHeader ParseHeader(std::string_view data, const std::string& source) {
   if (header_size > kMaxHeaderBytes) {
     Fail("{}: corrupt header size {}", source, header_size);
   }
+  return {version, header_size};
+}
+
+ParsedHeader ParseHeader(std::string_view data, const std::string& source) {
+  EnsureSodiumInitialized();
+  ByteReader r(data, source);
+  const auto [version, header_size] = ParseHeaderStart(data, source);
+  r.ReadBytes(16, "header start");
   const std::string_view header = r.ReadBytes(header_size, "header");
   if (data.size() < r.Position() + kChecksumBytes) {
     Fail("{}: truncated (no room for the checksum)", source);
@@ -303,10 +311,14 @@ LineCloud ParseLineCloud(std::string_view data, const std::string& source) {
 
 LineCloud ReadLineCloud(const std::string& path) {
   // The magic first: a large file that is no map is refused before it is read.
-  const std::string prefix = ReadFilePrefix(path, sizeof(kMagic));
+  // Header first (magic, version, header size), then the body: a large file
+  // that is no map, or a map of another version, is refused before it is read.
+  const std::string prefix = ReadFilePrefix(path, 16);
   if (prefix.size() < sizeof(kMagic) || std::memcmp(prefix.data(), kMagic, sizeof(kMagic)) != 0) {
     Fail("{}: not a linecloud map (bad magic bytes)", path);
   }
+  if (prefix.size() < 16) Fail("{}: truncated header", path);
+  ParseHeaderStart(prefix, path);
   return ParseLineCloud(ReadFileToString(path), path);
 }
 

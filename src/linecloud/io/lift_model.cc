@@ -77,6 +77,7 @@ ResolvedKey ResolveKey(const LiftModelOptions& o, const KeyStore& store,
 // After every check passed: the new key written, the model registered.
 void PersistKey(const KeyStore& store, const ResolvedKey& key,
                 const std::vector<uint64_t>& elements) {
+  const ProtectedWriteScope writing_the_store;
   if (key.create) WriteKeyFile(key.path, key.key);
   // --force: the new key replaces the old one for this model.
   if (key.retire) store.Retire(*key.retire);
@@ -159,7 +160,8 @@ IdentityInputData MakeIdentityInput(const Reconstruction& model, const LiftingKe
     d.observation_start.push_back(static_cast<uint32_t>(d.observations.size()));
     for (const TrackElement& t : p.track) {
       const auto h = image_hash.find(t.image_id);
-      if (h != image_hash.end()) d.observations.push_back(hasher.Observation(h->second, t.point2D_idx));
+      if (h != image_hash.end())
+        d.observations.push_back(hasher.Observation(h->second, t.point2D_idx));
     }
   }
   if (d.observations.size() >= (size_t{1} << 32)) Fail("lift: too many observations");
@@ -219,8 +221,8 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
   std::vector<Eigen::Vector3d> kept_points;
   std::vector<size_t> kept_rows;  // rows of `ids`
   // A sparse map holds a subset of the full map's lines (sparsify.h).
-  for (const size_t i : SparsifyPoints(key.key, ids, identity_input.points, o.sparsify,
-                                       o.sparsify_mode)) {
+  for (const size_t i :
+       SparsifyPoints(key.key, ids, identity_input.points, o.sparsify, o.sparsify_mode)) {
     if (!identity.keep[i]) continue;
     kept_ids.push_back(ids[i]);
     kept_points.push_back(identity_input.points[i]);
@@ -274,7 +276,10 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
   // written but not recorded is not), then the map.
   PersistKey(store, key, elements);
   RecordRelease(identity_input.input, identity, kept_rows, &ledger);
-  WriteLedger(ledger_path, ledger);
+  {
+    const ProtectedWriteScope writing_the_store;
+    WriteLedger(ledger_path, ledger);
+  }
   if (!o.out_path.empty()) WriteLineCloud(result.cloud, o.out_path);
   result.num_points = ids.size();
   result.key_path = key.path;

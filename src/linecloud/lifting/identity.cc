@@ -52,6 +52,11 @@ Sim3d AlignThroughImages(const std::vector<Eigen::Vector3d>& model,
     }
     return in;
   };
+  // The same gauge (a re-triangulation, an update): exactly the identity, so
+  // that a re-lift gives bit-identical lines.
+  double worst = 0;
+  for (size_t k = 0; k < n; ++k) worst = std::max(worst, (model[k] - ledger[k]).norm());
+  if (worst <= 1e-9 * std::max(spread, 1e-300)) return Sim3d();
   std::vector<size_t> all(n);
   for (size_t k = 0; k < n; ++k) all[k] = k;
   Sim3d best = fit(all);
@@ -145,14 +150,18 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
     for (uint32_t k = in.observation_start[i]; k < in.observation_start[i + 1]; ++k) {
       const int64_t line = ledger.LineOfObservation(in.observations[k]);
       if (line < 0) continue;
-      auto it = std::find_if(votes.begin(), votes.end(), [&](const auto& v) { return v.first == line; });
-      if (it == votes.end()) votes.push_back({line, 1});
-      else ++it->second;
+      auto it =
+          std::find_if(votes.begin(), votes.end(), [&](const auto& v) { return v.first == line; });
+      if (it == votes.end())
+        votes.push_back({line, 1});
+      else
+        ++it->second;
     }
     if (votes.empty()) continue;
-    const auto best = *std::max_element(votes.begin(), votes.end(), [](const auto& a, const auto& b) {
-      return a.second < b.second || (a.second == b.second && a.first > b.first);
-    });
+    const auto best =
+        *std::max_element(votes.begin(), votes.end(), [](const auto& a, const auto& b) {
+          return a.second < b.second || (a.second == b.second && a.first > b.first);
+        });
     const PluckerLine& line = ledger.lines[best.first];
     bool conflict = false;
     for (const auto& v : votes) conflict |= !SameDirection(ledger.lines[v.first].v, line.v);
@@ -272,8 +281,9 @@ void RecordRelease(const IdentityInput& in, const IdentityResult& r,
     if (i >= r.keep.size() || !r.keep[i]) Fail("identity: point {} was not given a line", i);
     int64_t line = r.ledger_line[i];
     if (line < 0) {
-      const Eigen::Vector3d v = (rotation * r.directions[i]).normalized();
-      ledger->lines.push_back(PluckerLine::FromPointAndDirection(Apply(t, in.points[i]), v));
+      // Not renormalised: the same gauge gives back exactly this direction.
+      const Eigen::Vector3d v = rotation * r.directions[i];
+      ledger->lines.push_back(PluckerLine(v, Apply(t, in.points[i]).cross(v)));
       ledger->compact.push_back(r.compact[i]);
       line = static_cast<int64_t>(ledger->lines.size()) - 1;
     }

@@ -68,7 +68,7 @@ struct IdentityResult {
   size_t left_out = 0;
   Sim3d ledger_from_model;  // identity for a first release
   size_t shared_images = 0;
-  double misalignment = 0;       // median, share of the diagonal
+  double misalignment = 0;         // median, share of the diagonal
   double same_place_distance = 0;  // model units
 };
 

@@ -7,6 +7,8 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
+#include <thread>
 #include <cerrno>
 #include <cstdlib>
 #include <cstring>
@@ -185,17 +187,46 @@ KeyStore::KeyStore(std::string dir) : dir_(std::move(dir)) {
     Fail("{}: key store is accessible by other users (mode {:o}); run chmod 700 on it", dir_,
          st.st_mode & 0777);
   }
+  // No output of this process may land among the keys (util/file.h).
+  ProtectDirectory(dir_);
 }
 
 KeyStore::Lock::Lock(const std::string& dir) {
   const std::string path = JoinPaths(dir, ".lock");
   fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0600);
   if (fd_ < 0) Fail("{}: cannot open the key store's lock ({})", path, std::strerror(errno));
-  while (::flock(fd_, LOCK_EX) != 0) {
+  // Another process holding the lock is reported after a second and given
+  // up on after LINECLOUD_LOCK_TIMEOUT seconds (default 60).
+  double timeout = 60;
+  if (const char* t = std::getenv("LINECLOUD_LOCK_TIMEOUT"); t && *t) {
+    char* end = nullptr;
+    const double v = std::strtod(t, &end);
+    if (end != t && *end == '\0' && v >= 0 && v <= 86400) timeout = v;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  bool told = false;
+  while (::flock(fd_, LOCK_EX | LOCK_NB) != 0) {
     if (errno == EINTR) continue;
-    const std::string why = std::strerror(errno);
-    ::close(fd_);
-    Fail("{}: cannot lock the key store ({})", path, why);
+    if (errno != EWOULDBLOCK) {
+      const std::string why = std::strerror(errno);
+      ::close(fd_);
+      Fail("{}: cannot lock the key store ({})", path, why);
+    }
+    const double waited =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (waited >= timeout) {
+      ::close(fd_);
+      Fail(
+          "{}: the key store is locked by another process (a lift or localize still running?); "
+          "gave up after {:g} s (LINECLOUD_LOCK_TIMEOUT)",
+          path, timeout);
+    }
+    if (!told && waited >= 1.0) {
+      std::cerr << "waiting for the key store's lock " << path
+                << ", held by another process (giving up after " << timeout << " s)\n";
+      told = true;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
 }
 
@@ -213,6 +244,7 @@ std::optional<KeyStoreMatch> KeyStore::Find(std::span<const uint64_t> elements,
     size_t comparable = 0;
   };
   std::vector<Candidate> matches;
+  std::vector<std::string> unreadable;
   std::error_code ec;
   for (const auto& entry : std::filesystem::directory_iterator(dir_, ec)) {
     if (entry.path().extension() != ".model") continue;
@@ -222,9 +254,8 @@ std::optional<KeyStoreMatch> KeyStore::Find(std::span<const uint64_t> elements,
       c.sketch = ReadSketch(c.entry);
     } catch (const Error& e) {
       // Never silently: the entry may be this model's, and its key would be
-      // missed. Other models stay liftable.
-      std::cerr << "warning: key store entry skipped: " << e.what()
-                << " (if it belonged to this model, restore it from a backup)\n";
+      // missed.
+      unreadable.push_back(e.what());
       continue;
     }
     const std::vector<uint64_t>& theirs = c.sketch.elements;
@@ -238,6 +269,17 @@ std::optional<KeyStoreMatch> KeyStore::Find(std::span<const uint64_t> elements,
     matches.push_back(std::move(c));
   }
   if (ec) Fail("{}: cannot list the key store ({})", dir_, ec.message());
+  if (matches.empty() && !unreadable.empty()) {
+    // The unreadable entry may be this model's: a new key would put a second
+    // line through every point.
+    Fail(
+        "the key store has an unreadable entry, which may be this model's: {}. Restore it from "
+        "a backup (or, if it is not this model's, move it out of {}); no key was created",
+        unreadable.front(), dir_);
+  }
+  for (const std::string& why : unreadable) {
+    std::cerr << "warning: key store entry skipped: " << why << "\n";
+  }
   if (matches.empty()) return std::nullopt;
   if (matches.size() > 1) {
     Fail(
@@ -270,6 +312,7 @@ std::optional<KeyStoreMatch> KeyStore::Find(std::span<const uint64_t> elements,
 }
 
 std::array<uint8_t, 32> KeyStore::CacheSecret() const {
+  const ProtectedWriteScope writing_the_store;
   const std::string path = JoinPaths(dir_, "cache.secret");
   const Lock lock = LockExclusive();
   if (!FileExists(path)) {
@@ -297,6 +340,7 @@ void KeyStore::Retire(const LiftingKey::Id& fingerprint) const {
 
 void KeyStore::Register(const LiftingKey& key, const std::string& key_path,
                         std::span<const uint64_t> elements) const {
+  const ProtectedWriteScope writing_the_store;
   Sketch s;
   s.key_path = AbsolutePath(key_path);
   if (s.key_path.find('\n') != std::string::npos) Fail("{}: key path has a newline", key_path);
@@ -327,6 +371,7 @@ void KeyStore::Register(const LiftingKey& key, const std::string& key_path,
 
 KeyStoreMatch KeyStore::CreateKey(DirectionSet directions,
                                   std::span<const uint64_t> elements) const {
+  const ProtectedWriteScope writing_the_store;
   const LiftingKey key = LiftingKey::Generate(directions);
   const std::string key_path = JoinPaths(dir_, ToHex(key.Fingerprint()) + ".key");
   WriteKeyFile(key_path, key);

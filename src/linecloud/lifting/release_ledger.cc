@@ -42,8 +42,8 @@ std::array<unsigned char, kChecksumBytes> Checksum(const char* data, size_t size
 }  // namespace
 
 int64_t ReleaseLedger::LineOfObservation(uint64_t hash) const {
-  const auto it = std::lower_bound(observations.begin(), observations.end(),
-                                   std::make_pair(hash, uint32_t{0}));
+  const auto it =
+      std::lower_bound(observations.begin(), observations.end(), std::make_pair(hash, uint32_t{0}));
   return it != observations.end() && it->first == hash ? static_cast<int64_t>(it->second) : -1;
 }
 

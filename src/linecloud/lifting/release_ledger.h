@@ -34,8 +34,8 @@
 namespace linecloud {
 
 struct ReleaseLedger {
-  std::vector<PluckerLine> lines;     // released lines, ledger frame
-  std::vector<uint8_t> compact;       // their compact direction index (compact256 keys)
+  std::vector<PluckerLine> lines;  // released lines, ledger frame
+  std::vector<uint8_t> compact;    // their compact direction index (compact256 keys)
   // (observation hash, line index), sorted by hash, hashes unique.
   std::vector<std::pair<uint64_t, uint32_t>> observations;
   // (image hash, camera centre in the ledger frame), sorted by hash, unique.

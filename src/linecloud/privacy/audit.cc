@@ -94,17 +94,29 @@ size_t CountRecovered(const TwoLiftingsAttack& attack, const std::vector<size_t>
   return static_cast<size_t>(std::count(recovered->begin(), recovered->end(), 1));
 }
 
+// `own`: the points the map's own crossings recover; a pairing of two maps is
+// then also scored by what it recovers beyond them (what the second map adds).
 ojson PairingJson(const TwoLiftingsAttack& attack, const std::vector<size_t>* partner,
-                  const std::vector<Eigen::Vector3d>& secret, double within, double seconds) {
-  std::vector<uint8_t> recovered;
-  const size_t n = CountRecovered(attack, partner, secret, within, &recovered);
-  return {{"pairing", attack.pairing},
-          {"pairs", attack.shared_ids},
-          {"parallel_pairs", attack.parallel},
-          {"intersections", attack.points.size()},
-          {"recovered", n},
-          {"share_recovered", secret.empty() ? 0.0 : static_cast<double>(n) / secret.size()},
-          {"seconds", seconds}};
+                  const std::vector<Eigen::Vector3d>& secret, double within, double seconds,
+                  std::vector<uint8_t>* recovered, const std::vector<uint8_t>* own = nullptr) {
+  const size_t n = CountRecovered(attack, partner, secret, within, recovered);
+  size_t beyond = 0;
+  if (own) {
+    for (size_t i = 0; i < recovered->size(); ++i) beyond += (*recovered)[i] && !(*own)[i];
+  }
+  ojson j = {{"pairing", attack.pairing},
+             {"pairs", attack.shared_ids},
+             {"parallel_pairs", attack.parallel},
+             {"intersections", attack.points.size()},
+             {"recovered", n},
+             {"share_recovered", secret.empty() ? 0.0 : static_cast<double>(n) / secret.size()},
+             {"seconds", seconds}};
+  if (own) {
+    j["recovered_beyond_own"] = beyond;
+    j["share_recovered_beyond_own"] =
+        secret.empty() ? 0.0 : static_cast<double>(beyond) / secret.size();
+  }
+  return j;
 }
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
@@ -126,25 +138,30 @@ ojson PairingAttacksJson(const LineCloud& cloud, const LineCloud* other,
   auto start = std::chrono::steady_clock::now();
   std::vector<size_t> partner;
   const TwoLiftingsAttack self = IntersectSelfCrossings(cloud, box, tolerance, &partner);
-  j["self_crossings"] = PairingJson(self, &partner, secret, within, SecondsSince(start));
+  std::vector<uint8_t> own, recovered;
+  j["self_crossings"] = PairingJson(self, &partner, secret, within, SecondsSince(start), &own);
   if (!other) return j;
   start = std::chrono::steady_clock::now();
   j["by_id"] = PairingJson(IntersectLinesOfEqualId(cloud, *other), nullptr, secret, within,
-                           SecondsSince(start));
+                           SecondsSince(start), &recovered, &own);
   if (cloud.has_descriptors() && other->has_descriptors() &&
       cloud.descriptor_dim == other->descriptor_dim) {
     start = std::chrono::steady_clock::now();
     j["by_descriptor"] = PairingJson(IntersectLinesOfNearestDescriptor(cloud, *other), nullptr,
-                                     secret, within, SecondsSince(start));
+                                     secret, within, SecondsSince(start), &recovered, &own);
   }
   start = std::chrono::steady_clock::now();
   j["by_crossing"] = PairingJson(IntersectCrossingLinesInBox(cloud, *other, box, tolerance),
-                                 nullptr, secret, within, SecondsSince(start));
+                                 nullptr, secret, within, SecondsSince(start), &recovered, &own);
+  // What the second map adds: the most any pairing recovers beyond the map's
+  // own crossings.
   size_t worst = 0;
-  for (const char* name : {"self_crossings", "by_id", "by_descriptor", "by_crossing"}) {
-    if (j.contains(name)) worst = std::max(worst, j[name]["recovered"].get<size_t>());
+  for (const char* name : {"by_id", "by_descriptor", "by_crossing"}) {
+    if (j.contains(name)) worst = std::max(worst, j[name]["recovered_beyond_own"].get<size_t>());
   }
-  j["most_recovered"] = worst;
+  j["most_recovered_beyond_own"] = worst;
+  j["share_most_recovered_beyond_own"] =
+      secret.empty() ? 0.0 : static_cast<double>(worst) / secret.size();
   return j;
 }
 
@@ -331,16 +348,22 @@ std::string AuditMarkdown(const ojson& r) {
     const ojson& p = r["pairing_attacks"];
     md += fmt::format(
         "\n## Pairing attacks\n\nLines paired as an attacker would, intersected; a point counts "
-        "as recovered when an intersection lies within {:g} of the scene diagonal of it (crossings: "
-        "lines within {:g} of the diagonal of each other).\n\n| pairing | pairs | recovered | share "
-        "|\n|---|---|---|---|\n",
-        p["recovered_within_diagonal"].get<double>(), p["crossing_tolerance_diagonal"].get<double>());
+        "as recovered when an intersection lies within {:g} of the scene diagonal of it "
+        "(crossings: "
+        "lines within {:g} of the diagonal of each other). \"Beyond its own\": points the pairing "
+        "recovers that the map's own crossings do not (what the other map adds).\n\n| pairing | "
+        "pairs | recovered | share | beyond its own |\n|---|---|---|---|---|\n",
+        p["recovered_within_diagonal"].get<double>(),
+        p["crossing_tolerance_diagonal"].get<double>());
     for (const char* name : {"self_crossings", "by_id", "by_descriptor", "by_crossing"}) {
       if (!p.contains(name)) continue;
       const ojson& a = p[name];
-      md += fmt::format("| {} | {} | {} | {} |\n", a["pairing"].get<std::string>(),
+      md += fmt::format("| {} | {} | {} | {} | {} |\n", a["pairing"].get<std::string>(),
                         a["pairs"].get<size_t>(), a["recovered"].get<size_t>(),
-                        Percent(a["share_recovered"].get<double>()));
+                        Percent(a["share_recovered"].get<double>()),
+                        a.contains("share_recovered_beyond_own")
+                            ? Percent(a["share_recovered_beyond_own"].get<double>())
+                            : std::string("—"));
     }
   }
   return md;

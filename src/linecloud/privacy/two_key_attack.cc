@@ -111,8 +111,8 @@ TwoLiftingsAttack IntersectLinesOfNearestDescriptor(const LineCloud& a, const Li
   }
   DescriptorMatchOptions o;
   o.dim = a.descriptor_dim;
-  o.max_ratio = 1.0;          // no ratio test: the nearest, whatever the second
-  o.max_distance = 3.2;       // no distance test (angles are at most π)
+  o.max_ratio = 1.0;     // no ratio test: the nearest, whatever the second
+  o.max_distance = 3.2;  // no distance test (angles are at most π)
   // A tie (ratio exactly 1) is refused by the ratio test; the attacker keeps
   // the nearest anyway: ties are rare among real descriptors.
   const std::vector<DescriptorMatch> matches = MatchDescriptors(a.descriptors, b.descriptors, o);

@@ -6,11 +6,17 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cstdlib>
 #include <cerrno>
+#include <mutex>
+#include <vector>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+
+#include <fmt/format.h>
 
 #include "linecloud/util/error.h"
 
@@ -133,8 +139,56 @@ unsigned CurrentUmask() {
   return 022;
 }
 
+namespace {
+
+std::mutex protected_mutex;
+std::vector<std::filesystem::path>& ProtectedDirectories() {
+  static std::vector<std::filesystem::path> dirs;
+  return dirs;
+}
+thread_local int protected_write_depth = 0;
+
+std::filesystem::path Resolved(const std::string& path) {
+  std::error_code ec;
+  std::filesystem::path p = std::filesystem::absolute(path, ec);
+  if (ec) return std::filesystem::path(path).lexically_normal();
+  const std::filesystem::path c = std::filesystem::weakly_canonical(p, ec);
+  return ec ? p.lexically_normal() : c;
+}
+
+}  // namespace
+
+void ProtectDirectory(const std::string& dir) {
+  const std::filesystem::path resolved = Resolved(dir);
+  const std::lock_guard<std::mutex> lock(protected_mutex);
+  auto& dirs = ProtectedDirectories();
+  if (std::find(dirs.begin(), dirs.end(), resolved) == dirs.end()) dirs.push_back(resolved);
+}
+
+ProtectedWriteScope::ProtectedWriteScope() { ++protected_write_depth; }
+ProtectedWriteScope::~ProtectedWriteScope() { --protected_write_depth; }
+
+void CheckNotProtected(const std::string& path) {
+  if (protected_write_depth > 0) return;
+  const std::filesystem::path target = Resolved(path);
+  const std::lock_guard<std::mutex> lock(protected_mutex);
+  for (const auto& dir : ProtectedDirectories()) {
+    const auto [d, t] = std::mismatch(dir.begin(), dir.end(), target.begin(), target.end());
+    if (d == dir.end()) {
+      Fail(
+          "{}: is inside the key store {}{}: refusing to write there (a key or its release "
+          "ledger would be lost); write it elsewhere",
+          path, dir.string(),
+          target.string() != std::filesystem::absolute(path).lexically_normal().string()
+              ? fmt::format(" (through a link, as {})", target.string())
+              : "");
+    }
+  }
+}
+
 void WriteFileAtomically(const std::string& path, const std::function<void(std::ostream&)>& write,
                          unsigned mode) {
+  CheckNotProtected(path);
   // The content first: a failing writer touches no file at all.
   std::ostringstream buffer(std::ios::binary);
   write(buffer);
@@ -194,6 +248,7 @@ void WriteFileAtomically(const std::string& path, const std::function<void(std::
 
 bool WriteNewFile(const std::string& path, std::string_view text, unsigned mode,
                   std::string_view what) {
+  CheckNotProtected(path);
   const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_NOFOLLOW | O_CLOEXEC, mode);
   if (fd < 0 && errno == EEXIST) return false;
   if (fd < 0) FailFile(errno, "{}: cannot create {} ({})", path, what, std::strerror(errno));
@@ -230,6 +285,7 @@ void RefuseOutputOverInputs(const std::string& output, const std::vector<std::st
 }
 
 void CreateDirectories(const std::string& path) {
+  CheckNotProtected(path);
   std::error_code ec;
   std::filesystem::create_directories(path, ec);
   if (ec) Fail("{}: cannot create directory ({})", path, ec.message());
@@ -237,6 +293,38 @@ void CreateDirectories(const std::string& path) {
 
 std::string JoinPaths(const std::string& a, const std::string& b) {
   return (std::filesystem::path(a) / b).string();
+}
+
+std::string UserCacheDirectory(const std::string& what) {
+  std::string base;
+  if (const char* d = std::getenv("XDG_CACHE_HOME"); d && *d) {
+    base = d;
+  } else if (const char* h = std::getenv("HOME"); h && *h) {
+    base = JoinPaths(h, ".cache");
+  } else {
+    Fail("no cache folder: set XDG_CACHE_HOME or HOME");
+  }
+  std::filesystem::path dir = std::filesystem::path(base) / "linecloud";
+  std::filesystem::path built;
+  for (const auto& part : dir / what) {
+    built /= part;
+    if (::mkdir(built.c_str(), 0700) != 0 && errno != EEXIST) {
+      Fail("{}: cannot create the cache folder ({})", built.string(), std::strerror(errno));
+    }
+  }
+  for (const auto& p : {dir, dir / what}) {
+    struct stat st;
+    if (::lstat(p.c_str(), &st) != 0) Fail("{}: cannot read the cache folder", p.string());
+    if (S_ISLNK(st.st_mode) || !S_ISDIR(st.st_mode)) {
+      Fail("{}: the cache folder is a link or not a folder; remove it", p.string());
+    }
+    if (st.st_uid != ::geteuid()) Fail("{}: the cache folder belongs to another user", p.string());
+    if ((st.st_mode & 022) != 0) {
+      Fail("{}: others can write into the cache folder (mode {:o}); run chmod 700 on it",
+           p.string(), st.st_mode & 0777);
+    }
+  }
+  return (dir / what).string();
 }
 
 }  // namespace linecloud

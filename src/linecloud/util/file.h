@@ -58,6 +58,26 @@ bool WriteNewFile(const std::string& path, std::string_view text, unsigned mode,
 void RefuseOutputOverInputs(const std::string& output, const std::vector<std::string>& inputs,
                             const std::string& option);
 
+// Folders no output may be written into: key stores (a key or ledger written
+// over is lost). WriteFileAtomically, WriteNewFile and CreateDirectories
+// refuse a target inside one, after links, unless a ProtectedWriteScope is
+// alive on the calling thread (the key store's own writes).
+void ProtectDirectory(const std::string& dir);
+void CheckNotProtected(const std::string& path);
+class ProtectedWriteScope {
+ public:
+  ProtectedWriteScope();
+  ~ProtectedWriteScope();
+  ProtectedWriteScope(const ProtectedWriteScope&) = delete;
+  ProtectedWriteScope& operator=(const ProtectedWriteScope&) = delete;
+};
+
+// This user's cache folder for `what` ($XDG_CACHE_HOME/linecloud/WHAT, else
+// ~/.cache/linecloud/WHAT), created mode 0700; refused (Error) when it is a
+// link, another user's, or open to others — caches are never written where
+// someone else could plant a link or a FIFO.
+std::string UserCacheDirectory(const std::string& what);
+
 // Creates a directory and its parents; throws Error naming the path on failure.
 void CreateDirectories(const std::string& path);
 
