@@ -1,0 +1,228 @@
+// [identity] One physical point, one line — whatever the reconstruction calls
+// it. Versions of a real map (fountain-P11 through COLMAP, CI's `eval prepare`
+// work in LINECLOUD_FOUNTAIN_WORK) are lifted into one key store as an owner
+// would, then attacked as an outsider holding both maps would: lines paired
+// by equal id, by nearest descriptor and by crossing (privacy/audit.h). Each
+// version must add at most 1 % of the points recovered within 1e-4 of the
+// scene diagonal beyond what the map's own lines give.
+#include <algorithm>
+#include <cstdlib>
+#include <filesystem>
+#include <random>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "linecloud/colmap/colmap_runner.h"
+#include "linecloud/geometry/line_grid.h"
+#include "linecloud/io/colmap_model.h"
+#include "linecloud/io/lcm_format.h"
+#include "linecloud/io/lift_model.h"
+#include "linecloud/lifting/lifting.h"
+#include "linecloud/privacy/audit.h"
+#include "linecloud/testing/test_util.h"
+#include "linecloud/util/file.h"
+
+namespace linecloud {
+namespace {
+
+using testing::TempDir;
+
+std::string FountainWork() {
+  const char* work = std::getenv("LINECLOUD_FOUNTAIN_WORK");
+  return work && *work && IsDirectory(JoinPaths(work, "colmap/sparse/0")) ? work : "";
+}
+
+#define REQUIRE_FOUNTAIN_WORK()                                                          \
+  if (FountainWork().empty())                                                            \
+  GTEST_SKIP() << "LINECLOUD_FOUNTAIN_WORK is not an `eval prepare` work of fountain-P11 " \
+                  "(CI's eval step makes it)"
+
+LiftModelResult Lift(const std::string& model, const std::string& out, const std::string& store) {
+  LiftModelOptions o;
+  o.model_dir = model;
+  o.out_path = out;
+  o.key_store = store;
+  o.database = JoinPaths(FountainWork(), "colmap/database.db");
+  return LiftModel(o);
+}
+
+// The attacks on `map` (lifted from `model`) with `other` beside it.
+nlohmann::ordered_json Attack(const std::string& map, const std::string& model,
+                              const std::string& other, const std::string& store) {
+  AuditOptions o;
+  o.map_path = map;
+  o.model_dir = model;
+  o.other_map_path = other;
+  o.key_store = store;
+  o.skip_density_attack = true;
+  o.crossing_tolerance = 1e-4;
+  o.recovered_within = 1e-4;
+  return RunAudit(o)["pairing_attacks"];
+}
+
+void ExpectNothingBeyondNoise(const nlohmann::ordered_json& p, const std::string& what) {
+  SCOPED_TRACE(what + ": " + p.dump());
+  for (const char* pairing : {"by_id", "by_descriptor", "by_crossing"}) {
+    ASSERT_TRUE(p.contains(pairing)) << pairing;
+    EXPECT_LE(p[pairing]["share_recovered_beyond_own"].get<double>(), 0.01) << pairing;
+  }
+  // The descriptor pairing recovers nothing at all: a version's point keeps
+  // its released direction, so its two lines are parallel.
+  EXPECT_LE(p["by_descriptor"]["share_recovered"].get<double>(), 0.01);
+}
+
+// A copy of `model` with its point ids changed by `rename`.
+Reconstruction Renumbered(Reconstruction model, const std::function<uint64_t(uint64_t)>& rename) {
+  std::unordered_map<uint64_t, Point3D> points;
+  for (auto& [id, p] : model.points3D) points.emplace(rename(id), std::move(p));
+  model.points3D = std::move(points);
+  for (auto& [image_id, image] : model.images) {
+    for (Point2D& p : image.points2D) {
+      if (p.point3D_id != kInvalidPoint3DId) p.point3D_id = rename(p.point3D_id);
+    }
+  }
+  return model;
+}
+
+// `model` in another gauge: x' = s R x + t for points and camera centres.
+Reconstruction InAnotherGauge(Reconstruction model, const Sim3d& t) {
+  for (auto& [id, p] : model.points3D) p.xyz = t * p.xyz;
+  for (auto& [id, image] : model.images) {
+    const Rigid3d& c = image.cam_from_world;
+    // cam_from_new = cam_from_world ∘ world_from_new, with the scale in t.
+    const Eigen::Quaterniond r = (c.rotation * t.rotation.inverse()).normalized();
+    const Eigen::Vector3d centre = t * c.Center();
+    image.cam_from_world.rotation = r;
+    image.cam_from_world.translation = -(r * centre);
+  }
+  return model;
+}
+
+TEST(Identity, VersionsOfARealMapGiveNothingBackBeyondNoise) {
+  REQUIRE_FOUNTAIN_WORK();
+  TempDir tmp;
+  const std::string store = tmp.Path("keys");
+  const std::string base = JoinPaths(FountainWork(), "colmap/sparse/0");
+  const LiftModelResult first = Lift(base, tmp.Path("v1.lcm"), store);
+  ASSERT_GT(first.cloud.size(), 10000u);
+  const Reconstruction model = ReadColmapModel(base);
+  const std::string key_path = first.key_path;
+
+  // 1. Ids permuted and offset by 10⁶ (the same points), text instead of binary.
+  std::vector<uint64_t> ids = model.SortedPoint3DIds();
+  std::vector<uint64_t> shuffled = ids;
+  std::shuffle(shuffled.begin(), shuffled.end(), std::mt19937_64(5));
+  std::unordered_map<uint64_t, uint64_t> permutation;
+  for (size_t i = 0; i < ids.size(); ++i) permutation[ids[i]] = shuffled[i];
+  struct Version {
+    std::string name;
+    Reconstruction model;
+    ModelFormat format = ModelFormat::kBinary;
+  };
+  std::vector<Version> versions;
+  versions.push_back({"permuted", Renumbered(model, [&](uint64_t id) { return permutation.at(id); })});
+  versions.push_back({"offset", Renumbered(model, [](uint64_t id) { return id + 1000000; })});
+  versions.push_back({"text", model, ModelFormat::kText});
+  // 2. Another gauge (what a mapper re-run gives): scale 2.5, rotated, moved.
+  const Sim3d gauge = Sim3d(2.5,
+                            Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized())),
+                            Eigen::Vector3d(40, -7, 3));
+  versions.push_back({"gauge", InAnotherGauge(model, gauge)});
+  for (const Version& v : versions) {
+    const std::string dir = tmp.Path(v.name);
+    CreateDirectories(dir);
+    WriteColmapModel(v.model, dir, v.format);
+    const LiftModelResult r = Lift(dir, tmp.Path(v.name + ".lcm"), store);
+    EXPECT_EQ(r.key_path, key_path) << v.name << ": the model's key is found again";
+    EXPECT_EQ(r.identity.from_observations, first.cloud.size()) << v.name;
+    std::string other = tmp.Path(v.name + ".lcm");
+    if (v.name == "gauge") {
+      // The attacker first brings the two maps into one frame (lines paired
+      // by descriptor fix the similarity); here, the exact one.
+      EXPECT_LT(r.identity.misalignment, 1e-9);
+      LineCloud aligned = ReadLineCloud(other);
+      for (PluckerLine& l : aligned.lines) l = Transform(gauge.Inverse(), l);
+      other = tmp.Path("gauge-aligned.lcm");
+      WriteLineCloud(aligned, other);
+    }
+    ExpectNothingBeyondNoise(Attack(tmp.Path("v1.lcm"), base, other, store), v.name);
+  }
+  // 3. A routine re-triangulation of the same database (COLMAP's own).
+  const std::string retri = tmp.Path("retriangulated");
+  CreateDirectories(retri);
+  RunColmapCommand({"colmap", "point_triangulator", "--database_path",
+                    JoinPaths(FountainWork(), "colmap/database.db"), "--image_path",
+                    testing::SharedDataPath("strecha/fountain-P11/images"), "--input_path", base,
+                    "--output_path", retri, "--clear_points", "1"},
+                   tmp.Path("triangulator.log"), ColmapOptions{});
+  const LiftModelResult r = Lift(retri, tmp.Path("retri.lcm"), store);
+  EXPECT_EQ(r.key_path, key_path);
+  EXPECT_GT(r.identity.from_observations, r.cloud.size() * 9 / 10);
+  ExpectNothingBeyondNoise(Attack(tmp.Path("v1.lcm"), base, tmp.Path("retri.lcm"), store),
+                           "re-triangulated");
+  // And the re-triangulated map audited against the first: the same.
+  ExpectNothingBeyondNoise(Attack(tmp.Path("retri.lcm"), retri, tmp.Path("v1.lcm"), store),
+                           "re-triangulated, other way");
+}
+
+// A map update: the released map is a group's map (built by its own mapper
+// run from a subset of the images), the update all images (another mapper run,
+// new images, points added and removed).
+TEST(Identity, AnUpdatedMapWithNewImagesGivesNothingBackBeyondNoise) {
+  REQUIRE_FOUNTAIN_WORK();
+  TempDir tmp;
+  const std::string store = tmp.Path("keys");
+  const std::string subset = JoinPaths(FountainWork(), "groups/g00/map");
+  const std::string full = JoinPaths(FountainWork(), "colmap/sparse/0");
+  const Reconstruction sub = ReadColmapModel(subset), all = ReadColmapModel(full);
+  ASSERT_LT(sub.images.size(), all.images.size());
+  const LiftModelResult first = Lift(subset, tmp.Path("subset.lcm"), store);
+  const LiftModelResult update = Lift(full, tmp.Path("update.lcm"), store);
+  EXPECT_EQ(update.key_path, first.key_path);
+  EXPECT_EQ(update.identity.shared_images, sub.images.size());
+  EXPECT_GT(update.identity.fresh, 0u);  // points only the new images see
+  ExpectNothingBeyondNoise(Attack(tmp.Path("subset.lcm"), subset, tmp.Path("update.lcm"), store),
+                           "update");
+}
+
+// Within one map: points at one place (maupertuis holds 48 such pairs) get
+// parallel lines, so no crossing gives them away.
+TEST(Identity, PointsAtOnePlaceInOneMapGetParallelLines) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/reconstruction");
+  TempDir tmp;
+  const std::string model_dir = testing::SharedDataPath("colmap-maupertuis/reconstruction");
+  LiftModelOptions o;
+  o.model_dir = model_dir;
+  o.out_path = tmp.Path("m.lcm");
+  o.key_store = tmp.Path("keys");
+  const LiftModelResult r = LiftModel(o);
+  const Reconstruction model = ReadColmapModel(model_dir);
+  const LiftingKey key = ReadKeyFile(r.key_path);
+  std::vector<Eigen::Vector3d> points;
+  for (const uint64_t line_id : r.cloud.ids) points.push_back(model.points3D.at(PointIdOfLine(key, line_id)).xyz);
+  const double diagonal = RobustBox(points, 0.005, 0.0).diagonal().norm();
+  size_t close_pairs = 0, crossing = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    for (size_t j = i + 1; j < points.size(); ++j) {
+      if ((points[i] - points[j]).norm() > 1e-4 * diagonal) continue;
+      ++close_pairs;
+      crossing += r.cloud.lines[i].v.cross(r.cloud.lines[j].v).norm() > 1e-9;
+    }
+  }
+  EXPECT_GE(close_pairs, 48u);
+  EXPECT_EQ(crossing, 0u);
+  // The audit's own crossings of this map give none of them back.
+  AuditOptions a;
+  a.map_path = tmp.Path("m.lcm");
+  a.model_dir = model_dir;
+  a.key_store = tmp.Path("keys");
+  a.skip_density_attack = true;
+  a.other_map_path = tmp.Path("m.lcm");  // itself: every line parallel to its twin
+  a.crossing_tolerance = 1e-4;
+  const auto p = RunAudit(a)["pairing_attacks"];
+  EXPECT_EQ(p["by_id"]["recovered"].get<size_t>(), 0u) << p.dump();
+}
+
+}  // namespace
+}  // namespace linecloud
