@@ -3,6 +3,7 @@
 // the issue; the concurrency rows run real `linecloud` processes.
 #include <fcntl.h>
 #include <sqlite3.h>
+#include <sys/file.h>
 #include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -318,6 +319,145 @@ TEST(Guard, ABadStoreEntryStopsKeyCreationAndIsNamed) {
   ASSERT_EQ(f.code, 0) << f.err;
   EXPECT_NE(f.err.find("warning: key store entry skipped"), std::string::npos) << f.err;
   EXPECT_EQ(ReadFileToString(tmp.Path("a.lcm")), ReadFileToString(tmp.Path("b.lcm")));
+}
+
+// [identity] The key store as a vault: no command writes a key-store file or
+// into the store, directly or through a link; the key stays intact.
+TEST(Guard, NoCommandWritesIntoTheKeyStore) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
+  TempDir tmp;
+  const std::string store = tmp.Path("store");
+  const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + store,
+                                        "XDG_CACHE_HOME=" + tmp.Path("cache")};
+  const std::string model = SharedDataPath(kMaupertuis);
+  const std::string db = SharedDataPath("colmap-maupertuis/colmap.db");
+  const std::string photo = SharedDataPath("colmap-maupertuis/images/02.jpg");
+  const std::string camera = "'SIMPLE_PINHOLE 1919 1079 1847.53 959.5 539.5'";
+  Finished f = RunScript(fmt::format("{} lift --model {} --database {} --out {}", Tool(), model, db,
+                                     tmp.Path("m.lcm")),
+                         env, tmp);
+  ASSERT_EQ(f.code, 0) << f.err;
+  const std::string key_path = store + "/" + StoreFiles(store, ".key").at(0);
+  const std::string key_text = ReadFileToString(key_path);
+  fs::create_symlink(key_path, tmp.Path("link-to-key"));
+  for (const std::string& target : {key_path, tmp.Path("link-to-key"), store + "/new"}) {
+    const std::vector<std::string> commands = {
+        fmt::format("make-query --model {} --image 02.jpg --out {}", model, target),
+        fmt::format("export --model {} --ply {}", model, target),
+        fmt::format("localize --map {} --image {} --camera {} --out {} --quiet", tmp.Path("m.lcm"),
+                    photo, camera, target),
+        fmt::format("localize --map {} --image {} --camera {} --ply {} --quiet", tmp.Path("m.lcm"),
+                    photo, camera, target),
+        fmt::format("attack --map {} --out {} --quiet", tmp.Path("m.lcm"), target),
+        fmt::format("features --image {} --camera {} --out {}", photo, camera, target),
+        fmt::format("audit --map {} --model {} --out {} --quiet --no-density-attack --other {}",
+                    tmp.Path("m.lcm"), model, target, tmp.Path("m.lcm"))};
+    for (const std::string& command : commands) {
+      f = RunScript(Tool() + " " + command, env, tmp);
+      EXPECT_NE(f.code, 0) << command;
+      EXPECT_NE(f.err.find("inside the key store"), std::string::npos) << command << ": " << f.err;
+      EXPECT_EQ(ReadFileToString(key_path), key_text) << command;
+    }
+  }
+  EXPECT_FALSE(FileExists(store + "/new"));
+}
+
+// [identity] The descriptor index is cached in the user's own cache folder:
+// a link or a FIFO planted beside the map (where others may write) is never
+// written through or waited on.
+TEST(Guard, APlantedCacheLinkOrFifoIsNeverUsed) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
+  TempDir tmp;
+  const std::string store = tmp.Path("store");
+  const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + store,
+                                        "XDG_CACHE_HOME=" + tmp.Path("cache")};
+  Finished f = RunScript(fmt::format("{} lift --model {} --database {} --out {}", Tool(),
+                                     SharedDataPath(kMaupertuis),
+                                     SharedDataPath("colmap-maupertuis/colmap.db"),
+                                     tmp.Path("m.lcm")),
+                         env, tmp);
+  ASSERT_EQ(f.code, 0) << f.err;
+  const std::string victim = tmp.Path("authorized_keys");
+  std::ofstream(victim) << "ssh-ed25519 AAAA the owner's\n";
+  fs::create_symlink(victim, tmp.Path("m.lcm.index"));
+  ASSERT_EQ(::mkfifo(tmp.Path("fifo-map.lcm.index").c_str(), 0644), 0);
+  fs::copy_file(tmp.Path("m.lcm"), tmp.Path("fifo-map.lcm"));
+  for (const char* map : {"m.lcm", "fifo-map.lcm"}) {
+    f = RunScript(fmt::format("timeout 60 {} localize --map {} --image {} --camera '{}' "
+                              "--approximate-from 10 --quiet",
+                              Tool(), tmp.Path(map),
+                              SharedDataPath("colmap-maupertuis/images/02.jpg"),
+                              "SIMPLE_PINHOLE 1919 1079 1847.53 959.5 539.5"),
+                  env, tmp);
+    EXPECT_EQ(f.code, 0) << map << ": " << f.err;
+  }
+  EXPECT_EQ(ReadFileToString(victim), "ssh-ed25519 AAAA the owner's\n");
+  EXPECT_TRUE(fs::is_symlink(tmp.Path("m.lcm.index")));
+  EXPECT_TRUE(fs::is_fifo(tmp.Path("fifo-map.lcm.index")));
+  size_t cached = 0;
+  for (const auto& e : fs::directory_iterator(tmp.Path("cache/linecloud/index"))) cached += 1;
+  EXPECT_EQ(cached, 2u);
+}
+
+// [identity] A store lock held by another process is reported after a second
+// and given up on after LINECLOUD_LOCK_TIMEOUT, with no key made.
+TEST(Guard, AHeldStoreLockIsReportedAndGivenUp) {
+  LINECLOUD_REQUIRE_DATA(kMaupertuis);
+  TempDir tmp;
+  const std::string store = tmp.Path("store");
+  KeyStore{store};
+  const int fd = ::open((store + "/.lock").c_str(), O_RDWR | O_CREAT, 0600);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::flock(fd, LOCK_EX), 0);
+  const auto start = std::chrono::steady_clock::now();
+  const Finished f = RunScript(fmt::format("{} lift --model {} --out {}", Tool(),
+                                           SharedDataPath(kMaupertuis), tmp.Path("a.lcm")),
+                               {"LINECLOUD_KEY_STORE=" + store, "LINECLOUD_LOCK_TIMEOUT=2"}, tmp);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ::close(fd);
+  EXPECT_NE(f.code, 0);
+  EXPECT_NE(f.err.find("waiting for the key store's lock"), std::string::npos) << f.err;
+  EXPECT_NE(f.err.find("locked by another process"), std::string::npos) << f.err;
+  EXPECT_GE(seconds, 2.0);
+  EXPECT_LT(seconds, 30.0);
+  EXPECT_TRUE(StoreFiles(store, ".key").empty());
+  EXPECT_FALSE(FileExists(tmp.Path("a.lcm")));
+}
+
+// [identity] A lift refused at its output check makes and registers no key.
+TEST(Guard, ALiftRefusedAtItsOutputMakesNoKey) {
+  LINECLOUD_REQUIRE_DATA(kMaupertuis);
+  TempDir tmp;
+  const std::string store = tmp.Path("store");
+  std::ofstream(tmp.Path("a.lcm")) << "not a map";
+  const Finished f = RunScript(fmt::format("{} lift --model {} --out {}", Tool(),
+                                           SharedDataPath(kMaupertuis), tmp.Path("a.lcm")),
+                               {"LINECLOUD_KEY_STORE=" + store}, tmp);
+  EXPECT_NE(f.code, 0);
+  EXPECT_NE(f.err.find("not a readable line cloud"), std::string::npos) << f.err;
+  EXPECT_TRUE(StoreFiles(store, ".key").empty());
+  EXPECT_TRUE(StoreFiles(store, ".model").empty());
+  EXPECT_TRUE(StoreFiles(store, ".ledger").empty());
+}
+
+// [identity] A large file with a valid magic but another version is refused
+// from its header, not read whole.
+TEST(Guard, AMapOfAnotherVersionIsRefusedFromItsHeader) {
+  TempDir tmp;
+  const std::string path = tmp.Path("big.lcm");
+  {
+    std::ofstream f(path, std::ios::binary);
+    f << "LCMAP\r\n\x1a";
+    const uint32_t version = 99, header = 2;
+    f.write(reinterpret_cast<const char*>(&version), 4);
+    f.write(reinterpret_cast<const char*>(&header), 4);
+  }
+  fs::resize_file(path, uint64_t{1} << 30);  // a sparse 1 GB file
+  const Finished f = RunScript(fmt::format("{} info --map {}", Tool(), path), {}, tmp);
+  EXPECT_EQ(f.code, 1);
+  EXPECT_NE(f.err.find("unsupported .lcm format version 99"), std::string::npos) << f.err;
+  EXPECT_LT(f.max_rss_kb, BaselineRssKb(tmp) + 100 * 1024);
 }
 
 // Row 6: outputs under umask 077 (the secret points of export --model among

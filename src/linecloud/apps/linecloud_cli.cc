@@ -50,6 +50,12 @@ int RunLinecloud(int argc, const char* const* argv) {
     }
   }
   try {
+    // Outputs named on the command line are checked before any work: one
+    // inside the key store (directly or through a link) is refused at once.
+    for (int i = 1; i + 1 < argc; ++i) {
+      const std::string_view flag = argv[i];
+      if (flag == "--out" || flag == "--ply" || flag == "--overlay") CheckNotProtected(argv[i + 1]);
+    }
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
