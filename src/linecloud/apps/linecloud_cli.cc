@@ -54,7 +54,12 @@ int RunLinecloud(int argc, const char* const* argv) {
     // inside the key store (directly or through a link) is refused at once.
     for (int i = 1; i + 1 < argc; ++i) {
       const std::string_view flag = argv[i];
-      if (flag == "--out" || flag == "--ply" || flag == "--overlay") CheckNotProtected(argv[i + 1]);
+      if (flag != "--out" && flag != "--ply" && flag != "--overlay") continue;
+      try {
+        CheckNotProtected(argv[i + 1]);
+      } catch (const Error& e) {
+        Fail("{} {}", flag, e.what());
+      }
     }
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {

@@ -1,10 +1,10 @@
 #include "linecloud/lifting/identity.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <memory>
 #include <random>
-#include <unordered_map>
 
 #include <Eigen/Geometry>
 
@@ -76,18 +76,6 @@ Sim3d AlignThroughImages(const std::vector<Eigen::Vector3d>& model,
   if (best_in.size() >= 3) best = fit(best_in);
   return best;
 }
-
-struct CellKey {
-  int64_t x, y, z;
-  bool operator==(const CellKey&) const = default;
-};
-struct CellHash {
-  size_t operator()(const CellKey& c) const {
-    return static_cast<size_t>(static_cast<uint64_t>(c.x) * 73856093u ^
-                               static_cast<uint64_t>(c.y) * 19349663u ^
-                               static_cast<uint64_t>(c.z) * 83492791u);
-  }
-};
 
 bool SameDirection(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return a.cross(b).norm() <= 1e-9;
@@ -197,39 +185,77 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
     }
   }
 
-  // 2. Same place: points of this version, then released lines.
+  // 2. Same place: points of this version, then released lines. Points are
+  // sorted into cells of side 2 eps: the eps-ball of a point then meets at
+  // most the 8 cells on its side of each half cell.
   const double eps = r.same_place_distance;
-  std::unordered_map<CellKey, std::vector<uint32_t>, CellHash> grid;
-  const auto cell_of = [&](const Eigen::Vector3d& x) {
-    return CellKey{static_cast<int64_t>(std::floor(x.x() / eps)),
-                   static_cast<int64_t>(std::floor(x.y() / eps)),
-                   static_cast<int64_t>(std::floor(x.z() / eps))};
+  const double side = 2 * eps;
+  Eigen::Vector3d low = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
+  for (const auto& x : in.points) low = low.cwiseMin(x);
+  constexpr int64_t kAxisCells = int64_t{1} << 21;
+  const auto cell_coord = [&](double v, int axis) {
+    const double c = std::floor((v - low[axis]) / side);
+    return static_cast<int64_t>(std::clamp(c, 0.0, static_cast<double>(kAxisCells - 1)));
   };
-  std::vector<uint8_t> assigned(n, 0);
+  const auto pack = [](int64_t x, int64_t y, int64_t z) {
+    return static_cast<uint64_t>((z << 42) | (y << 21) | x);
+  };
+  std::vector<std::pair<uint64_t, uint32_t>> cells(n);
   for (size_t i = 0; i < n; ++i) {
-    grid[cell_of(in.points[i])].push_back(static_cast<uint32_t>(i));
-    assigned[i] = r.ledger_line[i] >= 0;
+    const Eigen::Vector3d& x = in.points[i];
+    cells[i] = {pack(cell_coord(x.x(), 0), cell_coord(x.y(), 1), cell_coord(x.z(), 2)),
+                static_cast<uint32_t>(i)};
   }
+  std::sort(cells.begin(), cells.end());
+  // Each occupied cell's first entry, by an open-addressing table on its key.
+  const size_t slots = std::bit_ceil(std::max<size_t>(2 * n, 16));
+  std::vector<uint64_t> slot_key(slots, ~uint64_t{0});
+  std::vector<uint32_t> slot_start(slots, 0);
+  const auto slot_of = [&](uint64_t key) {
+    size_t h = static_cast<size_t>((key * 0x9E3779B97F4A7C15ull) >> 20) & (slots - 1);
+    while (slot_key[h] != ~uint64_t{0} && slot_key[h] != key) h = (h + 1) & (slots - 1);
+    return h;
+  };
+  for (size_t k = 0; k < n; ++k) {
+    if (k > 0 && cells[k].first == cells[k - 1].first) continue;
+    const size_t h = slot_of(cells[k].first);
+    slot_key[h] = cells[k].first;
+    slot_start[h] = static_cast<uint32_t>(k);
+  }
+  std::vector<uint8_t> assigned(n, 0);
+  for (size_t i = 0; i < n; ++i) assigned[i] = r.ledger_line[i] >= 0;
   std::unique_ptr<LineGrid> released;
   std::vector<uint32_t> near;
-  for (size_t i = 0; i < n; ++i) {
+  // In cell order (neighbours are near in memory); a deterministic order.
+  for (const auto& [cell_key, point] : cells) {
+    const size_t i = point;
     if (assigned[i] || !r.keep[i]) continue;
-    const CellKey c = cell_of(in.points[i]);
+    const Eigen::Vector3d& x = in.points[i];
+    int64_t c[3], step[3];
+    for (int k = 0; k < 3; ++k) {
+      c[k] = cell_coord(x[k], k);
+      const double frac = (x[k] - low[k]) / side - static_cast<double>(c[k]);
+      step[k] = frac < 0.5 ? -1 : 1;
+    }
     double best_d = std::numeric_limits<double>::infinity();
     int64_t best_j = -1;
-    for (int64_t dz = -1; dz <= 1; ++dz) {
-      for (int64_t dy = -1; dy <= 1; ++dy) {
-        for (int64_t dx = -1; dx <= 1; ++dx) {
-          const auto it = grid.find({c.x + dx, c.y + dy, c.z + dz});
-          if (it == grid.end()) continue;
-          for (const uint32_t j : it->second) {
-            // Only from a point with a direction of its own (no chains: a
-            // bundle of parallel lines stays within `same_place` of its seed).
-            if (j == i || assigned[j] != 1 || !r.keep[j]) continue;
-            const double d = (in.points[j] - in.points[i]).norm();
-            if (d <= eps && d < best_d) best_d = d, best_j = j;
-          }
-        }
+    for (int corner = 0; corner < 8; ++corner) {
+      const int64_t cx = c[0] + ((corner & 1) ? step[0] : 0);
+      const int64_t cy = c[1] + ((corner & 2) ? step[1] : 0);
+      const int64_t cz = c[2] + ((corner & 4) ? step[2] : 0);
+      if (cx < 0 || cy < 0 || cz < 0 || cx >= kAxisCells || cy >= kAxisCells || cz >= kAxisCells) {
+        continue;
+      }
+      const uint64_t key = pack(cx, cy, cz);
+      const size_t h = slot_of(key);
+      if (slot_key[h] != key) continue;
+      for (size_t e = slot_start[h]; e < n && cells[e].first == key; ++e) {
+        const uint32_t j = cells[e].second;
+        // Only from a point with a direction of its own (no chains: a bundle
+        // of parallel lines stays within `same_place` of its seed).
+        if (j == i || assigned[j] != 1 || !r.keep[j]) continue;
+        const double d = (in.points[j] - x).norm();
+        if (d <= eps && d < best_d) best_d = d, best_j = j;
       }
     }
     if (best_j >= 0) {

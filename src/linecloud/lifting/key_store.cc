@@ -236,7 +236,9 @@ KeyStore::Lock::~Lock() {
 
 std::optional<KeyStoreMatch> KeyStore::Find(std::span<const uint64_t> elements,
                                             bool allow_shared_key) const {
-  const std::vector<uint64_t> mine = SortedUnique(elements);
+  // Not sorted (a model of a million points has ~12 million elements): each
+  // entry's bottom-k cut selects the comparable ones, looked up in its sketch.
+  const std::span<const uint64_t> mine = elements;
   struct Candidate {
     std::string entry;
     Sketch sketch;
@@ -259,10 +261,10 @@ std::optional<KeyStoreMatch> KeyStore::Find(std::span<const uint64_t> elements,
       continue;
     }
     const std::vector<uint64_t>& theirs = c.sketch.elements;
-    c.comparable = static_cast<size_t>(
-        std::upper_bound(mine.begin(), mine.end(), c.sketch.max_element) - mine.begin());
-    for (size_t i = 0; i < c.comparable; ++i) {
-      c.shared += std::binary_search(theirs.begin(), theirs.end(), mine[i]);
+    for (const uint64_t e : mine) {
+      if (e > c.sketch.max_element) continue;
+      ++c.comparable;
+      c.shared += std::binary_search(theirs.begin(), theirs.end(), e);
     }
     const double needed = kMinSharedFraction * std::min(c.comparable, theirs.size());
     if (c.shared < kMinShared || c.shared < needed) continue;
@@ -344,7 +346,15 @@ void KeyStore::Register(const LiftingKey& key, const std::string& key_path,
   Sketch s;
   s.key_path = AbsolutePath(key_path);
   if (s.key_path.find('\n') != std::string::npos) Fail("{}: key path has a newline", key_path);
-  s.elements = SortedUnique(elements);
+  // The bottom-k: the smallest kMaxSketchElements distinct elements.
+  std::vector<uint64_t> bottom(elements.begin(), elements.end());
+  const bool cut = bottom.size() > 2 * kMaxSketchElements;
+  if (cut) {
+    std::nth_element(bottom.begin(), bottom.begin() + 2 * kMaxSketchElements, bottom.end());
+    bottom.resize(2 * kMaxSketchElements);
+  }
+  s.elements = SortedUnique(bottom);
+  if (cut && !s.elements.empty()) s.max_element = s.elements.back();
   if (s.elements.size() > kMaxSketchElements) {
     s.elements.resize(kMaxSketchElements);
     s.max_element = s.elements.back();
