@@ -371,11 +371,10 @@ TEST(Guard, APlantedCacheLinkOrFifoIsNeverUsed) {
   const std::string store = tmp.Path("store");
   const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + store,
                                         "XDG_CACHE_HOME=" + tmp.Path("cache")};
-  Finished f = RunScript(fmt::format("{} lift --model {} --database {} --out {}", Tool(),
-                                     SharedDataPath(kMaupertuis),
-                                     SharedDataPath("colmap-maupertuis/colmap.db"),
-                                     tmp.Path("m.lcm")),
-                         env, tmp);
+  Finished f = RunScript(
+      fmt::format("{} lift --model {} --database {} --out {}", Tool(), SharedDataPath(kMaupertuis),
+                  SharedDataPath("colmap-maupertuis/colmap.db"), tmp.Path("m.lcm")),
+      env, tmp);
   ASSERT_EQ(f.code, 0) << f.err;
   const std::string victim = tmp.Path("authorized_keys");
   std::ofstream(victim) << "ssh-ed25519 AAAA the owner's\n";
@@ -383,12 +382,12 @@ TEST(Guard, APlantedCacheLinkOrFifoIsNeverUsed) {
   ASSERT_EQ(::mkfifo(tmp.Path("fifo-map.lcm.index").c_str(), 0644), 0);
   fs::copy_file(tmp.Path("m.lcm"), tmp.Path("fifo-map.lcm"));
   for (const char* map : {"m.lcm", "fifo-map.lcm"}) {
-    f = RunScript(fmt::format("timeout 60 {} localize --map {} --image {} --camera '{}' "
-                              "--approximate-from 10 --quiet",
-                              Tool(), tmp.Path(map),
-                              SharedDataPath("colmap-maupertuis/images/02.jpg"),
-                              "SIMPLE_PINHOLE 1919 1079 1847.53 959.5 539.5"),
-                  env, tmp);
+    f = RunScript(
+        fmt::format("timeout 60 {} localize --map {} --image {} --camera '{}' "
+                    "--approximate-from 10 --quiet",
+                    Tool(), tmp.Path(map), SharedDataPath("colmap-maupertuis/images/02.jpg"),
+                    "SIMPLE_PINHOLE 1919 1079 1847.53 959.5 539.5"),
+        env, tmp);
     EXPECT_EQ(f.code, 0) << map << ": " << f.err;
   }
   EXPECT_EQ(ReadFileToString(victim), "ssh-ed25519 AAAA the owner's\n");

@@ -33,8 +33,8 @@ std::string FountainWork() {
   return work && *work && IsDirectory(JoinPaths(work, "colmap/sparse/0")) ? work : "";
 }
 
-#define REQUIRE_FOUNTAIN_WORK()                                                          \
-  if (FountainWork().empty())                                                            \
+#define REQUIRE_FOUNTAIN_WORK()                                                            \
+  if (FountainWork().empty())                                                              \
   GTEST_SKIP() << "LINECLOUD_FOUNTAIN_WORK is not an `eval prepare` work of fountain-P11 " \
                   "(CI's eval step makes it)"
 
@@ -121,13 +121,14 @@ TEST(Identity, VersionsOfARealMapGiveNothingBackBeyondNoise) {
     ModelFormat format = ModelFormat::kBinary;
   };
   std::vector<Version> versions;
-  versions.push_back({"permuted", Renumbered(model, [&](uint64_t id) { return permutation.at(id); })});
+  versions.push_back(
+      {"permuted", Renumbered(model, [&](uint64_t id) { return permutation.at(id); })});
   versions.push_back({"offset", Renumbered(model, [](uint64_t id) { return id + 1000000; })});
   versions.push_back({"text", model, ModelFormat::kText});
   // 2. Another gauge (what a mapper re-run gives): scale 2.5, rotated, moved.
-  const Sim3d gauge = Sim3d(2.5,
-                            Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized())),
-                            Eigen::Vector3d(40, -7, 3));
+  const Sim3d gauge =
+      Sim3d(2.5, Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized())),
+            Eigen::Vector3d(40, -7, 3));
   versions.push_back({"gauge", InAnotherGauge(model, gauge)});
   for (const Version& v : versions) {
     const std::string dir = tmp.Path(v.name);
@@ -200,7 +201,8 @@ TEST(Identity, PointsAtOnePlaceInOneMapGetParallelLines) {
   const Reconstruction model = ReadColmapModel(model_dir);
   const LiftingKey key = ReadKeyFile(r.key_path);
   std::vector<Eigen::Vector3d> points;
-  for (const uint64_t line_id : r.cloud.ids) points.push_back(model.points3D.at(PointIdOfLine(key, line_id)).xyz);
+  for (const uint64_t line_id : r.cloud.ids)
+    points.push_back(model.points3D.at(PointIdOfLine(key, line_id)).xyz);
   const double diagonal = RobustBox(points, 0.005, 0.0).diagonal().norm();
   size_t close_pairs = 0, crossing = 0;
   for (size_t i = 0; i < points.size(); ++i) {

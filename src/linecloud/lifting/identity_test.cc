@@ -1,0 +1,155 @@
+#include "linecloud/lifting/identity.h"
+
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "linecloud/geometry/line_grid.h"
+#include "linecloud/lifting/release_ledger.h"
+#include "linecloud/testing/test_util.h"
+#include "linecloud/util/error.h"
+#include "linecloud/util/file.h"
+
+namespace linecloud {
+namespace {
+
+// A synthetic model: points in a box, each seen by two of 10 images (one
+// observation per image, keypoint = point index), image centres on a circle.
+struct Model {
+  std::vector<uint64_t> ids;
+  std::vector<Eigen::Vector3d> points;
+  std::vector<uint32_t> start;
+  std::vector<uint64_t> observations;
+  std::vector<std::pair<uint64_t, Eigen::Vector3d>> images;
+  IdentityInput Input() const { return {ids, points, start, observations, images}; }
+};
+
+Model MakeModel(const LiftingKey& key, size_t n, uint64_t first_id = 1) {
+  const ObservationHasher h(key);
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-5, 5);
+  Model m;
+  std::vector<uint64_t> image_hash;
+  for (int i = 0; i < 10; ++i) {
+    image_hash.push_back(h.Image("img" + std::to_string(i) + ".jpg"));
+    m.images.push_back({image_hash.back(), Eigen::Vector3d(20 * std::cos(i), 20 * std::sin(i), 3)});
+  }
+  for (size_t k = 0; k < n; ++k) {
+    m.ids.push_back(first_id + k);
+    m.points.emplace_back(u(rng), u(rng), u(rng));
+    m.start.push_back(static_cast<uint32_t>(m.observations.size()));
+    m.observations.push_back(h.Observation(image_hash[k % 10], static_cast<uint32_t>(k)));
+    m.observations.push_back(h.Observation(image_hash[(k + 3) % 10], static_cast<uint32_t>(k)));
+  }
+  m.start.push_back(static_cast<uint32_t>(m.observations.size()));
+  return m;
+}
+
+ReleaseLedger Release(const Model& m, const IdentityResult& r) {
+  ReleaseLedger ledger;
+  std::vector<size_t> all(m.ids.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = i;
+  RecordRelease(m.Input(), r, all, &ledger);
+  return ledger;
+}
+
+const LiftingKey kKey(LiftingKey::Bytes{7, 1, 2, 3});
+
+double RobustBoxDiagonalForTest(const std::vector<Eigen::Vector3d>& points) {
+  return RobustBox(points, 0.005, 0.0).diagonal().norm();
+}
+
+TEST(IdentityRule, RenumberedPointsInAnotherGaugeKeepParallelLines) {
+  const Model v1 = MakeModel(kKey, 500);
+  const IdentityResult r1 = AssignDirections(kKey, v1.Input(), {}, {});
+  EXPECT_EQ(r1.fresh + r1.from_same_place, 500u);
+  const ReleaseLedger ledger = Release(v1, r1);
+  // Version 2: ids offset, every point and camera moved by a similarity.
+  const Sim3d t(0.5, Eigen::Quaterniond(Eigen::AngleAxisd(1.1, Eigen::Vector3d(0, 1, 1).normalized())),
+                Eigen::Vector3d(3, 4, 5));
+  Model v2 = MakeModel(kKey, 500, 1000);
+  for (auto& x : v2.points) x = t * x;
+  for (auto& [h, c] : v2.images) c = t * c;
+  const IdentityResult r2 = AssignDirections(kKey, v2.Input(), ledger, {});
+  EXPECT_EQ(r2.from_observations, 500u);
+  EXPECT_LT(r2.misalignment, 1e-12);
+  const Eigen::Matrix3d rotation = t.rotation.toRotationMatrix();
+  for (size_t i = 0; i < 500; ++i) {
+    // In the first version's frame the new direction is the released one.
+    EXPECT_LT((rotation.transpose() * r2.directions[i]).cross(r1.directions[i]).norm(), 1e-12) << i;
+  }
+}
+
+TEST(IdentityRule, AMergeOfTwoReleasedPointsIsLeftOutAndAMisalignedVersionRefused) {
+  const Model v1 = MakeModel(kKey, 200);
+  const IdentityResult r1 = AssignDirections(kKey, v1.Input(), {}, {});
+  const ReleaseLedger ledger = Release(v1, r1);
+  // Point 0 of version 2 holds point 0's and point 1's observations.
+  Model v2 = v1;
+  v2.observations[v2.start[0] + 1] = v1.observations[v1.start[1]];
+  const IdentityResult r2 = AssignDirections(kKey, v2.Input(), ledger, {});
+  ASSERT_GT(r1.directions[0].cross(r1.directions[1]).norm(), 1e-9);
+  EXPECT_EQ(r2.left_out, 1u);
+  EXPECT_FALSE(r2.keep[0]);
+  EXPECT_EQ(r2.from_observations, 199u);
+  // Points moved far from their released lines without the cameras moving:
+  // the versions cannot be aligned; refused, naming why.
+  Model v3 = v1;
+  for (auto& x : v3.points) x = -x + Eigen::Vector3d(7, 0, 0);
+  try {
+    AssignDirections(kKey, v3.Input(), ledger, {});
+    FAIL() << "a misaligned version was lifted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot be aligned"), std::string::npos) << e.what();
+  }
+}
+
+TEST(IdentityRule, PointsAtOnePlaceShareADirectionWithoutChains) {
+  Model m = MakeModel(kKey, 100);
+  // A chain of points 0.6 eps apart along x, from point 0.
+  const double eps = 1e-3 * RobustBoxDiagonalForTest(m.points);
+  for (int k = 1; k <= 5; ++k) m.points[k] = m.points[0] + Eigen::Vector3d(0.6 * eps * k, 0, 0);
+  const IdentityResult r = AssignDirections(kKey, m.Input(), {}, {});
+  // Every point within eps of a seed shares its direction; none copies a copy.
+  size_t parallel_to_0 = 0;
+  for (int k = 1; k <= 5; ++k) parallel_to_0 += r.directions[k].cross(r.directions[0]).norm() < 1e-12;
+  EXPECT_GE(parallel_to_0, 1u);
+  EXPECT_LE(parallel_to_0, 2u);
+  // No chains: points with one direction lie within 2 eps (a bundle around its seed).
+  for (int a = 0; a <= 5; ++a) {
+    for (int b = a + 1; b <= 5; ++b) {
+      if (r.directions[a].cross(r.directions[b]).norm() < 1e-12) {
+        EXPECT_LE((m.points[a] - m.points[b]).norm(), 2 * eps * (1 + 1e-9)) << a << " " << b;
+      }
+    }
+  }
+}
+
+TEST(IdentityRule, ALedgerIsReadBackAndADamagedOneIsAnError) {
+  testing::TempDir tmp;
+  const Model m = MakeModel(kKey, 50);
+  const ReleaseLedger ledger = Release(m, AssignDirections(kKey, m.Input(), {}, {}));
+  WriteLedger(tmp.Path("a.ledger"), ledger);
+  const ReleaseLedger back = ReadLedger(tmp.Path("a.ledger"));
+  ASSERT_EQ(back.lines.size(), ledger.lines.size());
+  EXPECT_EQ(back.observations, ledger.observations);
+  for (size_t i = 0; i < back.lines.size(); ++i) EXPECT_EQ(back.lines[i].w, ledger.lines[i].w);
+  EXPECT_TRUE(ReadLedger(tmp.Path("absent.ledger")).empty());
+  std::string bytes = ReadFileToString(tmp.Path("a.ledger"));
+  bytes[bytes.size() / 2] ^= 1;
+  WriteFileAtomically(tmp.Path("b.ledger"), [&](std::ostream& os) { os << bytes; });
+  EXPECT_THROW(ReadLedger(tmp.Path("b.ledger")), Error);
+  // Counts claiming more than the file holds: refused before reading.
+  bytes = ReadFileToString(tmp.Path("a.ledger"));
+  bytes[std::string("linecloud-release-ledger 1\n").size() + 7] = 0x7f;
+  WriteFileAtomically(tmp.Path("c.ledger"), [&](std::ostream& os) { os << bytes; });
+  try {
+    ReadLedger(tmp.Path("c.ledger"));
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("corrupt release ledger"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace linecloud
