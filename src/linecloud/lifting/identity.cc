@@ -101,6 +101,12 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
     Fail("identity: {} ids, {} points, {} observation starts for {} observations", n,
          in.points.size(), in.observation_start.size(), in.observations.size());
   }
+  for (size_t i = 0; i < n; ++i) {
+    if (!in.points[i].allFinite()) Fail("identity: point {} has non-finite coordinates", in.ids[i]);
+  }
+  for (const auto& [hash, centre] : in.images) {
+    if (!centre.allFinite()) Fail("identity: an image centre has non-finite coordinates");
+  }
   const bool compact_key = key.directions() == DirectionSet::kCompact256;
   IdentityResult r;
   r.directions.resize(n);

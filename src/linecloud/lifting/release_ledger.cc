@@ -146,27 +146,47 @@ void WriteLedger(const std::string& path, const ReleaseLedger& ledger) {
     Fail("{}: release ledger with {} lines but {} compact indices", path, ledger.lines.size(),
          ledger.compact.size());
   }
-  std::string out(kMagic);
-  Put<uint64_t>(&out, ledger.lines.size());
-  Put<uint64_t>(&out, ledger.observations.size());
-  Put<uint64_t>(&out, ledger.images.size());
-  for (size_t i = 0; i < ledger.lines.size(); ++i) {
-    for (int k = 0; k < 3; ++k) Put<double>(&out, ledger.lines[i].v[k]);
-    for (int k = 0; k < 3; ++k) Put<double>(&out, ledger.lines[i].w[k]);
-    Put<uint8_t>(&out, ledger.compact[i]);
-  }
-  for (const auto& [hash, line] : ledger.observations) {
-    Put<uint64_t>(&out, hash);
-    Put<uint32_t>(&out, line);
-  }
-  for (const auto& [hash, centre] : ledger.images) {
-    Put<uint64_t>(&out, hash);
-    for (int k = 0; k < 3; ++k) Put<double>(&out, centre[k]);
-  }
-  const auto sum = Checksum(out.data(), out.size());
-  out.append(reinterpret_cast<const char*>(sum.data()), sum.size());
+  // Streamed through the checksum in blocks: no second copy of a large ledger.
   WriteFileAtomically(
-      path, [&](std::ostream& os) { os << out; }, 0600);
+      path,
+      [&](std::ostream& os) {
+        EnsureSodiumInitialized();
+        crypto_generichash_state state;
+        crypto_generichash_init(&state, nullptr, 0, kChecksumBytes);
+        std::string block;
+        const auto flush = [&](bool force) {
+          if (!force && block.size() < (1u << 20)) return;
+          crypto_generichash_update(&state, reinterpret_cast<const unsigned char*>(block.data()),
+                                    block.size());
+          os.write(block.data(), static_cast<std::streamsize>(block.size()));
+          block.clear();
+        };
+        block.append(kMagic);
+        Put<uint64_t>(&block, ledger.lines.size());
+        Put<uint64_t>(&block, ledger.observations.size());
+        Put<uint64_t>(&block, ledger.images.size());
+        for (size_t i = 0; i < ledger.lines.size(); ++i) {
+          for (int k = 0; k < 3; ++k) Put<double>(&block, ledger.lines[i].v[k]);
+          for (int k = 0; k < 3; ++k) Put<double>(&block, ledger.lines[i].w[k]);
+          Put<uint8_t>(&block, ledger.compact[i]);
+          flush(false);
+        }
+        for (const auto& [hash, line] : ledger.observations) {
+          Put<uint64_t>(&block, hash);
+          Put<uint32_t>(&block, line);
+          flush(false);
+        }
+        for (const auto& [hash, centre] : ledger.images) {
+          Put<uint64_t>(&block, hash);
+          for (int k = 0; k < 3; ++k) Put<double>(&block, centre[k]);
+          flush(false);
+        }
+        flush(true);
+        std::array<unsigned char, kChecksumBytes> sum;
+        crypto_generichash_final(&state, sum.data(), sum.size());
+        os.write(reinterpret_cast<const char*>(sum.data()), sum.size());
+      },
+      0600);
 }
 
 }  // namespace linecloud

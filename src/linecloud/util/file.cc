@@ -193,7 +193,7 @@ void WriteFileAtomically(const std::string& path, const std::function<void(std::
   std::ostringstream buffer(std::ios::binary);
   write(buffer);
   if (!buffer) Fail("{}: cannot produce the output", path);
-  const std::string data = buffer.str();
+  const std::string data = std::move(buffer).str();  // moved out, not copied
 
   // Write through a link to the file it names (the link stays a link).
   std::string target = path;
