@@ -8,7 +8,10 @@
 #include <algorithm>
 #include <cstdlib>
 #include <filesystem>
+#include <cstdio>
 #include <random>
+
+#include <fmt/format.h>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -185,6 +188,66 @@ TEST(Identity, AnUpdatedMapWithNewImagesGivesNothingBackBeyondNoise) {
   EXPECT_GT(update.identity.fresh, 0u);  // points only the new images see
   ExpectNothingBeyondNoise(Attack(tmp.Path("subset.lcm"), subset, tmp.Path("update.lcm"), store),
                            "update");
+}
+
+// The updated map localizes as the released one did: a group's map (its
+// query photos held out) and its COLMAP re-triangulation, lifted into one
+// store; both held-out photos localized by both, to the same pose.
+nlohmann::json LocalizePhoto(const std::string& map, const std::string& photo,
+                             const std::string& env) {
+  const std::string command = fmt::format(
+      "{} {} localize --map {} --image {} --camera 'PINHOLE 1536 1024 1379.74 "
+      "1382.08 760.095 503.155' --method p6L --quiet",
+      env, LINECLOUD_BINARY, map, photo);
+  FILE* pipe = ::popen(command.c_str(), "r");
+  std::string out;
+  char buffer[4096];
+  while (size_t n = std::fread(buffer, 1, sizeof(buffer), pipe)) out.append(buffer, n);
+  EXPECT_EQ(::pclose(pipe), 0) << command;
+  return nlohmann::json::parse(out);
+}
+
+TEST(Identity, AnUpdatedMapLocalizesHeldOutPhotosAsTheReleasedOneDid) {
+  REQUIRE_FOUNTAIN_WORK();
+  TempDir tmp;
+  const std::string store = tmp.Path("keys");
+  const std::string group = JoinPaths(FountainWork(), "groups/g00/map");
+  const std::string retri = tmp.Path("retriangulated");
+  CreateDirectories(retri);
+  RunColmapCommand({"colmap", "point_triangulator", "--database_path",
+                    JoinPaths(FountainWork(), "colmap/database.db"), "--image_path",
+                    testing::SharedDataPath("strecha/fountain-P11/images"), "--input_path", group,
+                    "--output_path", retri, "--clear_points", "1"},
+                   tmp.Path("triangulator.log"), ColmapOptions{});
+  Lift(group, tmp.Path("released.lcm"), store);
+  const LiftModelResult update = Lift(retri, tmp.Path("updated.lcm"), store);
+  EXPECT_GT(update.identity.from_observations, update.cloud.size() * 9 / 10);
+  const std::string env =
+      fmt::format("LINECLOUD_KEY_STORE={} XDG_CACHE_HOME={}", store, tmp.Path("cache"));
+  const Reconstruction all = ReadColmapModel(JoinPaths(FountainWork(), "colmap/sparse/0"));
+  // g00's query photos, 0000.jpg and 0001.jpg, are the two images its map lacks.
+  const Reconstruction released = ReadColmapModel(group);
+  ASSERT_EQ(released.images.size() + 2, all.images.size());
+  for (const auto& [id, image] : released.images) {
+    ASSERT_NE(image.name, "0000.jpg");
+    ASSERT_NE(image.name, "0001.jpg");
+  }
+  for (const char* name : {"0000.jpg", "0001.jpg"}) {
+    const std::string photo =
+        testing::SharedDataPath(std::string("strecha/fountain-P11/images/") + name);
+    const nlohmann::json before = LocalizePhoto(tmp.Path("released.lcm"), photo, env);
+    const nlohmann::json after = LocalizePhoto(tmp.Path("updated.lcm"), photo, env);
+    ASSERT_TRUE(before["success"].get<bool>()) << before.dump();
+    ASSERT_TRUE(after["success"].get<bool>()) << after.dump();
+    EXPECT_GT(after["num_inliers"].get<int>(), 0.9 * before["num_inliers"].get<int>()) << name;
+    Eigen::Vector3d c0, c1;
+    for (int k = 0; k < 3; ++k) {
+      c0[k] = before["center"][k].get<double>();
+      c1[k] = after["center"][k].get<double>();
+    }
+    // The group's frame: a few thousandths of its ~10-unit scene.
+    EXPECT_LT((c0 - c1).norm(), 5e-3) << name;
+  }
 }
 
 // Within one map: points at one place (maupertuis holds 48 such pairs) get

@@ -65,7 +65,8 @@ TEST(IdentityRule, RenumberedPointsInAnotherGaugeKeepParallelLines) {
   EXPECT_EQ(r1.fresh + r1.from_same_place, 500u);
   const ReleaseLedger ledger = Release(v1, r1);
   // Version 2: ids offset, every point and camera moved by a similarity.
-  const Sim3d t(0.5, Eigen::Quaterniond(Eigen::AngleAxisd(1.1, Eigen::Vector3d(0, 1, 1).normalized())),
+  const Sim3d t(0.5,
+                Eigen::Quaterniond(Eigen::AngleAxisd(1.1, Eigen::Vector3d(0, 1, 1).normalized())),
                 Eigen::Vector3d(3, 4, 5));
   Model v2 = MakeModel(kKey, 500, 1000);
   for (auto& x : v2.points) x = t * x;
@@ -112,7 +113,8 @@ TEST(IdentityRule, PointsAtOnePlaceShareADirectionWithoutChains) {
   const IdentityResult r = AssignDirections(kKey, m.Input(), {}, {});
   // Every point within eps of a seed shares its direction; none copies a copy.
   size_t parallel_to_0 = 0;
-  for (int k = 1; k <= 5; ++k) parallel_to_0 += r.directions[k].cross(r.directions[0]).norm() < 1e-12;
+  for (int k = 1; k <= 5; ++k)
+    parallel_to_0 += r.directions[k].cross(r.directions[0]).norm() < 1e-12;
   EXPECT_GE(parallel_to_0, 1u);
   EXPECT_LE(parallel_to_0, 2u);
   // No chains: points with one direction lie within 2 eps (a bundle around its seed).
