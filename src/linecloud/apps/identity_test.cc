@@ -31,9 +31,27 @@ namespace {
 
 using testing::TempDir;
 
-std::string FountainWork() {
-  const char* work = std::getenv("LINECLOUD_FOUNTAIN_WORK");
+std::string WorkFrom(const char* variable) {
+  const char* work = std::getenv(variable);
   return work && *work && IsDirectory(JoinPaths(work, "colmap/sparse/0")) ? work : "";
+}
+
+std::string FountainWork() { return WorkFrom("LINECLOUD_FOUNTAIN_WORK"); }
+
+// The `eval prepare` works the version tests run on: fountain-P11 (CI), and
+// Herz-Jesus-P8 when LINECLOUD_HERZJESUS_WORK names one.
+std::vector<std::string> Works() {
+  std::vector<std::string> works;
+  for (const char* v : {"LINECLOUD_FOUNTAIN_WORK", "LINECLOUD_HERZJESUS_WORK"}) {
+    if (!WorkFrom(v).empty()) works.push_back(WorkFrom(v));
+  }
+  return works;
+}
+
+// The scene's images (`dataset` in the work's prepared.json, under the data folder).
+std::string ImagesOf(const std::string& work) {
+  const auto j = nlohmann::json::parse(ReadFileToString(JoinPaths(work, "prepared.json")));
+  return testing::SharedDataPath("strecha/" + j["dataset"].get<std::string>() + "/images");
 }
 
 #define REQUIRE_FOUNTAIN_WORK()                                                            \
@@ -41,12 +59,13 @@ std::string FountainWork() {
   GTEST_SKIP() << "LINECLOUD_FOUNTAIN_WORK is not an `eval prepare` work of fountain-P11 " \
                   "(CI's eval step makes it)"
 
-LiftModelResult Lift(const std::string& model, const std::string& out, const std::string& store) {
+LiftModelResult Lift(const std::string& model, const std::string& out, const std::string& store,
+                     const std::string& work = FountainWork()) {
   LiftModelOptions o;
   o.model_dir = model;
   o.out_path = out;
   o.key_store = store;
-  o.database = JoinPaths(FountainWork(), "colmap/database.db");
+  o.database = JoinPaths(work, "colmap/database.db");
   return LiftModel(o);
 }
 
@@ -102,12 +121,12 @@ Reconstruction InAnotherGauge(Reconstruction model, const Sim3d& t) {
   return model;
 }
 
-TEST(Identity, VersionsOfARealMapGiveNothingBackBeyondNoise) {
-  REQUIRE_FOUNTAIN_WORK();
+void VersionsGiveNothingBackBeyondNoise(const std::string& work) {
+  SCOPED_TRACE(work);
   TempDir tmp;
   const std::string store = tmp.Path("keys");
-  const std::string base = JoinPaths(FountainWork(), "colmap/sparse/0");
-  const LiftModelResult first = Lift(base, tmp.Path("v1.lcm"), store);
+  const std::string base = JoinPaths(work, "colmap/sparse/0");
+  const LiftModelResult first = Lift(base, tmp.Path("v1.lcm"), store, work);
   ASSERT_GT(first.cloud.size(), 10000u);
   const Reconstruction model = ReadColmapModel(base);
   const std::string key_path = first.key_path;
@@ -137,7 +156,7 @@ TEST(Identity, VersionsOfARealMapGiveNothingBackBeyondNoise) {
     const std::string dir = tmp.Path(v.name);
     CreateDirectories(dir);
     WriteColmapModel(v.model, dir, v.format);
-    const LiftModelResult r = Lift(dir, tmp.Path(v.name + ".lcm"), store);
+    const LiftModelResult r = Lift(dir, tmp.Path(v.name + ".lcm"), store, work);
     EXPECT_EQ(r.key_path, key_path) << v.name << ": the model's key is found again";
     EXPECT_EQ(r.identity.from_observations, first.cloud.size()) << v.name;
     std::string other = tmp.Path(v.name + ".lcm");
@@ -156,11 +175,11 @@ TEST(Identity, VersionsOfARealMapGiveNothingBackBeyondNoise) {
   const std::string retri = tmp.Path("retriangulated");
   CreateDirectories(retri);
   RunColmapCommand({"colmap", "point_triangulator", "--database_path",
-                    JoinPaths(FountainWork(), "colmap/database.db"), "--image_path",
-                    testing::SharedDataPath("strecha/fountain-P11/images"), "--input_path", base,
+                    JoinPaths(work, "colmap/database.db"), "--image_path", ImagesOf(work),
+                    "--input_path", base,
                     "--output_path", retri, "--clear_points", "1"},
                    tmp.Path("triangulator.log"), ColmapOptions{});
-  const LiftModelResult r = Lift(retri, tmp.Path("retri.lcm"), store);
+  const LiftModelResult r = Lift(retri, tmp.Path("retri.lcm"), store, work);
   EXPECT_EQ(r.key_path, key_path);
   EXPECT_GT(r.identity.from_observations, r.cloud.size() * 9 / 10);
   ExpectNothingBeyondNoise(Attack(tmp.Path("v1.lcm"), base, tmp.Path("retri.lcm"), store),
@@ -170,24 +189,34 @@ TEST(Identity, VersionsOfARealMapGiveNothingBackBeyondNoise) {
                            "re-triangulated, other way");
 }
 
+TEST(Identity, VersionsOfARealMapGiveNothingBackBeyondNoise) {
+  REQUIRE_FOUNTAIN_WORK();
+  for (const std::string& work : Works()) VersionsGiveNothingBackBeyondNoise(work);
+}
+
 // A map update: the released map is a group's map (built by its own mapper
 // run from a subset of the images), the update all images (another mapper run,
 // new images, points added and removed).
-TEST(Identity, AnUpdatedMapWithNewImagesGivesNothingBackBeyondNoise) {
-  REQUIRE_FOUNTAIN_WORK();
+void UpdateGivesNothingBackBeyondNoise(const std::string& work) {
+  SCOPED_TRACE(work);
   TempDir tmp;
   const std::string store = tmp.Path("keys");
-  const std::string subset = JoinPaths(FountainWork(), "groups/g00/map");
-  const std::string full = JoinPaths(FountainWork(), "colmap/sparse/0");
+  const std::string subset = JoinPaths(work, "groups/g00/map");
+  const std::string full = JoinPaths(work, "colmap/sparse/0");
   const Reconstruction sub = ReadColmapModel(subset), all = ReadColmapModel(full);
   ASSERT_LT(sub.images.size(), all.images.size());
-  const LiftModelResult first = Lift(subset, tmp.Path("subset.lcm"), store);
-  const LiftModelResult update = Lift(full, tmp.Path("update.lcm"), store);
+  const LiftModelResult first = Lift(subset, tmp.Path("subset.lcm"), store, work);
+  const LiftModelResult update = Lift(full, tmp.Path("update.lcm"), store, work);
   EXPECT_EQ(update.key_path, first.key_path);
   EXPECT_EQ(update.identity.shared_images, sub.images.size());
   EXPECT_GT(update.identity.fresh, 0u);  // points only the new images see
   ExpectNothingBeyondNoise(Attack(tmp.Path("subset.lcm"), subset, tmp.Path("update.lcm"), store),
                            "update");
+}
+
+TEST(Identity, AnUpdatedMapWithNewImagesGivesNothingBackBeyondNoise) {
+  REQUIRE_FOUNTAIN_WORK();
+  for (const std::string& work : Works()) UpdateGivesNothingBackBeyondNoise(work);
 }
 
 // The updated map localizes as the released one did: a group's map (its
