@@ -176,8 +176,7 @@ void VersionsGiveNothingBackBeyondNoise(const std::string& work) {
   CreateDirectories(retri);
   RunColmapCommand({"colmap", "point_triangulator", "--database_path",
                     JoinPaths(work, "colmap/database.db"), "--image_path", ImagesOf(work),
-                    "--input_path", base,
-                    "--output_path", retri, "--clear_points", "1"},
+                    "--input_path", base, "--output_path", retri, "--clear_points", "1"},
                    tmp.Path("triangulator.log"), ColmapOptions{});
   const LiftModelResult r = Lift(retri, tmp.Path("retri.lcm"), store, work);
   EXPECT_EQ(r.key_path, key_path);

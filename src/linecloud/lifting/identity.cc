@@ -325,13 +325,20 @@ void RecordRelease(const IdentityInput& in, const IdentityResult& r,
       }
     }
   }
-  ledger->observations.insert(ledger->observations.end(), added.begin(), added.end());
-  std::stable_sort(ledger->observations.begin(), ledger->observations.end(),
-                   [](const auto& a, const auto& b) { return a.first < b.first; });
-  ledger->observations.erase(
-      std::unique(ledger->observations.begin(), ledger->observations.end(),
-                  [](const auto& a, const auto& b) { return a.first == b.first; }),
-      ledger->observations.end());
+  if (!added.empty()) {
+    // Sorted, then merged after the sorted released ones (a first one kept).
+    const auto by_hash = [](const auto& a, const auto& b) { return a.first < b.first; };
+    std::stable_sort(added.begin(), added.end(), by_hash);
+    const size_t middle = ledger->observations.size();
+    ledger->observations.insert(ledger->observations.end(), added.begin(), added.end());
+    std::inplace_merge(ledger->observations.begin(), ledger->observations.begin() + middle,
+                       ledger->observations.end(), by_hash);
+    ledger->observations.erase(
+        std::unique(ledger->observations.begin(), ledger->observations.end(),
+                    [](const auto& a, const auto& b) { return a.first == b.first; }),
+        ledger->observations.end());
+    ledger->Index();
+  }
   std::vector<std::pair<uint64_t, Eigen::Vector3d>> new_images;
   for (const auto& [hash, centre] : in.images) {
     if (!ledger->ImageCentre(hash)) new_images.push_back({hash, Apply(t, centre)});

@@ -3,6 +3,7 @@
 #include <sodium.h>
 
 #include <algorithm>
+#include <bit>
 #include <cstring>
 #include <filesystem>
 
@@ -41,7 +42,27 @@ std::array<unsigned char, kChecksumBytes> Checksum(const char* data, size_t size
 
 }  // namespace
 
+void ReleaseLedger::Index() {
+  const size_t slots = std::bit_ceil(std::max<size_t>(2 * observations.size(), 16));
+  index_hash_.assign(slots, 0);
+  index_line_.assign(slots, 0);
+  for (const auto& [hash, line] : observations) {
+    size_t h = static_cast<size_t>(hash) & (slots - 1);
+    while (index_line_[h] != 0) h = (h + 1) & (slots - 1);
+    index_hash_[h] = hash;
+    index_line_[h] = line + 1;
+  }
+  indexed_ = observations.size();
+}
+
 int64_t ReleaseLedger::LineOfObservation(uint64_t hash) const {
+  if (indexed_ == observations.size() && !index_line_.empty()) {
+    const size_t mask = index_line_.size() - 1;
+    for (size_t h = static_cast<size_t>(hash) & mask; index_line_[h] != 0; h = (h + 1) & mask) {
+      if (index_hash_[h] == hash) return static_cast<int64_t>(index_line_[h]) - 1;
+    }
+    return -1;
+  }
   const auto it =
       std::lower_bound(observations.begin(), observations.end(), std::make_pair(hash, uint32_t{0}));
   return it != observations.end() && it->first == hash ? static_cast<int64_t>(it->second) : -1;
@@ -138,6 +159,7 @@ ReleaseLedger ReadLedger(const std::string& path) {
       !std::is_sorted(ledger.images.begin(), ledger.images.end(), by_hash)) {
     Fail("{}: corrupt release ledger (unsorted)", path);
   }
+  ledger.Index();
   return ledger;
 }
 

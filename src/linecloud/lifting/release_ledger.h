@@ -42,9 +42,18 @@ struct ReleaseLedger {
   std::vector<std::pair<uint64_t, Eigen::Vector3d>> images;
 
   bool empty() const { return lines.empty(); }
-  // The line an observation was released with, or -1.
+  // The line an observation was released with, or -1 (through the hash
+  // index when Index() was called since `observations` last changed).
   int64_t LineOfObservation(uint64_t hash) const;
+  // An open-addressing index of `observations` (the hashes are keyed SipHash
+  // values, uniform already): O(1) lookups for a million-point re-lift.
+  void Index();
   const Eigen::Vector3d* ImageCentre(uint64_t hash) const;
+
+ private:
+  std::vector<uint64_t> index_hash_;
+  std::vector<uint32_t> index_line_;  // line + 1; 0: empty slot
+  size_t indexed_ = 0;                // observations.size() when indexed
 };
 
 // The keyed hashes naming images and observations in a ledger.
