@@ -278,6 +278,62 @@ TEST(Identity, AnUpdatedMapLocalizesHeldOutPhotosAsTheReleasedOneDid) {
   }
 }
 
+// A store written before release ledgers (its entries "linecloud-model-sketch
+// 1", no ledger): every released line is the keyed direction of its point id,
+// and a lift by this version keeps exactly those lines. A store whose ledger
+// went missing is refused.
+TEST(Identity, AStoreFromBeforeLedgersKeepsItsLinesAndAMissingLedgerIsRefused) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/reconstruction");
+  TempDir tmp;
+  const std::string model_dir = testing::SharedDataPath("colmap-maupertuis/reconstruction");
+  LiftModelOptions o;
+  o.model_dir = model_dir;
+  o.key_store = tmp.Path("keys");
+  o.out_path = tmp.Path("first.lcm");
+  const LiftModelResult first = LiftModel(o);
+  const LiftingKey key = ReadKeyFile(first.key_path);
+  const std::string entry = tmp.Path("keys/" + ToHex(key.Fingerprint()) + ".model");
+  const std::string ledger = tmp.Path("keys/" + ToHex(key.Fingerprint()) + ".ledger");
+  ASSERT_TRUE(FileExists(ledger));
+  // The ledger lost: refused, nothing written.
+  std::filesystem::rename(ledger, tmp.Path("ledger.bak"));
+  o.out_path = tmp.Path("second.lcm");
+  try {
+    LiftModel(o);
+    FAIL() << "lifted without the ledger";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("release ledger of this model's key is missing"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_FALSE(FileExists(tmp.Path("second.lcm")));
+  // The entry as linecloud wrote it before ledgers: the old lines exactly.
+  std::string text = ReadFileToString(entry);
+  ASSERT_EQ(text.rfind("linecloud-model-sketch 2\n", 0), 0u);
+  text[std::string("linecloud-model-sketch ").size()] = '1';
+  {
+    const ProtectedWriteScope writing_the_store;
+    WriteFileAtomically(
+        entry, [&](std::ostream& os) { os << text; }, 0600);
+  }
+  const LiftModelResult legacy = LiftModel(o);
+  EXPECT_EQ(legacy.identity.from_same_place, 0u);
+  const Reconstruction model = ReadColmapModel(model_dir);
+  const std::vector<uint64_t> ids = model.SortedPoint3DIds();
+  const LineCloud old_lines = LiftPoints(ids, PointCoordinates(model, ids), key, LiftingOptions{});
+  ASSERT_EQ(legacy.cloud.size(), old_lines.size());
+  for (size_t i = 0; i < old_lines.size(); ++i) {
+    ASSERT_EQ(legacy.cloud.ids[i], old_lines.ids[i]);
+    ASSERT_EQ(legacy.cloud.lines[i].v, old_lines.lines[i].v) << i;
+    ASSERT_EQ(legacy.cloud.lines[i].w, old_lines.lines[i].w) << i;
+  }
+  // From now on the ledger records them: a re-lift gives the same file.
+  EXPECT_TRUE(FileExists(ledger));
+  o.out_path = tmp.Path("third.lcm");
+  LiftModel(o);
+  EXPECT_EQ(ReadFileToString(tmp.Path("second.lcm")), ReadFileToString(tmp.Path("third.lcm")));
+}
+
 // Within one map: points at one place (maupertuis holds 48 such pairs) get
 // parallel lines, so no crossing gives them away.
 TEST(Identity, PointsAtOnePlaceInOneMapGetParallelLines) {

@@ -25,6 +25,8 @@ struct ResolvedKey {
   std::string source;
   bool create = false;  // the key file is still to be written
   std::optional<LiftingKey::Id> retire;
+  // The store's entry of this key was written with a release ledger.
+  bool registered_with_ledger = false;
 };
 
 // Refuses an output that would replace a key or an entry of the key store
@@ -48,16 +50,26 @@ ResolvedKey ResolveKey(const LiftModelOptions& o, const KeyStore& store,
   const std::optional<KeyStoreMatch> known = store.Find(elements, o.allow_shared_key);
   const DirectionSet directions = o.compact ? DirectionSet::kCompact256 : DirectionSet::kSphere;
   if (key_file.empty()) {
-    if (known) return {known->key, known->key_path, "key store", false, std::nullopt};
+    if (known) {
+      return {known->key, known->key_path, "key store", false, std::nullopt, known->with_ledger};
+    }
     // Before the key store, the default key lived next to the output.
     const std::string legacy = o.out_path + ".key";
     if (!o.out_path.empty() && FileExists(legacy)) {
-      return {ReadKeyFile(legacy, o.allow_shared_key), legacy, "legacy key file", false,
-              std::nullopt};
+      return {ReadKeyFile(legacy, o.allow_shared_key),
+              legacy,
+              "legacy key file",
+              false,
+              std::nullopt,
+              false};
     }
     const LiftingKey key = LiftingKey::Generate(directions);
-    return {key, JoinPaths(store.dir(), ToHex(key.Fingerprint()) + ".key"),
-            "new key in the key store", true, std::nullopt};
+    return {key,
+            JoinPaths(store.dir(), ToHex(key.Fingerprint()) + ".key"),
+            "new key in the key store",
+            true,
+            std::nullopt,
+            false};
   }
   const bool create = !FileExists(key_file);
   const LiftingKey key =
@@ -69,7 +81,12 @@ ResolvedKey ResolveKey(const LiftModelOptions& o, const KeyStore& store,
         "that key, or pass --force if nothing lifted with it was ever shared",
         o.model_dir, known->key_path, ToHex(known->key.Fingerprint()), key_file);
   }
-  ResolvedKey r{key, key_file, create ? "new key file" : "key file", create, std::nullopt};
+  ResolvedKey r{key,
+                key_file,
+                create ? "new key file" : "key file",
+                create,
+                std::nullopt,
+                known && known->key.Fingerprint() == key.Fingerprint() && known->with_ledger};
   if (known && known->key.Fingerprint() != key.Fingerprint()) r.retire = known->key.Fingerprint();
   return r;
 }
@@ -211,10 +228,21 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
   // One physical point, one line (identity.h): directions from the key's
   // release ledger.
   const std::string ledger_path = LedgerPath(store.dir(), key.key.Fingerprint());
+  const bool has_ledger = FileExists(ledger_path);
+  if (!has_ledger && key.registered_with_ledger) {
+    Fail(
+        "{}: the release ledger of this model's key is missing; restore it from a backup. "
+        "Without it the points of this version could get lines crossing the released ones",
+        ledger_path);
+  }
   ReleaseLedger ledger = ReadLedger(ledger_path);
   const IdentityInputData identity_input = MakeIdentityInput(rec, key.key, ids);
   LiftModelResult result;
-  result.identity = AssignDirections(key.key, identity_input.input, ledger, o.identity);
+  IdentityOptions identity_options = o.identity;
+  // A key that released maps before ledgers existed: its lines are the keyed
+  // directions of the point ids, kept as they are.
+  identity_options.legacy_release = !key.create && !has_ledger;
+  result.identity = AssignDirections(key.key, identity_input.input, ledger, identity_options);
   const IdentityResult& identity = result.identity;
 
   std::vector<uint64_t> kept_ids;

@@ -236,6 +236,13 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
   for (const auto& [cell_key, point] : cells) {
     const size_t i = point;
     if (assigned[i] || !r.keep[i]) continue;
+    if (o.legacy_release) {
+      r.directions[i] = fresh[i];
+      r.compact[i] = fresh_compact[i];
+      assigned[i] = 1;
+      ++r.fresh;
+      continue;
+    }
     const Eigen::Vector3d& x = in.points[i];
     int64_t c[3], step[3];
     for (int k = 0; k < 3; ++k) {

@@ -52,6 +52,10 @@ struct IdentityOptions {
   // Refuse when the observation-matched points lie farther than this share of
   // the diagonal (median) from their released lines after alignment.
   double max_misalignment = 1e-2;
+  // A key released before ledgers existed: every released line is the keyed
+  // direction of its point id, so points without a released observation keep
+  // exactly that (no same-place rule) until the ledger records them.
+  bool legacy_release = false;
 
   void Check() const;
 };

@@ -22,12 +22,16 @@
 namespace linecloud {
 namespace {
 
-constexpr char kSketchMagic[] = "linecloud-model-sketch 1";
+// Version 1: written before release ledgers; version 2: the key's releases
+// are recorded in its ledger (identity.h), which must then exist.
+constexpr char kSketchMagicV1[] = "linecloud-model-sketch 1";
+constexpr char kSketchMagic[] = "linecloud-model-sketch 2";
 constexpr size_t kMaxSketchElements = size_t{1} << 16;  // bottom-k sketch
 constexpr size_t kMinShared = 3;
 constexpr double kMinSharedFraction = 0.05;
 
 struct Sketch {
+  bool with_ledger = true;  // version 2
   std::string key_path;
   uint64_t max_element = std::numeric_limits<uint64_t>::max();  // bottom-k cut
   std::vector<uint64_t> elements;                               // sorted, unique
@@ -61,12 +65,17 @@ std::string_view NextLine(std::string_view text, size_t* pos, const std::string&
 Sketch ReadSketch(const std::string& path) {
   const std::string text = ReadFileToString(path);
   size_t pos = 0;
-  if (NextLine(text, &pos, path) != kSketchMagic) Fail("{}: not a linecloud model sketch", path);
+  const std::string_view magic = NextLine(text, &pos, path);
+  if (magic != kSketchMagic && magic != kSketchMagicV1) {
+    Fail("{}: not a linecloud model sketch", path);
+  }
+  const bool with_ledger = magic == kSketchMagic;
   const std::string_view key_line = NextLine(text, &pos, path);
   if (key_line.substr(0, 4) != "key " || key_line.size() == 4) {
     Fail("{}: model sketch has no key path", path);
   }
   Sketch s;
+  s.with_ledger = with_ledger;
   s.key_path = std::string(key_line.substr(4));
   const std::string count_line(NextLine(text, &pos, path));
   unsigned long long count = 0, max_element = 0;
@@ -300,7 +309,8 @@ std::optional<KeyStoreMatch> KeyStore::Find(std::span<const uint64_t> elements,
   KeyStoreMatch match{.key_path = best.sketch.key_path,
                       .key = ReadKeyFile(best.sketch.key_path, allow_shared_key),
                       .shared = best.shared,
-                      .comparable = best.comparable};
+                      .comparable = best.comparable,
+                      .with_ledger = best.sketch.with_ledger};
   // Entries are named by the fingerprint of the key they registered.
   const std::string registered = std::filesystem::path(best.entry).stem().string();
   if (ToHex(match.key.Fingerprint()) != registered) {

@@ -40,6 +40,10 @@ struct KeyStoreMatch {
   LiftingKey key;
   size_t shared = 0;      // sketch elements the model shares with the entry
   size_t comparable = 0;  // of the model's elements the entry could hold
+  // The entry was registered with a release ledger (identity.h); false for
+  // entries of linecloud before ledgers, whose lines are the keyed
+  // directions of the point ids.
+  bool with_ledger = true;
 };
 
 class KeyStore {
