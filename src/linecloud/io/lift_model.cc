@@ -165,7 +165,8 @@ IdentityInputData MakeIdentityInput(const Reconstruction& model, const LiftingKe
   IdentityInputData d;
   std::unordered_map<uint32_t, uint64_t> image_hash;
   for (const auto& [image_id, image] : model.images) {
-    const uint64_t h = hasher.Image(image.name);
+    // By file name: a folder prefix added or removed keeps the image.
+    const uint64_t h = hasher.Image(std::filesystem::path(image.name).filename().string());
     image_hash[image_id] = h;
     d.images.push_back({h, image.cam_from_world.Center()});
   }

@@ -171,6 +171,17 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
     distances.push_back(line.DistanceTo(Apply(r.ledger_from_model, in.points[i])) /
                         (r.ledger_from_model.scale * std::max(diagonal, 1e-300)));
   }
+  if (!ledger.empty() && r.shared_images < 3 && r.from_observations < 10) {
+    // Nothing ties this version to the released one: neither a similarity
+    // (3 shared images) nor observations to check the frames against. Fresh
+    // lines could cross the released ones wherever the frames differ.
+    Fail(
+        "this version of the model shares {} image names and {} observations with its released "
+        "version: they cannot be aligned, and its lines could cross the released ones. Keep the "
+        "released images' names (and the database), or lift it under a key of its own "
+        "(--key-file NEW --force) if it is not the same place",
+        r.shared_images, r.from_observations);
+  }
   if (!distances.empty()) {
     std::nth_element(distances.begin(), distances.begin() + distances.size() / 2, distances.end());
     r.misalignment = distances[distances.size() / 2];

@@ -24,14 +24,15 @@ struct Model {
   IdentityInput Input() const { return {ids, points, start, observations, images}; }
 };
 
-Model MakeModel(const LiftingKey& key, size_t n, uint64_t first_id = 1) {
+Model MakeModel(const LiftingKey& key, size_t n, uint64_t first_id = 1,
+                const std::string& image_prefix = "img") {
   const ObservationHasher h(key);
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> u(-5, 5);
   Model m;
   std::vector<uint64_t> image_hash;
   for (int i = 0; i < 10; ++i) {
-    image_hash.push_back(h.Image("img" + std::to_string(i) + ".jpg"));
+    image_hash.push_back(h.Image(image_prefix + std::to_string(i) + ".jpg"));
     m.images.push_back({image_hash.back(), Eigen::Vector3d(20 * std::cos(i), 20 * std::sin(i), 3)});
   }
   for (size_t k = 0; k < n; ++k) {
@@ -102,6 +103,22 @@ TEST(IdentityRule, AMergeOfTwoReleasedPointsIsLeftOutAndAMisalignedVersionRefuse
     FAIL() << "a misaligned version was lifted";
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("cannot be aligned"), std::string::npos) << e.what();
+  }
+}
+
+// Every image renamed: nothing ties the version to the released one (no
+// shared image to align through, no observation to check against): refused.
+TEST(IdentityRule, AVersionSharingNoImageWithTheReleasedOneIsRefused) {
+  const Model v1 = MakeModel(kKey, 100);
+  const ReleaseLedger ledger = Release(v1, AssignDirections(kKey, v1.Input(), {}, {}));
+  const Model renamed = MakeModel(kKey, 100, 1, "renamed");
+  try {
+    AssignDirections(kKey, renamed.Input(), ledger, {});
+    FAIL() << "a version sharing nothing with the released one was lifted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("shares 0 image names and 0 observations"),
+              std::string::npos)
+        << e.what();
   }
 }
 
