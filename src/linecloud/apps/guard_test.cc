@@ -360,6 +360,13 @@ TEST(Guard, NoCommandWritesIntoTheKeyStore) {
     }
   }
   EXPECT_FALSE(FileExists(store + "/new"));
+  // Nor a new key file named into the store (found by an outsider's review).
+  f = RunScript(fmt::format("{} lift --model {} --out {} --key-file {}", Tool(), model,
+                            tmp.Path("other.lcm"), store + "/evil.key"),
+                env, tmp);
+  EXPECT_NE(f.code, 0);
+  EXPECT_NE(f.err.find("inside the key store"), std::string::npos) << f.err;
+  EXPECT_FALSE(FileExists(store + "/evil.key"));
 }
 
 // [identity] The descriptor index is cached in the user's own cache folder:
@@ -394,7 +401,10 @@ TEST(Guard, APlantedCacheLinkOrFifoIsNeverUsed) {
   EXPECT_TRUE(fs::is_symlink(tmp.Path("m.lcm.index")));
   EXPECT_TRUE(fs::is_fifo(tmp.Path("fifo-map.lcm.index")));
   size_t cached = 0;
-  for (const auto& e : fs::directory_iterator(tmp.Path("cache/linecloud/index"))) cached += 1;
+  for (auto it = fs::directory_iterator(tmp.Path("cache/linecloud/index"));
+       it != fs::directory_iterator(); ++it) {
+    ++cached;
+  }
   EXPECT_EQ(cached, 2u);
 }
 

@@ -1,9 +1,12 @@
 #include "linecloud/io/lift_model.h"
 
+#include <fmt/format.h>
+
 #include "linecloud/lifting/sparsify.h"
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <unordered_map>
@@ -72,6 +75,8 @@ ResolvedKey ResolveKey(const LiftModelOptions& o, const KeyStore& store,
             false};
   }
   const bool create = !FileExists(key_file);
+  // A new key file is the user's own: never one written into the key store.
+  if (create) CheckNotProtected(key_file);
   const LiftingKey key =
       create ? LiftingKey::Generate(directions) : ReadKeyFile(key_file, o.allow_shared_key);
   if (known && known->key.Fingerprint() != key.Fingerprint() && !o.force) {
@@ -151,9 +156,12 @@ std::vector<uint64_t> ModelSketchElements(const Reconstruction& model) {
       elements.push_back(SketchElement(id, name));
       // Names can change (a folder prefix) while the tracks stay.
       elements.push_back(SketchTrackElement(id, t.image_id, t.point2D_idx));
-      // Point ids change (re-triangulation, a mapper re-run, renumbering)
-      // while the observations stay.
-      elements.push_back(SketchObservationElement(name, t.point2D_idx));
+      // Point ids and image names change (re-triangulation, a mapper re-run,
+      // renumbering, renaming) while the features stay.
+      if (im != model.images.end() && t.point2D_idx < im->second.points2D.size()) {
+        elements.push_back(
+            SketchObservationElement(t.point2D_idx, im->second.points2D[t.point2D_idx].xy));
+      }
     }
   }
   return elements;
@@ -163,12 +171,20 @@ IdentityInputData MakeIdentityInput(const Reconstruction& model, const LiftingKe
                                     std::span<const uint64_t> ids) {
   const ObservationHasher hasher(key);
   IdentityInputData d;
-  std::unordered_map<uint32_t, uint64_t> image_hash;
+  // An image is found again by its features (renamed, renumbered) or by its
+  // file name (a folder prefix added or removed).
+  std::unordered_map<uint32_t, uint64_t> features_hash;
+  std::vector<Eigen::Vector2d> keypoints;
   for (const auto& [image_id, image] : model.images) {
-    // By file name: a folder prefix added or removed keeps the image.
-    const uint64_t h = hasher.Image(std::filesystem::path(image.name).filename().string());
-    image_hash[image_id] = h;
-    d.images.push_back({h, image.cam_from_world.Center()});
+    const std::string name = std::filesystem::path(image.name).filename().string();
+    keypoints.clear();
+    for (size_t k = 0; k < std::min<size_t>(image.points2D.size(), 16); ++k) {
+      keypoints.push_back(image.points2D[k].xy);
+    }
+    const uint64_t features = hasher.ImageFeatures(name, image.points2D.size(), keypoints);
+    features_hash[image_id] = features;
+    d.images.push_back({features, image.cam_from_world.Center()});
+    d.images.push_back({hasher.Image(name), image.cam_from_world.Center()});
   }
   d.points.reserve(ids.size());
   d.observation_start.reserve(ids.size() + 1);
@@ -177,9 +193,10 @@ IdentityInputData MakeIdentityInput(const Reconstruction& model, const LiftingKe
     d.points.push_back(p.xyz);
     d.observation_start.push_back(static_cast<uint32_t>(d.observations.size()));
     for (const TrackElement& t : p.track) {
-      const auto h = image_hash.find(t.image_id);
-      if (h != image_hash.end())
+      const auto h = features_hash.find(t.image_id);
+      if (h != features_hash.end()) {
         d.observations.push_back(hasher.Observation(h->second, t.point2D_idx));
+      }
     }
   }
   if (d.observations.size() >= (size_t{1} << 32)) Fail("lift: too many observations");

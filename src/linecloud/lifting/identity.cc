@@ -127,6 +127,9 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
   if (!ledger.empty()) {
     std::vector<Eigen::Vector3d> model_c, ledger_c;
     for (const auto& [hash, centre] : in.images) {
+      // An image may be listed under two hashes (its name, its features):
+      // once per image.
+      if (!model_c.empty() && model_c.back() == centre) continue;
       if (const Eigen::Vector3d* c = ledger.ImageCentre(hash)) {
         model_c.push_back(centre);
         ledger_c.push_back(*c);
@@ -176,10 +179,11 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
     // (3 shared images) nor observations to check the frames against. Fresh
     // lines could cross the released ones wherever the frames differ.
     Fail(
-        "this version of the model shares {} image names and {} observations with its released "
-        "version: they cannot be aligned, and its lines could cross the released ones. Keep the "
-        "released images' names (and the database), or lift it under a key of its own "
-        "(--key-file NEW --force) if it is not the same place",
+        "this version of the model shares {} images and {} observations with its released "
+        "version: they cannot be aligned, and its lines could cross the released ones. Lift it "
+        "from the released version's database (its features), with the released images; a key "
+        "of its own (--key-file NEW --force) only if it is another place, never for the same "
+        "scene",
         r.shared_images, r.from_observations);
   }
   if (!distances.empty()) {
@@ -190,8 +194,9 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
           "this version of the model shares {} observations with its released version but "
           "cannot be aligned with it ({} shared images; after alignment its points lie {:.2g} % "
           "of the scene diagonal from their released lines, median): lifting it would give "
-          "those points crossing lines. Keep the released images' names, or lift it under a "
-          "key of its own if it is not the same place",
+          "those points crossing lines. Align it to the released version first (colmap "
+          "model_aligner) and lift it from the released version's database; a key of its own "
+          "(--key-file NEW --force) only if it is another place, never for the same scene",
           r.from_observations, r.shared_images, 100 * r.misalignment);
     }
     if (compact_key && rotated) {

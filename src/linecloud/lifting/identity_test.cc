@@ -25,22 +25,26 @@ struct Model {
 };
 
 Model MakeModel(const LiftingKey& key, size_t n, uint64_t first_id = 1,
-                const std::string& image_prefix = "img") {
+                const std::string& image_prefix = "img", double feature_shift = 0) {
   const ObservationHasher h(key);
   std::mt19937_64 rng(3);
   std::uniform_real_distribution<double> u(-5, 5);
   Model m;
   std::vector<uint64_t> image_hash;
   for (int i = 0; i < 10; ++i) {
-    image_hash.push_back(h.Image(image_prefix + std::to_string(i) + ".jpg"));
+    // The image's features: 20 keypoints at (100 i + 3 + shift, k).
+    std::vector<Eigen::Vector2d> first;
+    for (int k = 0; k < 16; ++k) first.emplace_back(100.0 * i + 3 + feature_shift, k);
+    image_hash.push_back(h.ImageFeatures(image_prefix + std::to_string(i) + ".jpg", 20, first));
     m.images.push_back({image_hash.back(), Eigen::Vector3d(20 * std::cos(i), 20 * std::sin(i), 3)});
   }
   for (size_t k = 0; k < n; ++k) {
     m.ids.push_back(first_id + k);
     m.points.emplace_back(u(rng), u(rng), u(rng));
     m.start.push_back(static_cast<uint32_t>(m.observations.size()));
-    m.observations.push_back(h.Observation(image_hash[k % 10], static_cast<uint32_t>(k)));
-    m.observations.push_back(h.Observation(image_hash[(k + 3) % 10], static_cast<uint32_t>(k)));
+    for (const size_t i : {k % 10, (k + 3) % 10}) {
+      m.observations.push_back(h.Observation(image_hash[i], static_cast<uint32_t>(k)));
+    }
   }
   m.start.push_back(static_cast<uint32_t>(m.observations.size()));
   return m;
@@ -106,20 +110,32 @@ TEST(IdentityRule, AMergeOfTwoReleasedPointsIsLeftOutAndAMisalignedVersionRefuse
   }
 }
 
-// Every image renamed: nothing ties the version to the released one (no
-// shared image to align through, no observation to check against): refused.
+// Every image renamed and its features extracted again: nothing ties the
+// version to the released one (no shared image to align through, no
+// observation to check against): refused.
 TEST(IdentityRule, AVersionSharingNoImageWithTheReleasedOneIsRefused) {
   const Model v1 = MakeModel(kKey, 100);
   const ReleaseLedger ledger = Release(v1, AssignDirections(kKey, v1.Input(), {}, {}));
-  const Model renamed = MakeModel(kKey, 100, 1, "renamed");
+  const Model renamed = MakeModel(kKey, 100, 1, "renamed", 50);
   try {
     AssignDirections(kKey, renamed.Input(), ledger, {});
     FAIL() << "a version sharing nothing with the released one was lifted";
   } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find("shares 0 image names and 0 observations"),
-              std::string::npos)
+    EXPECT_NE(std::string(e.what()).find("shares 0 images and 0 observations"), std::string::npos)
         << e.what();
   }
+}
+
+// Images renamed and points renumbered, the same features: the observations
+// still name the released points.
+TEST(IdentityRule, RenamedImagesWithTheSameFeaturesKeepTheirLines) {
+  const Model v1 = MakeModel(kKey, 100);
+  const IdentityResult r1 = AssignDirections(kKey, v1.Input(), {}, {});
+  const ReleaseLedger ledger = Release(v1, r1);
+  const Model renamed = MakeModel(kKey, 100, 5000, "renamed");
+  const IdentityResult r2 = AssignDirections(kKey, renamed.Input(), ledger, {});
+  EXPECT_EQ(r2.from_observations, 100u);
+  for (size_t i = 0; i < 100; ++i) EXPECT_EQ(r2.directions[i], r1.directions[i]) << i;
 }
 
 TEST(IdentityRule, PointsAtOnePlaceShareADirectionWithoutChains) {

@@ -10,6 +10,7 @@
 #include <chrono>
 #include <thread>
 #include <cerrno>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
@@ -117,19 +118,15 @@ uint64_t SketchElement(uint64_t point_id, std::string_view image_name) {
   return out;
 }
 
-uint64_t SketchObservationElement(std::string_view image_name, uint32_t point2D_idx) {
+uint64_t SketchObservationElement(uint32_t point2D_idx, const Eigen::Vector2d& xy) {
   EnsureSodiumInitialized();
-  static constexpr std::string_view kContext = "linecloud/model-sketch/observation/v1";
-  crypto_generichash_state state;
-  crypto_generichash_init(&state, reinterpret_cast<const unsigned char*>(kContext.data()),
-                          kContext.size(), 8);
-  unsigned char idx[4];
-  std::memcpy(idx, &point2D_idx, 4);
-  crypto_generichash_update(&state, idx, 4);
-  crypto_generichash_update(&state, reinterpret_cast<const unsigned char*>(image_name.data()),
-                            image_name.size());
+  static constexpr std::string_view kContext = "linecloud/model-sketch/keypoint/v1";
+  int64_t words[3] = {point2D_idx, std::llround(std::clamp(xy.x(), -1e9, 1e9)),
+                      std::llround(std::clamp(xy.y(), -1e9, 1e9))};
   uint64_t out;
-  crypto_generichash_final(&state, reinterpret_cast<unsigned char*>(&out), 8);
+  crypto_generichash(reinterpret_cast<unsigned char*>(&out), 8,
+                     reinterpret_cast<const unsigned char*>(words), sizeof(words),
+                     reinterpret_cast<const unsigned char*>(kContext.data()), kContext.size());
   return out;
 }
 

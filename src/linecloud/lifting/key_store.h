@@ -24,14 +24,19 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Core>
+
 #include "linecloud/lifting/key.h"
 
 namespace linecloud {
 
 // Hash of one (point id, image name) pair of a model's tracks.
 uint64_t SketchElement(uint64_t point_id, std::string_view image_name);
-// Hash of one (image name, keypoint index) observation, whatever point id it has.
-uint64_t SketchObservationElement(std::string_view image_name, uint32_t point2D_idx);
+// Hash of one observation by what its image's features say — (keypoint index,
+// its position rounded to whole pixels) — whatever the point's id or the
+// image's name: a version renumbered, renamed or re-triangulated from the
+// same features keeps these.
+uint64_t SketchObservationElement(uint32_t point2D_idx, const Eigen::Vector2d& xy);
 // Hash of one (point id, image id, keypoint index) track element.
 uint64_t SketchTrackElement(uint64_t point_id, uint32_t image_id, uint32_t point2D_idx);
 

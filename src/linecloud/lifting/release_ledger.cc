@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <bit>
+#include <cmath>
 #include <cstring>
 #include <filesystem>
 
@@ -94,6 +95,18 @@ uint64_t ObservationHasher::Observation(uint64_t image_hash, uint32_t point2D_id
   uint64_t out;
   crypto_shorthash(reinterpret_cast<unsigned char*>(&out), in, sizeof(in), key_);
   return out;
+}
+
+uint64_t ObservationHasher::ImageFeatures(std::string_view name, size_t count,
+                                          std::span<const Eigen::Vector2d> first) const {
+  constexpr size_t kFirst = 16;
+  if (count < kFirst || first.size() < kFirst) return Image(name);
+  std::vector<int64_t> words = {static_cast<int64_t>(count)};
+  for (size_t k = 0; k < kFirst; ++k) {
+    words.push_back(std::llround(std::clamp(first[k].x(), -1e9, 1e9)));
+    words.push_back(std::llround(std::clamp(first[k].y(), -1e9, 1e9)));
+  }
+  return Image(std::string_view(reinterpret_cast<const char*>(words.data()), 8 * words.size()));
 }
 
 std::string LedgerPath(const std::string& dir, const LiftingKey::Id& fingerprint) {

@@ -6,9 +6,9 @@
 // which has another gauge, with the released one).
 //
 // Observations and images are named by keyed hashes (SipHash-2-4 under a
-// subkey of the model's key) of (image name, keypoint index) and of the
-// image name: the ledger holds no point, no image name and no descriptor.
-// Its lines are the released lines (what the published maps hold anyway); the
+// subkey of the model's key) of (image features, keypoint index) and of the
+// image's name and of its features (its first keypoints): the ledger holds no point, no image name
+// and no descriptor. Its lines are the released lines (what the published maps hold anyway); the
 // image centres are the one geometric addition, kept as private as the key
 // (mode 0600, in the store).
 //
@@ -21,6 +21,7 @@
 #pragma once
 
 #include <cstdint>
+#include <span>
 #include <string>
 #include <string_view>
 #include <utility>
@@ -61,7 +62,14 @@ class ObservationHasher {
  public:
   explicit ObservationHasher(const LiftingKey& key);
   uint64_t Image(std::string_view name) const;
+  // An observation: the image (by the hash of its features, see
+  // ImageFeatures, not its name or id, which versions change) and the
+  // keypoint's index.
   uint64_t Observation(uint64_t image_hash, uint32_t point2D_idx) const;
+  // An image by its features: its keypoint count and first 16 keypoints
+  // (`first`) rounded to pixels; by its file name when it has fewer.
+  uint64_t ImageFeatures(std::string_view name, size_t count,
+                         std::span<const Eigen::Vector2d> first) const;
 
  private:
   unsigned char key_[16];
