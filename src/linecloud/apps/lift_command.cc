@@ -53,9 +53,10 @@ void RunLift(LiftArgs args) {
                            ToHex(cloud.key_fingerprint));
   const IdentityResult& id = r.identity;
   std::cout << fmt::format(
-      "identity: {} points keep a released line (observations), {} share a place with another "
-      "point, {} lie on a released line, {} are new{}{}\n",
-      id.from_observations, id.from_same_place, id.from_released_place, id.fresh,
+      "identity: {} points keep a released line (observations; {} of them its very line), {} "
+      "share a place with another point, {} lie on a released line, {} are new{}{}\n",
+      id.from_observations, id.on_released_line, id.from_same_place, id.from_released_place,
+      id.fresh,
       id.left_out ? fmt::format(", {} left out (they merge points released with different lines)",
                                 id.left_out)
                   : "",

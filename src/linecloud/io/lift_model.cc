@@ -271,7 +271,8 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
        SparsifyPoints(key.key, ids, identity_input.points, o.sparsify, o.sparsify_mode)) {
     if (!identity.keep[i]) continue;
     kept_ids.push_back(ids[i]);
-    kept_points.push_back(identity_input.points[i]);
+    // On its released line when it kept one (identity.h).
+    kept_points.push_back(identity.anchors[i]);
     kept_rows.push_back(i);
   }
   if (o.select_points) {

@@ -113,6 +113,7 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
   r.compact.assign(n, 0);
   r.ledger_line.assign(n, -1);
   r.keep.assign(n, 1);
+  r.anchors.assign(in.points.begin(), in.points.end());
   // Fresh keyed directions: what every point gets without a released identity.
   std::vector<Eigen::Vector3d> fresh(n);
   std::vector<uint8_t> fresh_compact(n);
@@ -139,6 +140,19 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
     if (model_c.size() >= 3) r.ledger_from_model = AlignThroughImages(model_c, ledger_c);
   }
   const Eigen::Matrix3d rotation = r.ledger_from_model.rotation.toRotationMatrix();
+  const Sim3d model_from_ledger = r.ledger_from_model.Inverse();
+  const double snap = std::min(o.same_place, kMaxSnap) * diagonal;
+  // Point i's line becomes released line `l` itself when it passes within
+  // `snap` of the point (not exactly through it: then the point stays).
+  const auto snap_to = [&](size_t i, const PluckerLine& l) {
+    const Eigen::Vector3d p =
+        Apply(model_from_ledger, l.ClosestPointTo(Apply(r.ledger_from_model, in.points[i])));
+    const double d = (p - in.points[i]).norm();
+    if (d <= snap && d > 1e-12 * std::max(diagonal, 1e-300)) {
+      r.anchors[i] = p;
+      ++r.on_released_line;
+    }
+  };
   const bool rotated = (rotation - Eigen::Matrix3d::Identity()).norm() > 1e-9;
   std::vector<double> distances;
   std::vector<std::pair<int64_t, int>> votes;
@@ -170,6 +184,7 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
     r.ledger_line[i] = best.first;
     r.directions[i] = rotation.transpose() * line.v;
     r.compact[i] = ledger.compact[best.first];
+    snap_to(i, line);
     ++r.from_observations;
     distances.push_back(line.DistanceTo(Apply(r.ledger_from_model, in.points[i])) /
                         (r.ledger_from_model.scale * std::max(diagonal, 1e-300)));
@@ -313,6 +328,7 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
       if (best_line >= 0) {
         r.directions[i] = rotation.transpose() * ledger.lines[best_line].v;
         r.compact[i] = ledger.compact[best_line];
+        snap_to(i, ledger.lines[best_line]);
         r.ledger_line[i] = best_line;
         assigned[i] = 1;
         ++r.from_released_place;

@@ -62,9 +62,15 @@ struct IdentityOptions {
 
 struct IdentityResult {
   std::vector<Eigen::Vector3d> directions;  // per point, model frame (unit)
-  std::vector<uint8_t> compact;             // per point, compact256 keys
-  std::vector<int64_t> ledger_line;         // released line kept, or -1
-  std::vector<uint8_t> keep;                // 0: left out (a merge of two released lines)
+  // The point each line passes through, model frame: the point itself, or,
+  // for a point within kMaxSnap of the released line it keeps (this version's
+  // noise), the closest point of that line — the released line itself, so the
+  // version adds no new line near it.
+  std::vector<Eigen::Vector3d> anchors;
+  size_t on_released_line = 0;       // lines that are the released ones
+  std::vector<uint8_t> compact;      // per point, compact256 keys
+  std::vector<int64_t> ledger_line;  // released line kept, or -1
+  std::vector<uint8_t> keep;         // 0: left out (a merge of two released lines)
   size_t from_observations = 0;
   size_t from_same_place = 0;  // a point of this version at the same place
   size_t from_released_place = 0;
@@ -75,6 +81,10 @@ struct IdentityResult {
   double misalignment = 0;         // median, share of the diagonal
   double same_place_distance = 0;  // model units
 };
+
+// The farthest (share of the scene diagonal, and at most `same_place`) a
+// point's line is moved onto its released line.
+inline constexpr double kMaxSnap = 1e-3;
 
 // Throws Error (naming what to do) when the version cannot be aligned with the
 // released one, or when a compact256 key would need a rotated direction.
