@@ -322,8 +322,7 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
   // (before the map: a release recorded but never written is harmless, a map
   // written but not recorded is not), then the map.
   PersistKey(store, key, elements);
-  RecordRelease(identity_input.input, identity, kept_rows, &ledger);
-  {
+  if (RecordRelease(identity_input.input, identity, kept_rows, &ledger) || !has_ledger) {
     const ProtectedWriteScope writing_the_store;
     WriteLedger(ledger_path, ledger);
   }

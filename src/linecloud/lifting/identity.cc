@@ -343,8 +343,9 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
   return r;
 }
 
-void RecordRelease(const IdentityInput& in, const IdentityResult& r,
+bool RecordRelease(const IdentityInput& in, const IdentityResult& r,
                    std::span<const size_t> released, ReleaseLedger* ledger) {
+  const size_t lines_before = ledger->lines.size();
   const Sim3d& t = r.ledger_from_model;
   const Eigen::Matrix3d rotation = t.rotation.toRotationMatrix();
   std::vector<std::pair<uint64_t, uint32_t>> added;
@@ -388,6 +389,7 @@ void RecordRelease(const IdentityInput& in, const IdentityResult& r,
   ledger->images.erase(std::unique(ledger->images.begin(), ledger->images.end(),
                                    [](const auto& a, const auto& b) { return a.first == b.first; }),
                        ledger->images.end());
+  return ledger->lines.size() != lines_before || !added.empty() || !new_images.empty();
 }
 
 }  // namespace linecloud

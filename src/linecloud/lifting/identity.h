@@ -93,7 +93,8 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& inpu
 
 // Adds the points `released` (indices into `input`) with their directions in
 // `result` to `ledger`: new lines, their observations and the new images.
-void RecordRelease(const IdentityInput& input, const IdentityResult& result,
+// Returns whether the ledger changed.
+bool RecordRelease(const IdentityInput& input, const IdentityResult& result,
                    std::span<const size_t> released, ReleaseLedger* ledger);
 
 }  // namespace linecloud
