@@ -463,9 +463,20 @@ TEST(Guard, AMapOfAnotherVersionIsRefusedFromItsHeader) {
     f.write(reinterpret_cast<const char*>(&header), 4);
   }
   fs::resize_file(path, uint64_t{1} << 30);  // a sparse 1 GB file
-  const Finished f = RunScript(fmt::format("{} info --map {}", Tool(), path), {}, tmp);
+  Finished f = RunScript(fmt::format("{} info --map {}", Tool(), path), {}, tmp);
   EXPECT_EQ(f.code, 1);
   EXPECT_NE(f.err.find("unsupported .lcm format version 99"), std::string::npos) << f.err;
+  EXPECT_LT(f.max_rss_kb, BaselineRssKb(tmp) + 100 * 1024);
+  // A real map grown to 1 GB: its header's sizes refuse it before the body is read.
+  LINECLOUD_REQUIRE_DATA(kMaupertuis);
+  f = RunScript(fmt::format("{} lift --model {} --out {}", Tool(), SharedDataPath(kMaupertuis),
+                            tmp.Path("m.lcm")),
+                {"LINECLOUD_KEY_STORE=" + tmp.Path("store")}, tmp);
+  ASSERT_EQ(f.code, 0) << f.err;
+  fs::resize_file(tmp.Path("m.lcm"), uint64_t{1} << 30);
+  f = RunScript(fmt::format("{} info --map {}", Tool(), tmp.Path("m.lcm")), {}, tmp);
+  EXPECT_EQ(f.code, 1);
+  EXPECT_NE(f.err.find("file size does not match its header"), std::string::npos) << f.err;
   EXPECT_LT(f.max_rss_kb, BaselineRssKb(tmp) + 100 * 1024);
 }
 

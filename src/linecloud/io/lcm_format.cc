@@ -3,6 +3,7 @@
 #include <sodium.h>
 
 #include <cstring>
+#include <filesystem>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -318,7 +319,34 @@ LineCloud ReadLineCloud(const std::string& path) {
     Fail("{}: not a linecloud map (bad magic bytes)", path);
   }
   if (prefix.size() < 16) Fail("{}: truncated header", path);
-  ParseHeaderStart(prefix, path);
+  const auto [version, header_size] = ParseHeaderStart(prefix, path);
+  // Then the sizes: the file must be as long as its header says before its
+  // body is read (a small header cannot make the reader take a huge file).
+  const std::string head = ReadFilePrefix(path, 16 + size_t{header_size});
+  if (head.size() < 16 + size_t{header_size}) Fail("{}: truncated header", path);
+  const nlohmann::json j =
+      nlohmann::json::parse(head.substr(16), nullptr, /*allow_exceptions=*/false);
+  if (j.is_discarded() || !j.is_object()) Fail("{}: header is not valid JSON", path);
+  const std::string encoding = Field<std::string>(j, "encoding", path);
+  const LineEncoding e = encoding == LineEncodingName(LineEncoding::kCompact)
+                             ? LineEncoding::kCompact
+                             : LineEncoding::kPlucker;
+  const uint64_t n = Field<uint64_t>(j, "num_lines", path);
+  size_t dim = 0;
+  if (j.contains("descriptors") && j["descriptors"].is_object()) {
+    dim = Field<size_t>(j["descriptors"], "dim", path);
+  }
+  std::error_code ec;
+  const uint64_t on_disk = std::filesystem::file_size(path, ec);
+  if (!ec && n < (uint64_t{1} << 40) && dim <= kLcmMaxDescriptorDim) {
+    const uint64_t expected =
+        ComputeLayout(16 + size_t{header_size}, n, e, dim).checksum_offset + kChecksumBytes;
+    if (on_disk != expected) {
+      Fail("{}: file size does not match its header ({} lines need {} bytes, the file has {})",
+           path, n, expected, on_disk);
+    }
+  }
+  (void)version;
   return ParseLineCloud(ReadFileToString(path), path);
 }
 
