@@ -96,8 +96,8 @@ std::string IndexCachePath(const std::string& map_path) {
 }
 
 // The Localizer's options from the command line: matching, the index cache
-// beside the map (authenticated with this user's secret; no key store, no
-// cache), defaults of every request, the map gravity.
+// in the user's cache folder (authenticated with this user's secret; no key
+// store, no cache), defaults of every request, the map gravity.
 LocalizerOptions MakeLocalizerOptions(LocalizeArgs& args) {
   LocalizerOptions o;
   o.image = args.image;
@@ -266,7 +266,7 @@ void RegisterLocalizeCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--exact-matching", args->exact_matching,
                 "Match exactly even on large maps (default: maps of 4 096 descriptors or more "
-                "use the approximate index, cached as MAP.lcm.index)");
+                "use the approximate index, cached in ~/.cache/linecloud/index)");
   cmd->add_option("--features", args->features,
                   "SIFT extractor: colmap (COLMAP 3.8's CPU extractor's features, to the bit) "
                   "or opencv (OpenCV's SIFT, close to them)")
