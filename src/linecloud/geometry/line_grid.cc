@@ -25,8 +25,10 @@ Eigen::AlignedBox3d RobustBox(std::span<const Eigen::Vector3d> points, double lo
   std::vector<double> c(points.size());
   for (int axis = 0; axis < 3; ++axis) {
     for (size_t i = 0; i < points.size(); ++i) c[i] = points[i][axis];
-    const size_t lo = static_cast<size_t>(std::floor(low * (c.size() - 1)));
-    const size_t hi = c.size() - 1 - lo;
+    // Quantile indices rounded to the nearest rank.
+    const size_t last = c.size() - 1;
+    const size_t lo = std::min(last, static_cast<size_t>(low * last + 0.5));
+    const size_t hi = std::min(last, static_cast<size_t>((1 - low) * last + 0.5));
     std::nth_element(c.begin(), c.begin() + lo, c.end());
     box.min()[axis] = c[lo];
     std::nth_element(c.begin(), c.begin() + hi, c.end());

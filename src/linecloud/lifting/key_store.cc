@@ -386,14 +386,4 @@ void KeyStore::Register(const LiftingKey& key, const std::string& key_path,
       path, [&](std::ostream& os) { os << text; }, 0600);
 }
 
-KeyStoreMatch KeyStore::CreateKey(DirectionSet directions,
-                                  std::span<const uint64_t> elements) const {
-  const ProtectedWriteScope writing_the_store;
-  const LiftingKey key = LiftingKey::Generate(directions);
-  const std::string key_path = JoinPaths(dir_, ToHex(key.Fingerprint()) + ".key");
-  WriteKeyFile(key_path, key);
-  Register(key, key_path, elements);
-  return {.key_path = key_path, .key = key, .shared = 0, .comparable = 0};
-}
-
 }  // namespace linecloud

@@ -100,9 +100,6 @@ class KeyStore {
   void Register(const LiftingKey& key, const std::string& key_path,
                 std::span<const uint64_t> elements) const;
 
-  // A new key for the model of `elements`, written into the store and registered.
-  KeyStoreMatch CreateKey(DirectionSet directions, std::span<const uint64_t> elements) const;
-
  private:
   std::string dir_;
 };

@@ -219,7 +219,7 @@ std::vector<Eigen::Vector3d> SecretPointsOfLines(const LineCloud& cloud,
   }
   // A line must pass through its point, or the map is not this model's (a
   // version's line may be its released line, within kMaxSnap of the point).
-  const double released = 2 * kMaxSnap * RobustBox(secret, 0.005, 0.0).diagonal().norm();
+  const double released = 2 * kMaxSnap * SceneDiagonal(secret);
   for (size_t i = 0; i < secret.size(); ++i) {
     const PluckerLine& l = cloud.lines[i];
     const double d = (secret[i].cross(l.v) - l.w).norm() / l.v.norm();

@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include "linecloud/geometry/line_grid.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
@@ -20,15 +21,8 @@ double Quantile(std::vector<double> v, double q) {
 }  // namespace
 
 double SceneDiagonal(std::span<const Eigen::Vector3d> points) {
-  double sq = 0;
-  for (int axis = 0; axis < 3; ++axis) {
-    std::vector<double> c;
-    c.reserve(points.size());
-    for (const Eigen::Vector3d& p : points) c.push_back(p[axis]);
-    const double extent = Quantile(c, 0.995) - Quantile(c, 0.005);
-    sq += extent * extent;
-  }
-  return std::sqrt(sq);
+  if (points.empty()) return 0;
+  return RobustBox(points, 0.005, 0.0).diagonal().norm();
 }
 
 RecoveryScore ScoreRecovery(std::span<const Eigen::Vector3d> recovered,
