@@ -152,7 +152,8 @@ std::vector<uint64_t> ModelSketchElements(const Reconstruction& model) {
     if (point.track.empty()) elements.push_back(SketchElement(id, ""));
     for (const TrackElement& t : point.track) {
       const auto im = model.images.find(t.image_id);
-      const std::string_view name = im == model.images.end() ? "" : im->second.name;
+      const std::string_view name =
+          im == model.images.end() ? std::string_view{} : std::string_view{im->second.name};
       elements.push_back(SketchElement(id, name));
       // Names can change (a folder prefix) while the tracks stay.
       elements.push_back(SketchTrackElement(id, t.image_id, t.point2D_idx));
