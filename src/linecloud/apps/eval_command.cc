@@ -4,6 +4,7 @@
 #include "linecloud/eval/eval_prepare.h"
 #include "linecloud/eval/colmap_registration.h"
 #include "linecloud/eval/eval_run.h"
+#include "linecloud/eval/key_sweep.h"
 #include "linecloud/eval/match_scores.h"
 #include "linecloud/eval/privacy_tradeoff.h"
 #include "linecloud/util/file.h"
@@ -122,6 +123,33 @@ void RegisterEvalCommand(CLI::App& app) {
   scores_cmd->callback([scores] {
     const auto report = RunMatchScores(*scores);
     std::cout << report["histogram"].dump() << "\n" << report["top_share"].dump() << "\n";
+  });
+
+  auto sweep = std::make_shared<KeySweepOptions>();
+  auto sweep_features = std::make_shared<std::string>(SiftExtractorName(sweep->features));
+  CLI::App* keys_cmd = eval->add_subcommand(
+      "keys",
+      "held-out photos against their group's map lifted under many fixed keys: successes, "
+      "localized, wrong successes (beyond --wrong-rotation / --wrong-translation) (JSON)");
+  keys_cmd->add_option("--work", sweep->work_dirs, "work directories of `eval prepare` (repeat)")
+      ->required();
+  keys_cmd->add_option("--out", sweep->out, "JSON file")->required();
+  keys_cmd->add_option("--keys", sweep->keys, "keys per map")->capture_default_str();
+  keys_cmd->add_option("--first-key", sweep->first_key, "index of the first key")
+      ->capture_default_str();
+  keys_cmd->add_option("--methods", sweep->methods, "one-photo methods")->capture_default_str();
+  keys_cmd->add_option("--rig-methods", sweep->rig_methods, "methods for each group's photos")
+      ->capture_default_str();
+  keys_cmd->add_option("--features", *sweep_features, "colmap or opencv")->capture_default_str();
+  keys_cmd->add_option("--wrong-rotation", sweep->wrong_rotation_deg, "degrees")
+      ->capture_default_str();
+  keys_cmd->add_option("--wrong-translation", sweep->wrong_translation, "work units (metres)")
+      ->capture_default_str();
+  keys_cmd->callback([sweep, sweep_features] {
+    sweep->features = ParseSiftExtractor(*sweep_features, "--features");
+    const auto report = RunKeySweep(*sweep);
+    std::cout << report["methods"].dump(1) << "\n";
+    if (!report["wrong"].empty()) std::cout << "wrong successes: " << report["wrong"].dump(1) << "\n";
   });
 
   auto run_options = std::make_shared<EvalRunOptions>();

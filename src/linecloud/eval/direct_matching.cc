@@ -148,6 +148,9 @@ void LocalizeQuery(const MethodInfo& method, const Query& query, const GroupMap&
     (*row)["ransac_ms"] = r.stats.ransac_ms;
     (*row)["iterations"] = r.stats.iterations;
     (*row)["inliers"] = r.inliers.size();
+    (*row)["success"] = r.success;
+    (*row)["stop_reason"] = r.stats.stop_reason;
+    if (r.has_pose) (*row)["sigma_px"] = r.uncertainty.sigma_px;
     t->refine_ms += r.refine_ms;
     failure = r.failure;
     if (r.success) {

@@ -1,0 +1,45 @@
+// `linecloud eval keys`: what an outsider with held-out photos sees of the
+// success rule. A key changes a map's lines and so RANSAC's path through
+// them; which photo, if any, gets a confident wrong pose depends on the key.
+// Every query photo of each prepared dataset is matched straight to its
+// group's map (the path of `localize --image`) with the map lifted under
+// `keys` fixed, public keys, and every success is compared with the ground
+// truth: a success farther than `wrong_rotation_deg` / `wrong_translation`
+// from it is a wrong success — the answer a localizer must never give.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "linecloud/features/sift.h"
+#include "linecloud/lifting/key.h"
+
+namespace linecloud {
+
+struct KeySweepOptions {
+  std::vector<std::string> work_dirs;  // prepared by `eval prepare`
+  std::string out;                     // JSON file
+  int keys = 10;
+  uint64_t first_key = 0;  // keys first_key, first_key + 1, ... (SweepKey)
+  std::vector<std::string> methods = {"p6L"};
+  std::vector<std::string> rig_methods = {"m-p6L"};
+  SiftExtractor features = SiftOptions{}.extractor;
+  double wrong_rotation_deg = 1.0;
+  double wrong_translation = 0.5;  // work units (metres with ground truth)
+
+  void Check() const;
+};
+
+// The i-th key of the sweep: public and fixed (figures reproducible run to
+// run; never a key for a real map).
+LiftingKey SweepKey(uint64_t i);
+
+// Writes and returns {"keys", "features", "thresholds", "methods": {name:
+// {"queries", "successes", "localized", "wrong", "ransac_ms": {"mean", "p50",
+// "p99"}}}, "wrong": [...], "failures": {reason: count}}.
+nlohmann::ordered_json RunKeySweep(const KeySweepOptions& options);
+
+}  // namespace linecloud
