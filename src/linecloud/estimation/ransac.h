@@ -42,6 +42,9 @@ namespace linecloud {
 struct RansacOptions {
   double max_error = 4.0;      // inlier threshold, in the estimator's units (px)
   double confidence = 0.9999;  // probability of drawing one all-inlier sample
+  // A progressive run's uniform phase (see Ransac): the probability that its
+  // uniform samples alone would have found a model as good as the best.
+  double uniform_phase_confidence = 0.99;
   int min_iterations = 10;     // uniform sampling only (see `enough` in Ransac)
   int max_iterations = 10000;
   bool local_optimization = true;
@@ -62,6 +65,9 @@ struct RansacOptions {
     }
     if (!(confidence > 0 && confidence < 1)) {
       Fail("RANSAC confidence must be in (0, 1), got {}", confidence);
+    }
+    if (!(uniform_phase_confidence > 0 && uniform_phase_confidence < 1)) {
+      Fail("RANSAC uniform-phase confidence must be in (0, 1), got {}", uniform_phase_confidence);
     }
     if (!(max_seconds >= 0) || !std::isfinite(max_seconds)) {
       Fail("RANSAC time budget must be a non-negative number of seconds, got {}", max_seconds);
@@ -84,6 +90,7 @@ struct RansacStats {
   double scoring_ms = 0;      // scoring hypotheses,
   double lo_ms = 0;           // local optimisation (refine and re-score)
   bool progressive = false;   // PROSAC samples (a ranking was given)
+  int uniform_iterations = 0;  // of which uniform (all of a uniform run; a progressive run's last)
   int local_optimizations = 0;
   // Why the run stopped: "confidence" (enough iterations for an all-inlier
   // sample), "max_iterations" or "max_seconds".
@@ -147,11 +154,26 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
   int iteration = 0;
   double next_progress = options.progress_interval_s;
   const char* stop_reason = "max_iterations";
-  // min_iterations is a floor of uniform sampling; the progressive rule needs
-  // a support that chance cannot explain before it counts any sample.
+  // A progressive run ends with a uniform phase. PROSAC's rule judges the best
+  // model by the best-ranked data it explains, and its first samples all come
+  // from the few best-ranked matches: a coherent group of wrong matches there
+  // (a repeated facade element) gives a wrong model that explains every one of
+  // them, and the rule stopped on it after three samples (castle-P19: 9.8°
+  // off, 52 % inliers where the true pose has 76 %). So once PROSAC's rule
+  // holds, uniform samples of all the data follow until RANSAC's own rule
+  // holds for them alone: (1 − ε^k)^T ≤ 1 − uniform_phase_confidence, ε the
+  // best model's inlier ratio over all the data — a uniform run's guarantee,
+  // whatever the ranking did. min_iterations is a floor of the uniform draws.
+  int uniform_drawn = 0;
+  bool confirming = false;  // in the uniform phase
   const auto enough = [&] {
-    if (progressive) return stopping->Done();
-    return iteration >= options.min_iterations && iteration >= needed;
+    if (progressive && !confirming) {
+      if (!stopping->Done()) return false;
+      confirming = true;
+      needed = RequiredIterations(static_cast<double>(best_inliers) / n, k,
+                                  options.uniform_phase_confidence, options.max_iterations);
+    }
+    return uniform_drawn >= options.min_iterations && uniform_drawn >= needed;
   };
   for (; iteration < options.max_iterations; ++iteration) {
     if (enough()) {
@@ -169,11 +191,12 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
         next_progress = elapsed + options.progress_interval_s;
       }
     }
-    if (progressive) {
+    if (progressive && !confirming) {
       prosac->Sample(&sample);
       stopping->Record(prosac->subset_size(), prosac->last_with_newest());
     } else {
       uniform.Sample(&sample);
+      ++uniform_drawn;
     }
     const auto solve_start = Clock::now();
     estimator.generate_models(sample, &models);
@@ -204,13 +227,16 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
       best_inliers = inliers;
       result.model = model;
       result.success = true;
-      if (progressive) {
+      if (progressive && !confirming) {
         estimator.inliers(model, options.max_error, &mask);
         stopping->Update(mask, ranking);
         prosac->LimitGrowth(stopping->best_prefix());
+        // For progress reports: PROSAC's samples still needed, then the uniform phase's.
         needed = iteration + 1 + stopping->Remaining(prosac->subset_size(), options.max_iterations);
       } else {
-        needed = RequiredIterations(static_cast<double>(inliers) / n, k, options.confidence,
+        needed = RequiredIterations(static_cast<double>(inliers) / n, k,
+                                    progressive ? options.uniform_phase_confidence
+                                                : options.confidence,
                                     options.max_iterations);
       }
     }
@@ -219,6 +245,7 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
   if (enough()) stop_reason = "confidence";
   result.stats.stop_reason = stop_reason;
   result.stats.progressive = progressive;
+  result.stats.uniform_iterations = uniform_drawn;
   if (result.success) {
     estimator.inliers(result.model, options.max_error, &result.inlier_mask);
     result.stats.num_inliers = best_inliers;

@@ -147,8 +147,10 @@ void LocalizeQuery(const MethodInfo& method, const Query& query, const GroupMap&
     t->iterations += r.stats.iterations;
     (*row)["ransac_ms"] = r.stats.ransac_ms;
     (*row)["iterations"] = r.stats.iterations;
+    (*row)["uniform_iterations"] = r.stats.uniform_iterations;
     (*row)["inliers"] = r.inliers.size();
     (*row)["success"] = r.success;
+    if (!r.camera_inliers.empty()) (*row)["camera_inliers"] = r.camera_inliers;
     (*row)["stop_reason"] = r.stats.stop_reason;
     if (r.has_pose) (*row)["sigma_px"] = r.uncertainty.sigma_px;
     t->refine_ms += r.refine_ms;

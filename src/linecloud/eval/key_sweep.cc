@@ -36,8 +36,19 @@ double Percentile(std::vector<double> v, double q) {
 // One query's result (a row of direct matching's per_query / per_rig) into the tally.
 void Count(const KeySweepOptions& o, const DirectMatchingOptions& dm, const std::string& dataset,
            uint64_t key, const std::string& query, const std::string& method, const ojson& r,
-           MethodTally* t, ojson* wrong, std::map<std::string, int>* failures) {
+           MethodTally* t, ojson* wrong, ojson* queries, std::map<std::string, int>* failures) {
   ++t->queries;
+  queries->push_back({{"dataset", dataset},
+                      {"key", key},
+                      {"query", query},
+                      {"method", method},
+                      {"success", r.value("success", false)},
+                      {"rotation_deg", r["rotation_deg"]},
+                      {"translation", r["translation"]},
+                      {"inliers", r.value("inliers", 0)},
+                      {"iterations", r.value("iterations", 0)},
+                      {"uniform_iterations", r.value("uniform_iterations", 0)},
+                      {"ransac_ms", r.value("ransac_ms", 0.0)}});
   if (r.contains("ransac_ms")) t->ransac_ms.push_back(r["ransac_ms"].get<double>());
   const double rot = r["rotation_deg"].get<double>();
   const double trans = r["translation"].get<double>();
@@ -95,7 +106,7 @@ ojson RunKeySweep(const KeySweepOptions& options) {
   dm.image.sift.extractor = options.features;
   std::map<std::string, MethodTally> tallies;
   std::map<std::string, int> failures;
-  ojson wrong = ojson::array(), datasets = ojson::array();
+  ojson wrong = ojson::array(), datasets = ojson::array(), queries = ojson::array();
   for (const std::string& work_dir : options.work_dirs) {
     const EvalWork work = ReadPreparedWork(work_dir);
     datasets.push_back(work.dataset);
@@ -106,14 +117,14 @@ ojson RunKeySweep(const KeySweepOptions& options) {
       for (const ojson& row : report["per_query"]) {
         for (const std::string& m : dm.methods) {
           Count(options, dm, work.dataset, k, row["image"].get<std::string>(), m, row[m],
-                &tallies[m], &wrong, &failures);
+                &tallies[m], &wrong, &queries, &failures);
         }
       }
       for (const ojson& row : report["per_rig"]) {
         for (const std::string& m : dm.rig_methods) {
           if (!row.contains(m)) continue;
           Count(options, dm, work.dataset, k, row["group"].get<std::string>(), m, row[m],
-                &tallies[m], &wrong, &failures);
+                &tallies[m], &wrong, &queries, &failures);
         }
       }
       int wrong_so_far = 0;
@@ -149,6 +160,7 @@ ojson RunKeySweep(const KeySweepOptions& options) {
   report["methods"] = methods;
   report["wrong"] = wrong;
   report["failures"] = failures;
+  report["queries"] = queries;
   WriteFileAtomically(options.out, [&](std::ostream& os) { os << report.dump(2) << "\n"; });
   return report;
 }

@@ -281,6 +281,21 @@ std::string SupportFailure(const MethodInfo& method, const LocalizeResult& r,
           *r.best_fit_focal, given, 100 * off, 100 * c.max_focal_discrepancy);
     }
   }
+  // A rig whose cam_from_rig is wrong for one camera (a device's tracking, a
+  // two-view reconstruction of a facade: entry-P10's 14.7° off) still gets a
+  // pose from its other cameras' matches; that pose is no rig pose. Each
+  // camera with the matches to judge must fit it as the whole query must.
+  for (size_t cam = 0; cam < r.camera_observations.size(); ++cam) {
+    const int m = r.camera_observations[cam];
+    if (m < min_inliers || m == 0) continue;
+    const double cam_ratio = static_cast<double>(r.camera_inliers[cam]) / m;
+    if (cam_ratio < c.min_inlier_ratio) {
+      return fmt::format(
+          "camera {} does not fit the rig pose: {} of its {} matches are inliers ({:.3f}, below "
+          "{:.2f}); check its cam_from_rig",
+          cam, r.camera_inliers[cam], m, cam_ratio, c.min_inlier_ratio);
+    }
+  }
   if (!(r.uncertainty.rotation_deg <= c.max_rotation_uncertainty_deg)) {
     return fmt::format(
         "the rotation is undetermined: uncertainty {:.3g}° exceeds {:.3g}° "
@@ -366,12 +381,6 @@ Query UsableObservations(const Query& query, std::vector<int>* kept) {
   return usable;
 }
 
-// Iterations of the uniform second run after a progressive one whose model
-// misses the inlier-ratio criterion: PROSAC's early stop on a wrong model
-// happens with many correct matches (EuRoC: 95 %), where a few uniform draws
-// find a clean sample (at 50 % inliers, 100 draws of 6 find one with 79 %
-// probability); bounded for photos that have no pose (100 p6L draws ~ 0.1 s).
-constexpr int kUniformRetryIterations = 100;
 // Inliers the calibration check fits the focal length to, at most.
 constexpr size_t kCheckInliers = 500;
 
@@ -388,28 +397,9 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
   result.prepare_ms = MsSince(prepare_start);
   result.num_correspondences = static_cast<int>(query.observations.size());
   PoseEstimator estimator(method, prepared.data, options.local_refinement);
+  // With a ranking, PROSAC then a uniform phase (ransac.h): no early stop on a
+  // model the best-ranked matches alone support.
   RansacResult<Sim3d> ransac = Ransac(estimator, options.ransac, prepared.data.ranking);
-  // PROSAC may stop on a wrong model that the best-ranked matches support by
-  // chance (seen on real photos: 94 inliers of 1 134 matches where uniform
-  // samples find 1 064). A model below the inlier-ratio criterion gets a
-  // second, uniform run of bounded length; the better of the two is kept.
-  const int n = static_cast<int>(prepared.data.ranking.size());
-  if (ransac.stats.progressive && n > 0 &&
-      (!ransac.success || ransac.stats.num_inliers < options.success.min_inlier_ratio * n)) {
-    RansacOptions uniform = options.ransac;
-    uniform.progressive_sampling = false;
-    uniform.max_iterations = std::min(uniform.max_iterations, kUniformRetryIterations);
-    if (uniform.max_seconds > 0) {
-      uniform.max_seconds = std::max(0.0, uniform.max_seconds - ransac.stats.ransac_ms / 1e3);
-    }
-    RansacResult<Sim3d> retry = Ransac(estimator, uniform, {});
-    if (retry.success && (!ransac.success || retry.stats.num_inliers > ransac.stats.num_inliers)) {
-      retry.stats.ransac_ms += ransac.stats.ransac_ms;
-      retry.stats.iterations += ransac.stats.iterations;
-      retry.stats.stop_reason = "uniform retry";
-      ransac = std::move(retry);
-    }
-  }
   result.stats = ransac.stats;
   if (!ransac.success) {
     result.failure = fmt::format("RANSAC found no pose in {} iterations (stopped by {})",
@@ -505,6 +495,12 @@ LocalizeResult Localize(const MethodInfo& method, const Query& query, const Loca
   result.num_correspondences = static_cast<int>(query.observations.size());
   result.rejected_observations = static_cast<int>(query.observations.size() - kept.size());
   for (int& i : result.inliers) i = kept[static_cast<size_t>(i)];
+  if (query.cameras.size() > 1) {
+    result.camera_observations.assign(query.cameras.size(), 0);
+    result.camera_inliers.assign(query.cameras.size(), 0);
+    for (const QueryObservation& o : query.observations) ++result.camera_observations[o.camera];
+    for (const int i : result.inliers) ++result.camera_inliers[query.observations[i].camera];
+  }
   if (result.has_pose) {
     result.failure = SupportFailure(method, result, options.success);
     result.success = result.failure.empty();

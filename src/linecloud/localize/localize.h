@@ -132,6 +132,9 @@ struct LocalizeResult {
   Sim3d query_from_world;    // cam_from_world (one image) / rig_from_world / local_from_world
   Sim3d initial;             // RANSAC's estimate before the final refinement
   std::vector<int> inliers;  // observation indices
+  // Per query camera (several cameras only): observations and inliers. A rig
+  // pose is a success only when every camera with enough observations fits it.
+  std::vector<int> camera_observations, camera_inliers;
   RansacStats stats;
   double refine_ms = 0;
   // Checking and preparing the query (undistortion, map look-ups), and the

@@ -193,6 +193,7 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
   j["stats"] = {{"iterations", r.stats.iterations},
                 {"stop_reason", r.stats.stop_reason},
                 {"sampling", r.stats.progressive ? "progressive" : "uniform"},
+                {"uniform_iterations", r.stats.uniform_iterations},
                 {"inlier_ratio", r.stats.inlier_ratio},
                 {"mean_solutions", r.stats.mean_solutions},
                 {"solver_us", r.stats.solver_us},
@@ -210,6 +211,13 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
     j["calibration_check"] = {{"given_focal", r.given_focal},
                               {"best_fit_focal", *r.best_fit_focal}};
   if (with_inliers) j["inliers"] = r.inliers;
+  if (with_inliers && !r.camera_observations.empty()) {
+    j["cameras"] = nlohmann::json::array();
+    for (size_t c = 0; c < r.camera_observations.size(); ++c) {
+      j["cameras"].push_back(
+          {{"observations", r.camera_observations[c]}, {"inliers", r.camera_inliers[c]}});
+    }
+  }
   return j;
 }
 
