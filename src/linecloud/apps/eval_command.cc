@@ -149,7 +149,8 @@ void RegisterEvalCommand(CLI::App& app) {
     sweep->features = ParseSiftExtractor(*sweep_features, "--features");
     const auto report = RunKeySweep(*sweep);
     std::cout << report["methods"].dump(1) << "\n";
-    if (!report["wrong"].empty()) std::cout << "wrong successes: " << report["wrong"].dump(1) << "\n";
+    if (!report["wrong"].empty())
+      std::cout << "wrong successes: " << report["wrong"].dump(1) << "\n";
   });
 
   auto run_options = std::make_shared<EvalRunOptions>();

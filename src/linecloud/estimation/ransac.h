@@ -45,7 +45,7 @@ struct RansacOptions {
   // A progressive run's uniform phase (see Ransac): the probability that its
   // uniform samples alone would have found a model as good as the best.
   double uniform_phase_confidence = 0.99;
-  int min_iterations = 10;     // uniform sampling only (see `enough` in Ransac)
+  int min_iterations = 10;  // uniform sampling only (see `enough` in Ransac)
   int max_iterations = 10000;
   bool local_optimization = true;
   uint64_t seed = 0;
@@ -83,13 +83,13 @@ struct RansacStats {
   int iterations = 0;
   int num_inliers = 0;
   double inlier_ratio = 0;
-  double mean_solutions = 0;  // models per minimal sample
-  double solver_us = 0;       // mean time of one generate_models call
-  double ransac_ms = 0;       // whole run, local optimisation included
-  double solver_ms = 0;       // of which minimal solvers,
-  double scoring_ms = 0;      // scoring hypotheses,
-  double lo_ms = 0;           // local optimisation (refine and re-score)
-  bool progressive = false;   // PROSAC samples (a ranking was given)
+  double mean_solutions = 0;   // models per minimal sample
+  double solver_us = 0;        // mean time of one generate_models call
+  double ransac_ms = 0;        // whole run, local optimisation included
+  double solver_ms = 0;        // of which minimal solvers,
+  double scoring_ms = 0;       // scoring hypotheses,
+  double lo_ms = 0;            // local optimisation (refine and re-score)
+  bool progressive = false;    // PROSAC samples (a ranking was given)
   int uniform_iterations = 0;  // of which uniform (all of a uniform run; a progressive run's last)
   int local_optimizations = 0;
   // Why the run stopped: "confidence" (enough iterations for an all-inlier
@@ -234,10 +234,10 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
         // For progress reports: PROSAC's samples still needed, then the uniform phase's.
         needed = iteration + 1 + stopping->Remaining(prosac->subset_size(), options.max_iterations);
       } else {
-        needed = RequiredIterations(static_cast<double>(inliers) / n, k,
-                                    progressive ? options.uniform_phase_confidence
-                                                : options.confidence,
-                                    options.max_iterations);
+        needed =
+            RequiredIterations(static_cast<double>(inliers) / n, k,
+                               progressive ? options.uniform_phase_confidence : options.confidence,
+                               options.max_iterations);
       }
     }
   }

@@ -236,7 +236,6 @@ TEST(Ransac, ProgressiveSamplingFindsTheSameLineInFewerSamples) {
   EXPECT_THROW(Ransac(off_e, options, std::vector<int>(n - 1, 0)), Error);
 }
 
-
 // Repeated structure: a coherent group of wrong matches (a facade element that
 // occurs twice) ranked first. Its model explains every one of the best-ranked
 // data, which made PROSAC's rule stop on it after three samples (castle-P19:

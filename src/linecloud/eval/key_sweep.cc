@@ -153,10 +153,9 @@ ojson RunKeySweep(const KeySweepOptions& options) {
   report["keys"] = {{"count", options.keys}, {"first", options.first_key}};
   report["features"] = SiftExtractorName(options.features);
   report["thresholds"] = {
-      {"wrong", {{"rotation_deg", options.wrong_rotation_deg},
-                 {"translation", options.wrong_translation}}},
-      {"localized",
-       {{"rotation_deg", dm.max_rotation_deg}, {"translation", dm.max_translation}}}};
+      {"wrong",
+       {{"rotation_deg", options.wrong_rotation_deg}, {"translation", options.wrong_translation}}},
+      {"localized", {{"rotation_deg", dm.max_rotation_deg}, {"translation", dm.max_translation}}}};
   report["methods"] = methods;
   report["wrong"] = wrong;
   report["failures"] = failures;

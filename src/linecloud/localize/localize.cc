@@ -271,14 +271,23 @@ std::string SupportFailure(const MethodInfo& method, const LocalizeResult& r,
     return fmt::format("inlier ratio {:.3f} is below {:.2f} (--min-inlier-ratio)", ratio,
                        c.min_inlier_ratio);
   }
-  if (r.best_fit_focal && c.max_focal_discrepancy > 0) {
-    const double given = r.given_focal;
-    const double off = std::abs(*r.best_fit_focal / given - 1.0);
-    if (off > c.max_focal_discrepancy) {
+  if (r.calibration_check && c.max_focal_discrepancy > 0) {
+    // Refused only when the given focal length is outside the interval the
+    // inliers give, that interval is narrow enough to trust, and the
+    // discrepancy matters.
+    const CalibrationCheck& check = *r.calibration_check;
+    const double off = std::abs(check.best_fit_focal / r.given_focal - 1.0);
+    const bool outside = std::abs(std::log(check.best_fit_focal / r.given_focal)) >
+                             kCalibrationZ * check.log_focal_se &&
+                         check.deviance > kCalibrationZ * kCalibrationZ;
+    const bool narrow = kCalibrationZ * check.log_focal_se <= c.max_focal_discrepancy;
+    if (off > c.max_focal_discrepancy && outside && narrow) {
       return fmt::format(
-          "the calibration looks wrong: the inliers fit a focal length of {:.1f} px, the camera "
-          "says {:.1f} px ({:.0f} % off, more than {:.0f} %); check it, or pass --refine-focal",
-          *r.best_fit_focal, given, 100 * off, 100 * c.max_focal_discrepancy);
+          "the calibration looks wrong: the inliers fit a focal length of {:.1f} px (99.7 % "
+          "interval {:.1f}-{:.1f} px), the camera says {:.1f} px ({:.0f} % off, more than {:.0f} "
+          "%); check the camera, or refine its focal length",
+          check.best_fit_focal, check.interval[0], check.interval[1], r.given_focal, 100 * off,
+          100 * c.max_focal_discrepancy);
     }
   }
   // A rig whose cam_from_rig is wrong for one camera (a device's tracking, a
@@ -322,42 +331,136 @@ int RefineStage(const MethodInfo& method, const PoseData& data, const std::vecto
   return summary.iterations;
 }
 
-// The focal length as a prior: a golden-section search of the factor k on
-// the camera's focal length(s) in [1/1.5, 1.5] (log scale), each k scored by
-// the LM's final robust cost on RANSAC's inliers with the pose refined anew —
-// the profile of the cost over k. Pixel residuals use the focal being tried,
-// so the costs compare like for like.
-double RefineFocalFactor(const MethodInfo& method, const Query& query, const LocalizationMap& map,
-                         const std::vector<int>& inliers, const Sim3d& start_pose,
-                         const LocalizeOptions& options, double* refine_ms,
-                         double tolerance = 1e-4) {
-  const auto cost = [&](double log_k) {
-    Query scaled = query;
-    scaled.cameras[0].ScaleFocalLength(std::exp(log_k));
-    const PreparedQuery prepared = PrepareQuery(method, scaled, map);
-    Sim3d pose = start_pose;
-    LocalizeOptions o = options;
-    o.refine = true;
-    double c = 0;
-    RefineStage(method, prepared.data, inliers, o, &pose, refine_ms, &c);
-    return c;
+// The focal length's profile: for a factor k on the camera's focal length(s),
+// the pose refined anew (the LM) on RANSAC's inliers, its final robust cost,
+// and the sum of squared reprojection errors there (px², each at most the
+// RANSAC threshold²). Pixel residuals use the focal being tried, so values
+// compare like for like; the pose refined for each k is the focal length's
+// information with the pose marginalised.
+class FocalProfile {
+ public:
+  struct Point {
+    double cost = 0;              // the LM's final cost (Cauchy)
+    std::vector<double> squared;  // per inlier: r², px² (at most the RANSAC threshold²)
   };
-  constexpr double kInvPhi = 0.6180339887498949;
-  double a = std::log(1 / 1.5), b = std::log(1.5);
-  double x1 = b - kInvPhi * (b - a), x2 = a + kInvPhi * (b - a);
-  double f1 = cost(x1), f2 = cost(x2);
-  while (b - a > tolerance) {  // k to 0.01 % by default
-    if (f1 <= f2) {
-      b = x2, x2 = x1, f2 = f1;
-      x1 = b - kInvPhi * (b - a);
-      f1 = cost(x1);
-    } else {
-      a = x1, x1 = x2, f1 = f2;
-      x2 = a + kInvPhi * (b - a);
-      f2 = cost(x2);
+
+  FocalProfile(const MethodInfo& method, const Query& query, const LocalizationMap& map,
+               const std::vector<int>& inliers, const Sim3d& start_pose,
+               const LocalizeOptions& options, double* refine_ms)
+      : method_(method),
+        query_(query),
+        map_(map),
+        inliers_(inliers),
+        start_(start_pose),
+        options_(options),
+        refine_ms_(refine_ms) {}
+
+  Point At(double log_k) const {
+    Query scaled = query_;
+    scaled.cameras[0].ScaleFocalLength(std::exp(log_k));
+    const PreparedQuery prepared = PrepareQuery(method_, scaled, map_);
+    Sim3d pose = start_;
+    LocalizeOptions o = options_;
+    o.refine = true;
+    Point p;
+    RefineStage(method_, prepared.data, inliers_, o, &pose, refine_ms_, &p.cost);
+    const CameraPoses poses(prepared.data, pose);
+    const double t2 = options_.ransac.max_error * options_.ransac.max_error;
+    for (const int i : inliers_) {
+      p.squared.push_back(std::min(t2, SquaredReprojectionError(prepared.data, poses, i)));
     }
+    return p;
   }
-  return std::exp(0.5 * (a + b));
+
+  // The factor k in [1/1.5, 1.5] (log scale) of least cost: a golden-section
+  // search, to `tolerance` in log k.
+  double Minimize(double tolerance) const {
+    const auto cost = [&](double log_k) { return At(log_k).cost; };
+    constexpr double kInvPhi = 0.6180339887498949;
+    double a = std::log(1 / 1.5), b = std::log(1.5);
+    double x1 = b - kInvPhi * (b - a), x2 = a + kInvPhi * (b - a);
+    double f1 = cost(x1), f2 = cost(x2);
+    while (b - a > tolerance) {
+      if (f1 <= f2) {
+        b = x2, x2 = x1, f2 = f1;
+        x1 = b - kInvPhi * (b - a);
+        f1 = cost(x1);
+      } else {
+        a = x1, x1 = x2, f1 = f2;
+        x2 = a + kInvPhi * (b - a);
+        f2 = cost(x2);
+      }
+    }
+    return std::exp(0.5 * (a + b));
+  }
+
+ private:
+  const MethodInfo& method_;
+  const Query& query_;
+  const LocalizationMap& map_;
+  const std::vector<int>& inliers_;
+  Sim3d start_;
+  const LocalizeOptions& options_;
+  double* refine_ms_;
+};
+
+// The calibration check as a test (Gaussian noise of unknown σ): the focal
+// factor k̂ of least cost; the inliers whose error there is within the 99 %
+// quantile of the noise (σ from their median: a line cloud's chance inliers,
+// a band around every line, would otherwise decide); on them S(k), the sum of
+// squared errors, σ̂² = S(k̂) / (rows − parameters), the standard error of
+// log k̂ from the profile's curvature, var = 2 σ̂² / S''(log k̂) (the pose
+// marginalised, as the profile refines it for each k), and the given focal
+// length's deviance (S(0) − S(k̂)) / σ̂². On a plane seen head-on the focal
+// length and the distance trade off: S is flat, the interval wide, and
+// nothing is refused.
+CalibrationCheck CheckCalibration(const FocalProfile& profile, int residuals_per_datum,
+                                  int pose_parameters, double given_focal) {
+  constexpr double kStep = 0.02;  // log k, for the curvature
+  CalibrationCheck check;
+  const double k = profile.Minimize(/*tolerance=*/2e-3);
+  const double log_k = std::log(k);
+  check.best_fit_focal = k * given_focal;
+  const FocalProfile::Point at = profile.At(log_k);
+  if (at.squared.empty()) return check;
+  // Kept: the inliers within the 99 % quantile of the noise both at k̂ and at
+  // the given focal length (each σ from its median error; χ² with 1 or 2
+  // degrees of freedom), so that neither side picks the data that favour it.
+  const bool line = residuals_per_datum == 1;
+  const auto within_noise = [&](const std::vector<double>& squared, std::vector<char>* keep) {
+    std::vector<double> sorted = squared;
+    std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+    const double sigma2 = sorted[sorted.size() / 2] / (line ? 0.455 : 1.386);
+    for (size_t i = 0; i < squared.size(); ++i) {
+      (*keep)[i] = (*keep)[i] && squared[i] <= sigma2 * (line ? 6.63 : 9.21);
+    }
+  };
+  const FocalProfile::Point given = profile.At(0);
+  std::vector<char> kept(at.squared.size(), 1);
+  within_noise(at.squared, &kept);
+  within_noise(given.squared, &kept);
+  int rows = 0;
+  for (const char k_i : kept) rows += k_i ? residuals_per_datum : 0;
+  const auto sum = [&](const FocalProfile::Point& p) {
+    double s = 0;
+    for (size_t i = 0; i < kept.size(); ++i) s += kept[i] ? p.squared[i] : 0.0;
+    return s;
+  };
+  const double s_at = sum(at);
+  const double s_given = sum(given);
+  const double s_plus = sum(profile.At(log_k + kStep));
+  const double s_minus = sum(profile.At(log_k - kStep));
+  const int dof = rows - pose_parameters - 1;
+  const double sigma2 = dof > 0 ? s_at / dof : 0;
+  const double curvature = (s_plus + s_minus - 2 * s_at) / (kStep * kStep);
+  if (sigma2 > 0 && curvature > 0) {
+    const double se = std::sqrt(2 * sigma2 / curvature);
+    check.log_focal_se = se;
+    check.interval = {check.best_fit_focal * std::exp(-kCalibrationZ * se),
+                      check.best_fit_focal * std::exp(kCalibrationZ * se)};
+    check.deviance = std::max(0.0, s_given - s_at) / sigma2;
+  }
+  return check;
 }
 
 }  // namespace
@@ -419,7 +522,8 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
     Query scaled = query;
     for (int round = 0; round < 3; ++round) {
       const double k =
-          RefineFocalFactor(method, scaled, map, ransac_inliers, pose, options, &result.refine_ms);
+          FocalProfile(method, scaled, map, ransac_inliers, pose, options, &result.refine_ms)
+              .Minimize(/*tolerance=*/1e-4);
       scaled.cameras[0].ScaleFocalLength(k);
       CheckQuery(method, scaled, source);  // the rescaled camera is checked anew, as before
       prepared = PrepareCheckedQuery(method, scaled, map, source, kept);
@@ -445,9 +549,10 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
     for (size_t i = 0; i < std::min(m, kCheckInliers); ++i) {
       check_inliers.push_back(ransac_inliers[i * m / std::min(m, kCheckInliers)]);
     }
-    result.best_fit_focal =
-        result.given_focal * RefineFocalFactor(method, query, map, check_inliers, pose, options,
-                                               &unused_ms, /*tolerance=*/2e-3);
+    result.calibration_check =
+        CheckCalibration(FocalProfile(method, query, map, check_inliers, pose, options, &unused_ms),
+                         method.lines ? 1 : 2, method.similarity() ? 7 : 6, result.given_focal);
+    result.best_fit_focal = result.calibration_check->best_fit_focal;
     result.check_ms += MsSince(check_start);
   }
   result.refine_iterations = RefineStage(method, prepared.data, ransac_inliers, options, &pose,

@@ -4,6 +4,7 @@
 // point maps, eq. 6 for line clouds; Speciale et al., CVPR 2019).
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <limits>
 #include <optional>
@@ -82,10 +83,12 @@ struct SuccessCriteria {
   double min_inlier_ratio = 0.25;
   // Upper bound on the estimated 1-σ rotation uncertainty (PoseUncertainty).
   double max_rotation_uncertainty_deg = 1.0;
-  // Single-camera queries whose focal length is not refined: the focal length
-  // that fits the inliers best (the LM cost's profile over the focal length)
-  // may differ from the camera's by at most this fraction; a wrong focal
-  // length biases the pose far beyond its noise-based uncertainty. 0: no check.
+  // Single-camera queries whose focal length is not refined: a wrong focal
+  // length biases the pose far beyond its noise-based uncertainty. Refused
+  // when the focal length that fits the inliers best (the profile of the cost
+  // over the focal length) differs from the camera's by more than this
+  // fraction, and the camera's is outside its 99.7 % interval, and that
+  // interval is no wider than this fraction (CalibrationCheck). 0: no check.
   double max_focal_discrepancy = 0.1;
 
   // No criteria: every pose RANSAC finds is a success (the paper's protocol
@@ -114,6 +117,18 @@ struct LocalizeOptions {
   void Check() const;
 };
 
+// The calibration check (one camera, focal length not refined): the focal
+// length the inliers fit best, its standard error (of its logarithm, the pose
+// marginalised) and 99.7 % interval, and the given focal length's deviance
+// (χ²₁ under Gaussian noise). Undetermined (a flat scene): se = +∞.
+inline constexpr double kCalibrationZ = 3.0;  // the interval: ± 3 standard errors
+struct CalibrationCheck {
+  double best_fit_focal = 0;
+  double log_focal_se = std::numeric_limits<double>::infinity();
+  std::array<double, 2> interval = {0, std::numeric_limits<double>::infinity()};
+  double deviance = 0;
+};
+
 struct LocalizeResult {
   // True only when the criteria hold; otherwise `failure` says why (a pose
   // RANSAC found but the criteria rejected is still in query_from_world).
@@ -128,6 +143,7 @@ struct LocalizeResult {
   std::optional<double> refined_focal;  // with LocalizeOptions::refine_focal
   // The focal length the inliers fit best, from the calibration check.
   std::optional<double> best_fit_focal;
+  std::optional<CalibrationCheck> calibration_check;
   double given_focal = 0;    // the query camera's (first camera's) mean focal length
   Sim3d query_from_world;    // cam_from_world (one image) / rig_from_world / local_from_world
   Sim3d initial;             // RANSAC's estimate before the final refinement

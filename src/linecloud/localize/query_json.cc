@@ -207,9 +207,14 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
                 {"reprojection_px",
                  {{"initial", r.reprojection_initial_px}, {"refined", r.reprojection_refined_px}}}};
   if (r.refined_focal) j["refined_focal"] = *r.refined_focal;
-  if (r.best_fit_focal)
+  if (r.calibration_check) {
+    const CalibrationCheck& c = *r.calibration_check;
     j["calibration_check"] = {{"given_focal", r.given_focal},
-                              {"best_fit_focal", *r.best_fit_focal}};
+                              {"best_fit_focal", c.best_fit_focal},
+                              {"interval", {c.interval[0], finite_or_null(c.interval[1])}},
+                              {"log_focal_se", finite_or_null(c.log_focal_se)},
+                              {"deviance", c.deviance}};
+  }
   if (with_inliers) j["inliers"] = r.inliers;
   if (with_inliers && !r.camera_observations.empty()) {
     j["cameras"] = nlohmann::json::array();
