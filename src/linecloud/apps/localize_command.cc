@@ -175,8 +175,10 @@ std::string FormatResult(const LocalizeArgs& args, const MethodInfo& method,
   }
   nlohmann::ordered_json j = LocalizeResultToJson(method, r.pose, args.with_inliers);
   if (!r.photos.empty()) {
+    std::vector<ImageOrientation> orientations;
+    for (const ImageQuery& photo : r.photos) orientations.push_back(photo.image.orientation);
     AddPhotoStats(r.num_features(), r.num_matches(), r.times.decode_ms, r.times.extract_ms,
-                  r.times.match_ms, r.pose, &j);
+                  r.times.match_ms, r.pose, &j, orientations);
   }
   return j.dump(2) + "\n";
 }

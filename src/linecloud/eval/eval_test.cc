@@ -5,9 +5,11 @@
 #include <cstdlib>
 #include <fstream>
 #include <limits>
+#include <numbers>
 #include <random>
 #include <string>
 
+#include <FreeImage.h>
 #include <gtest/gtest.h>
 
 #include "linecloud/colmap/dataset.h"
@@ -15,6 +17,10 @@
 #include "linecloud/eval/eval_prepare.h"
 #include "linecloud/eval/eval_run.h"
 #include "linecloud/eval/eval_work.h"
+#include "linecloud/features/image.h"
+#include "linecloud/lifting/key.h"
+#include "linecloud/localize/image_query.h"
+#include "linecloud/pipeline/localizer.h"
 #include "linecloud/benchmarks/localization_bench.h"
 #include "linecloud/draw/plot.h"
 #include "linecloud/io/json_util.h"
@@ -579,6 +585,158 @@ TEST(EvalColmap, P6lAgainstColmapsOwnRegistration) {
   // of 2026-11-26 (the same features, COLMAP's own, in both).
   EXPECT_LE(Number(s, "/p6L_median_rotation_deg"), 2.5 * Number(s, "/colmap_median_rotation_deg"));
   EXPECT_LT(Number(s, "/p6L_mean_seconds"), Number(s, "/colmap_mean_seconds"));
+}
+
+}  // namespace
+}  // namespace linecloud
+
+namespace linecloud {
+namespace {
+
+// A JPEG with an EXIF APP1 segment holding one tag, Orientation, after its SOI.
+std::string WithExifOrientation(const std::string& jpeg, int orientation) {
+  const unsigned char app1[] = {0xFF, 0xE1,
+                                0x00, 0x22,  // APP1, 34 bytes
+                                'E',  'x',
+                                'i',  'f',
+                                0,    0,  // Exif header
+                                'M',  'M',
+                                0x00, 0x2A,
+                                0x00, 0x00,
+                                0x00, 0x08,  // TIFF, big-endian, IFD0 at 8
+                                0x00, 0x01,  // one entry
+                                0x01, 0x12,
+                                0x00, 0x03,
+                                0x00, 0x00,
+                                0x00, 0x01,  // Orientation, SHORT, 1 value
+                                0x00, static_cast<unsigned char>(orientation),
+                                0x00, 0x00,
+                                0x00, 0x00,
+                                0x00, 0x00};  // no next IFD
+  return jpeg.substr(0, 2) + std::string(reinterpret_cast<const char*>(app1), sizeof(app1)) +
+         jpeg.substr(2);
+}
+
+std::string EncodeJpeg(FIBITMAP* bitmap) {
+  FIMEMORY* memory = FreeImage_OpenMemory();
+  FreeImage_SaveToMemory(FIF_JPEG, bitmap, memory, JPEG_QUALITYSUPERB | JPEG_SUBSAMPLING_444);
+  BYTE* data = nullptr;
+  DWORD size = 0;
+  FreeImage_AcquireMemory(memory, &data, &size);
+  std::string out(reinterpret_cast<const char*>(data), size);
+  FreeImage_CloseMemory(memory);
+  return out;
+}
+
+std::span<const uint8_t> Bytes(const std::string& s) {
+  return {reinterpret_cast<const uint8_t*>(s.data()), s.size()};
+}
+
+// [accept] A phone photo stored sideways: fountain 0000.jpg turned by 90°
+// (losslessly: 1536 x 1024 is whole MCUs) with the EXIF tag that turns it
+// back localizes to the pose of the original; with a camera of the stored
+// size its pixels are used as stored; a camera of neither size is refused.
+TEST(PhotoOrientation, ATurnedPhotoWithItsExifTagGivesTheOriginalsPose) {
+  const char* work_dir = std::getenv("LINECLOUD_FOUNTAIN_WORK");
+  if (!work_dir || !FileExists(JoinPaths(work_dir, "prepared.json"))) {
+    GTEST_SKIP() << "LINECLOUD_FOUNTAIN_WORK is not an `eval prepare` work of fountain-P11";
+  }
+  const EvalWork work = ReadPreparedWork(work_dir);
+  const EvalGroup& group = work.groups.at(0);
+  const EvalImage& image = group.images.at(0);
+  const Camera& camera = work.cameras.at(image.camera_id);
+  GroupMapData data =
+      LoadGroupMapData(work_dir, group, LiftingKey(LiftingKey::Bytes{7}), MapLifting{});
+  const Localizer localizer(std::move(data.lines), std::move(data.descriptors));
+  const std::string path = testing::SharedDataPath("strecha/fountain-P11/images/" + image.name);
+  FIBITMAP* photo = FreeImage_Load(FIF_JPEG, path.c_str(), 0);
+  ASSERT_NE(photo, nullptr);
+  // Debian's FreeImage has no lossless JPEG transform: the original and the
+  // turned photos are both encoded anew, at the best quality, without chroma
+  // subsampling.
+  const std::string original = EncodeJpeg(photo);
+  LocalizeRequest keep;
+  keep.keep_images = true;
+  const LocalizerResult reference = localizer.LocalizeEncodedImage(Bytes(original), camera, keep);
+  ASSERT_TRUE(reference.success()) << reference.reason;
+  EXPECT_FALSE(reference.photos[0].image.orientation.applied);
+  // FreeImage_Rotate turns anticlockwise: +90° is shown by EXIF 6 (turn
+  // clockwise to display), −90° by EXIF 8.
+  for (const auto& [angle, tag] : {std::pair{90.0, 6}, std::pair{-90.0, 8}}) {
+    FIBITMAP* rotated = FreeImage_Rotate(photo, angle);
+    ASSERT_NE(rotated, nullptr);
+    const std::string turned = WithExifOrientation(EncodeJpeg(rotated), tag);
+    FreeImage_Unload(rotated);
+    const LocalizerResult r = localizer.LocalizeEncodedImage(Bytes(turned), camera, keep);
+    ASSERT_TRUE(r.success()) << "EXIF " << tag << ": " << r.reason;
+    const GreyImage& shown = r.photos[0].image;
+    EXPECT_EQ(shown.orientation.exif, tag);
+    EXPECT_TRUE(shown.orientation.applied);
+    ASSERT_EQ(shown.width, 1536);
+    double diff = 0;
+    for (size_t i = 0; i < shown.pixels.size(); ++i) {
+      diff += std::abs(shown.pixels[i] - reference.photos[0].image.pixels[i]);
+    }
+    EXPECT_LT(diff / shown.pixels.size(), 1.0) << "EXIF " << tag << ": not the original's pixels";
+    const double degrees =
+        r.pose.query_from_world.rotation.angularDistance(reference.pose.query_from_world.rotation) *
+        180 / std::numbers::pi;
+    EXPECT_LT(degrees, 0.01) << "EXIF " << tag;
+    EXPECT_LT((r.pose.query_from_world.Inverse().translation -
+               reference.pose.query_from_world.Inverse().translation)
+                  .norm(),
+              0.005);
+    // A camera of the stored size: the pixels as stored (COLMAP's reading).
+    Camera stored = camera;
+    std::swap(stored.width, stored.height);
+    stored.params = {camera.params[1], camera.params[0], camera.params[3], camera.params[2]};
+    const GreyImage as_stored = DecodeGreyImage(Bytes(turned), "turned", PhotoLimits(stored, {}));
+    EXPECT_EQ(as_stored.width, 1024);
+    EXPECT_FALSE(as_stored.orientation.applied);
+    EXPECT_EQ(as_stored.orientation.exif, tag);
+    // Neither size: refused, naming both.
+    Camera other = camera;
+    other.width = 1500;
+    const std::string error =
+        ErrorOf([&] { DecodeGreyImage(Bytes(turned), "turned", PhotoLimits(other, {})); });
+    EXPECT_NE(error.find(fmt::format("EXIF orientation {}", tag)), std::string::npos) << error;
+  }
+  FreeImage_Unload(photo);
+}
+
+// [accept] One grey for every route: a frame sent as raw RGBA pixels (the
+// service's /geopose) gives the grey of the same frame decoded from its
+// encoded photo, pixel for pixel; raw grey pixels are taken as they are.
+TEST(PhotoOrientation, RawPixelsGiveTheGreyOfTheEncodedPhoto) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/images/00.jpg");
+  const std::string path = testing::SharedDataPath("colmap-maupertuis/images/00.jpg");
+  const std::string jpeg = ReadFileToString(path);
+  const GreyImage decoded = DecodeGreyImage(Bytes(jpeg), path);
+  FIBITMAP* bitmap = FreeImage_Load(FIF_JPEG, path.c_str(), 0);
+  ASSERT_NE(bitmap, nullptr);
+  FIBITMAP* rgba = FreeImage_ConvertTo32Bits(bitmap);
+  const int w = static_cast<int>(FreeImage_GetWidth(rgba)),
+            h = static_cast<int>(FreeImage_GetHeight(rgba));
+  std::vector<uint8_t> raw(static_cast<size_t>(w) * h * 4);
+  for (int y = 0; y < h; ++y) {
+    const BYTE* line = FreeImage_GetScanLine(rgba, h - 1 - y);
+    for (int x = 0; x < w; ++x) {
+      uint8_t* out = raw.data() + (static_cast<size_t>(y) * w + x) * 4;
+      out[0] = line[4 * x + FI_RGBA_RED];
+      out[1] = line[4 * x + FI_RGBA_GREEN];
+      out[2] = line[4 * x + FI_RGBA_BLUE];
+      out[3] = 255;
+    }
+  }
+  FreeImage_Unload(rgba);
+  FreeImage_Unload(bitmap);
+  const GreyImage from_rgba = GreyImageFromPixels(raw, w, h, 4, "raw");
+  ASSERT_EQ(from_rgba.width, decoded.width);
+  EXPECT_EQ(from_rgba.pixels, decoded.pixels);
+  const GreyImage from_grey = GreyImageFromPixels(decoded.pixels, w, h, 1, "raw");
+  EXPECT_EQ(from_grey.pixels, decoded.pixels);
+  EXPECT_NE(ErrorOf([&] { GreyImageFromPixels(raw, w, h + 1, 4, "frame"); }).find("frame"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -61,6 +61,61 @@ FREE_IMAGE_FORMAT DetectFormat(std::span<const uint8_t> data, const std::string&
   return format;
 }
 
+// The EXIF orientation tag (0x0112) of a bitmap's metadata; 1 when absent or
+// not one of the eight values.
+int ExifOrientation(FIBITMAP* bitmap) {
+  FITAG* tag = nullptr;
+  if (!FreeImage_GetMetadata(FIMD_EXIF_MAIN, bitmap, "Orientation", &tag) || !tag) return 1;
+  if (FreeImage_GetTagType(tag) != FIDT_SHORT || FreeImage_GetTagCount(tag) != 1) return 1;
+  const int value = *static_cast<const uint16_t*>(FreeImage_GetTagValue(tag));
+  return value >= 1 && value <= 8 ? value : 1;
+}
+
+// The pixels as displayed: EXIF orientation o maps displayed (x, y) to the
+// stored pixel — 2: mirrored, 3: turned 180°, 4: flipped, 5: transposed,
+// 6: turned 90° clockwise, 7: transverse, 8: turned 90° anticlockwise.
+GreyImage Oriented(const GreyImage& stored, int o) {
+  const bool turned = o >= 5;
+  GreyImage out;
+  out.width = turned ? stored.height : stored.width;
+  out.height = turned ? stored.width : stored.height;
+  out.pixels.resize(stored.pixels.size());
+  const int w = stored.width - 1, h = stored.height - 1;
+  for (int y = 0; y < out.height; ++y) {
+    for (int x = 0; x < out.width; ++x) {
+      int sx = x, sy = y;
+      switch (o) {
+        case 2:
+          sx = w - x;
+          break;
+        case 3:
+          sx = w - x, sy = h - y;
+          break;
+        case 4:
+          sy = h - y;
+          break;
+        case 5:
+          sx = y, sy = x;
+          break;
+        case 6:
+          sx = y, sy = h - x;
+          break;
+        case 7:
+          sx = w - y, sy = h - x;
+          break;
+        case 8:
+          sx = w - y, sy = x;
+          break;
+        default:
+          break;
+      }
+      out.pixels[static_cast<size_t>(y) * out.width + x] = stored.at(sx, sy);
+    }
+  }
+  out.orientation = {o, true};
+  return out;
+}
+
 GreyImage FromBitmap(FIBITMAP* grey) {
   GreyImage image;
   image.width = static_cast<int>(FreeImage_GetWidth(grey));
@@ -72,6 +127,26 @@ GreyImage FromBitmap(FIBITMAP* grey) {
     std::copy_n(line, image.width, image.pixels.data() + static_cast<size_t>(y) * image.width);
   }
   return image;
+}
+
+// A decoded 8-bit grey or colour bitmap in grey, as COLMAP's Bitmap::Read:
+// 32-bit images go through 24 bits first, then FreeImage's greyscale
+// conversion.
+GreyImage GreyFromBitmap(BitmapPtr bitmap, const std::string& source) {
+  if (FreeImage_GetImageType(bitmap.get()) != FIT_BITMAP) {
+    Fail("{}: unsupported pixel type (only 8-bit grey and colour images)", source);
+  }
+  const bool grey =
+      FreeImage_GetBPP(bitmap.get()) == 8 && FreeImage_GetColorType(bitmap.get()) == FIC_MINISBLACK;
+  if (grey) return FromBitmap(bitmap.get());
+  if (FreeImage_GetBPP(bitmap.get()) == 32) {
+    BitmapPtr rgb(FreeImage_ConvertTo24Bits(bitmap.get()), FreeImage_Unload);
+    if (!rgb) Fail("{}: cannot convert the image to RGB", source);
+    bitmap = std::move(rgb);
+  }
+  BitmapPtr converted(FreeImage_ConvertToGreyscale(bitmap.get()), FreeImage_Unload);
+  if (!converted) Fail("{}: cannot convert the image to grey", source);
+  return FromBitmap(converted.get());
 }
 
 }  // namespace
@@ -92,13 +167,24 @@ ImageHeader ReadImageHeader(std::span<const uint8_t> data, const std::string& so
   }
   ImageHeader h{FreeImage_GetFormatFromFIF(format), FreeImage_GetWidth(header.get()),
                 FreeImage_GetHeight(header.get())};
+  h.exif_orientation = ExifOrientation(header.get());
   if (h.width == 0 || h.height == 0) Fail("{}: the image header says it is empty", source);
   if (h.width * h.height > limits.max_pixels) {
     Fail("{}: the image header says {}x{} pixels, more than the limit of {}", source, h.width,
          h.height, limits.max_pixels);
   }
-  if ((limits.expected_width && h.width != limits.expected_width) ||
-      (limits.expected_height && h.height != limits.expected_height)) {
+  const auto fits = [&](uint64_t w, uint64_t height) {
+    return (!limits.expected_width || w == limits.expected_width) &&
+           (!limits.expected_height || height == limits.expected_height);
+  };
+  if (!fits(h.width, h.height) && !(h.Turned() && fits(h.height, h.width))) {
+    if (h.Turned()) {
+      Fail(
+          "{}: the image is {}x{} pixels as stored, {}x{} as displayed (EXIF orientation {}), "
+          "but the camera is {}x{}",
+          source, h.width, h.height, h.height, h.width, h.exif_orientation, limits.expected_width,
+          limits.expected_height);
+    }
     Fail("{}: the image is {}x{} pixels but the camera is {}x{}", source, h.width, h.height,
          limits.expected_width, limits.expected_height);
   }
@@ -128,22 +214,43 @@ GreyImage DecodeGreyImage(std::span<const uint8_t> data, const std::string& sour
       Fail("{}: the image is truncated ({})", source, m);
     }
   }
-  if (FreeImage_GetImageType(bitmap.get()) != FIT_BITMAP) {
-    Fail("{}: unsupported pixel type (only 8-bit grey and colour images)", source);
+  GreyImage stored = GreyFromBitmap(std::move(bitmap), source);
+  stored.orientation.exif = header.exif_orientation;
+  // Turned to its orientation unless the camera is the stored size (then the
+  // camera was calibrated on the stored pixels).
+  const bool stored_size_expected =
+      (limits.expected_width || limits.expected_height) &&
+      (!limits.expected_width || limits.expected_width == header.width) &&
+      (!limits.expected_height || limits.expected_height == header.height);
+  if (header.exif_orientation == 1 || stored_size_expected) return stored;
+  return Oriented(stored, header.exif_orientation);
+}
+
+GreyImage GreyImageFromPixels(std::span<const uint8_t> pixels, int width, int height, int channels,
+                              const std::string& source) {
+  if (width <= 0 || height <= 0 || !(channels == 1 || channels == 3 || channels == 4)) {
+    Fail("{}: {}x{} pixels of {} channels is no image", source, width, height, channels);
   }
-  const bool grey =
-      FreeImage_GetBPP(bitmap.get()) == 8 && FreeImage_GetColorType(bitmap.get()) == FIC_MINISBLACK;
-  if (grey) return FromBitmap(bitmap.get());
-  // As COLMAP's Bitmap::Read: 32-bit images go through 24 bits first, then
-  // FreeImage's greyscale conversion.
-  if (FreeImage_GetBPP(bitmap.get()) == 32) {
-    BitmapPtr rgb(FreeImage_ConvertTo24Bits(bitmap.get()), FreeImage_Unload);
-    if (!rgb) Fail("{}: cannot convert the image to RGB", source);
-    bitmap = std::move(rgb);
+  const uint64_t n = static_cast<uint64_t>(width) * static_cast<uint64_t>(height);
+  if (pixels.size() != n * static_cast<uint64_t>(channels)) {
+    Fail("{}: {} bytes, {}x{} pixels of {} channels need {}", source, pixels.size(), width, height,
+         channels, n * channels);
   }
-  BitmapPtr converted(FreeImage_ConvertToGreyscale(bitmap.get()), FreeImage_Unload);
-  if (!converted) Fail("{}: cannot convert the image to grey", source);
-  return FromBitmap(converted.get());
+  if (channels == 1) return GreyImage{width, height, {pixels.begin(), pixels.end()}, {}};
+  EnsureFreeImage();
+  BitmapPtr bitmap(FreeImage_Allocate(width, height, 8 * channels), FreeImage_Unload);
+  if (!bitmap) Fail("{}: out of memory for a {}x{} image", source, width, height);
+  for (int y = 0; y < height; ++y) {
+    BYTE* line = FreeImage_GetScanLine(bitmap.get(), height - 1 - y);  // bottom-up
+    const uint8_t* in = pixels.data() + static_cast<size_t>(y) * width * channels;
+    for (int x = 0; x < width; ++x, in += channels, line += channels) {
+      line[FI_RGBA_RED] = in[0];
+      line[FI_RGBA_GREEN] = in[1];
+      line[FI_RGBA_BLUE] = in[2];
+      if (channels == 4) line[FI_RGBA_ALPHA] = in[3];
+    }
+  }
+  return GreyFromBitmap(std::move(bitmap), source);
 }
 
 GreyImage ReadGreyImage(const std::string& path, const ImageLimits& limits) {

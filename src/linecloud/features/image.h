@@ -10,10 +10,18 @@
 
 namespace linecloud {
 
+// A photo's EXIF orientation (1-8; 1: as stored) and whether the pixels were
+// turned to it (DecodeGreyImage).
+struct ImageOrientation {
+  int exif = 1;
+  bool applied = false;
+};
+
 struct GreyImage {
   int width = 0;
   int height = 0;
   std::vector<uint8_t> pixels;  // row-major, the top row first
+  ImageOrientation orientation;
 
   uint8_t at(int x, int y) const { return pixels[static_cast<size_t>(y) * width + x]; }
 };
@@ -28,19 +36,26 @@ struct ImageLimits {
 
 struct ImageHeader {
   std::string format;  // FreeImage's name, e.g. "JPEG", "PNG"
-  uint64_t width = 0;
+  uint64_t width = 0;  // as stored
   uint64_t height = 0;
+  int exif_orientation = 1;  // 5-8: displayed turned by 90° (width and height swap)
+  bool Turned() const { return exif_orientation >= 5 && exif_orientation <= 8; }
 };
 
-// The format and size from the header alone (FreeImage's FIF_LOAD_NOPIXELS);
-// throws Error naming `source` for data that is no image, a format whose size
-// cannot be read without decoding it, or a size the limits refuse.
+// The format, size and EXIF orientation from the header alone (FreeImage's
+// FIF_LOAD_NOPIXELS); throws Error naming `source` for data that is no image,
+// a format whose size cannot be read without decoding it, or a size the limits
+// refuse. An expected size may be the stored one or, for a photo whose EXIF
+// orientation turns it, the displayed one.
 ImageHeader ReadImageHeader(std::span<const uint8_t> data, const std::string& source,
                             const ImageLimits& limits = {});
 
 // Decodes an encoded JPEG or PNG image (bytes, e.g. an HTTP body; other
 // formats are refused: FreeImage's other decoders are not hardened) after
-// ReadImageHeader's checks. Throws Error naming `source` when it is not an
+// ReadImageHeader's checks. The EXIF orientation is applied (the pixels as
+// the photo is displayed) unless the limits expect the stored size: a camera
+// calibrated on the stored pixels (COLMAP's, which reads them as stored)
+// keeps them. Throws Error naming `source` when it is not an
 // image FreeImage can read, corrupt, truncated (a JPEG that ends before its
 // last scan), empty, or refused by the limits.
 GreyImage DecodeGreyImage(std::span<const uint8_t> data, const std::string& source,
@@ -49,6 +64,13 @@ GreyImage DecodeGreyImage(std::span<const uint8_t> data, const std::string& sour
 // DecodeGreyImage of a file's bytes; throws Error naming `path` when the file
 // is missing or unreadable, too.
 GreyImage ReadGreyImage(const std::string& path, const ImageLimits& limits = {});
+
+// Grey pixels from raw 8-bit pixels of 1 (grey), 3 (RGB) or 4 (RGBA)
+// channels, row-major, top row first — converted exactly as DecodeGreyImage
+// converts a decoded colour photo (FreeImage's conversion, as COLMAP's), so
+// that the same frame gives the same features by every route.
+GreyImage GreyImageFromPixels(std::span<const uint8_t> pixels, int width, int height, int channels,
+                              const std::string& source);
 
 // Bilinear downscaling as COLMAP does before extraction when the larger side
 // exceeds `max_size` (FreeImage_Rescale); returns the image unchanged otherwise.

@@ -80,7 +80,7 @@ TEST(SiftOpenCV, AgreesWithTheColmapExtractorWhereBothFindAKeypoint) {
 }
 
 TEST(SiftOpenCV, GivesTheSameFeaturesOnOneAndTwoThreads) {
-  GreyImage image{320, 240, std::vector<uint8_t>(320 * 240)};
+  GreyImage image{320, 240, std::vector<uint8_t>(320 * 240), {}};
   for (int y = 0; y < 240; ++y) {
     for (int x = 0; x < 320; ++x) {
       image.pixels[y * 320 + x] = static_cast<uint8_t>(
@@ -103,7 +103,7 @@ TEST(SiftOpenCV, GivesTheSameFeaturesOnOneAndTwoThreads) {
 }
 
 TEST(SiftOpenCV, RefusesOptionsItCannotHonour) {
-  GreyImage image{64, 64, std::vector<uint8_t>(64 * 64, 100)};
+  GreyImage image{64, 64, std::vector<uint8_t>(64 * 64, 100), {}};
   SiftOptions options;
   options.first_octave = 0;
   EXPECT_THROW(ExtractSiftOpenCV(image, options), Error);

@@ -227,7 +227,18 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
 }
 
 void AddPhotoStats(size_t num_features, size_t num_matches, double decode_ms, double extract_ms,
-                   double match_ms, const LocalizeResult& result, nlohmann::ordered_json* j) {
+                   double match_ms, const LocalizeResult& result, nlohmann::ordered_json* j,
+                   std::span<const ImageOrientation> orientations) {
+  // Photos whose EXIF orientation turns them: whether the pixels were turned
+  // (the camera fits the displayed size) or used as stored (it fits those).
+  bool any = false;
+  for (const ImageOrientation& o : orientations) any = any || o.exif != 1;
+  if (any) {
+    (*j)["orientation"] = nlohmann::json::array();
+    for (const ImageOrientation& o : orientations) {
+      (*j)["orientation"].push_back({{"exif", o.exif}, {"applied", o.applied}});
+    }
+  }
   (*j)["num_features"] = num_features;
   (*j)["num_matches"] = num_matches;
   (*j)["times_ms"] = {{"decode", decode_ms},

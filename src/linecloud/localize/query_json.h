@@ -1,10 +1,12 @@
 // QUERY.json of `linecloud localize` (../shared/SPEC.md) and its result JSON.
 #pragma once
 
+#include <span>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
+#include "linecloud/features/image.h"
 #include "linecloud/localize/localize.h"
 
 namespace linecloud {
@@ -31,9 +33,11 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
                                             bool with_inliers = true);
 
 // Adds a photo query's num_features, num_matches and times_ms (decode,
-// extract, match, RANSAC, refine) to a result.
+// extract, match, RANSAC, refine) to a result, and "orientation" (per photo:
+// its EXIF orientation and whether it was applied) when a photo has one.
 void AddPhotoStats(size_t num_features, size_t num_matches, double decode_ms, double extract_ms,
-                   double match_ms, const LocalizeResult& result, nlohmann::ordered_json* j);
+                   double match_ms, const LocalizeResult& result, nlohmann::ordered_json* j,
+                   std::span<const ImageOrientation> orientations = {});
 
 // One line of COLMAP's images.txt for the pose (cam_from_world):
 // IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME, followed by an empty

@@ -218,7 +218,7 @@ ImageQuery Localizer::MatchPhoto(const QueryPhoto& photo, const LocalizeRequest&
     }
     ExtractImageFeatures(*grey, photo.name, o, &q);
     if (request.keep_images && photo.image) q.image = *photo.image;
-    if (!request.keep_images) q.image = GreyImage{};
+    if (!request.keep_images) q.image.pixels = {};  // its size and orientation stay
   }
   MatchImageQuery(q, photo.camera, *state_->descriptors, o, state_->index.get());
   return q;

@@ -169,7 +169,8 @@ TEST(Localizer, BadRequestsGetErrorsNamingTheirPart) {
               localizer.LocalizeFeatures(features, camera);
             }).find("features: keypoints[1] = (nan, 0) is not a pixel"),
             std::string::npos);
-  GreyImage small{.width = 10, .height = 10, .pixels = std::vector<uint8_t>(100)};
+  GreyImage small{
+      .width = 10, .height = 10, .pixels = std::vector<uint8_t>(100), .orientation = {}};
   EXPECT_NE(ErrorOf([&] {
               localizer.LocalizeImage(small, camera);
             }).find("image: the image is 10x10 pixels but the camera is 1919x1079"),

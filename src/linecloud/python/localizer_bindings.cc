@@ -156,8 +156,10 @@ Request MakeRequest(const PyLocalizer& self, const py::kwargs& kwargs, const std
 py::dict ResultToDict(const LocalizerResult& r, bool with_inliers) {
   nlohmann::ordered_json j = LocalizeResultToJson(FindMethod(r.method), r.pose, with_inliers);
   if (!r.photos.empty()) {
+    std::vector<ImageOrientation> orientations;
+    for (const ImageQuery& photo : r.photos) orientations.push_back(photo.image.orientation);
     AddPhotoStats(r.num_features(), r.num_matches(), r.times.decode_ms, r.times.extract_ms,
-                  r.times.match_ms, r.pose, &j);
+                  r.times.match_ms, r.pose, &j, orientations);
   }
   if (!r.success()) j["reason"] = r.reason;
   const StageTimes& t = r.times;

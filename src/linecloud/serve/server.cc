@@ -755,16 +755,9 @@ struct Server::Impl {
         Throw(400, fmt::format("imageBytes: {} bytes, {}x{} {} needs {}", bytes->size(),
                                camera.width, camera.height, format, n * channels));
       }
-      image->width = static_cast<int>(camera.width);
-      image->height = static_cast<int>(camera.height);
-      image->pixels.resize(n);
-      for (uint64_t i = 0; i < n; ++i) {
-        const unsigned char* px = b + i * channels;
-        image->pixels[i] =
-            channels == 1
-                ? px[0]
-                : static_cast<uint8_t>(std::lround(0.299 * px[0] + 0.587 * px[1] + 0.114 * px[2]));
-      }
+      // Converted as an encoded photo is (one grey for every route: COLMAP's).
+      *image = GreyImageFromPixels(std::span(b, bytes->size()), static_cast<int>(camera.width),
+                                   static_cast<int>(camera.height), channels, "imageBytes");
     }
     LocalizeRequest r = RequestOptions("", "", std::nullopt, deadline);
     const LocalizerResult result = RunBounded(
