@@ -45,7 +45,7 @@ struct RansacOptions {
   // A progressive run's uniform phase (see Ransac): the probability that its
   // uniform samples alone would have found a model as good as the best.
   double uniform_phase_confidence = 0.99;
-  int min_iterations = 10;  // uniform sampling only (see `enough` in Ransac)
+  int min_iterations = 10;  // floor of the uniform draws (see `enough` in Ransac)
   int max_iterations = 10000;
   bool local_optimization = true;
   uint64_t seed = 0;
@@ -166,12 +166,18 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
   // whatever the ranking did. min_iterations is a floor of the uniform draws.
   int uniform_drawn = 0;
   bool confirming = false;  // in the uniform phase
+  // Uniform draws that make missing a model with `inliers` unlikely.
+  const double uniform_confidence =
+      progressive ? options.uniform_phase_confidence : options.confidence;
+  const auto uniform_needed = [&](int inliers) {
+    return RequiredIterations(static_cast<double>(inliers) / n, k, uniform_confidence,
+                              options.max_iterations);
+  };
   const auto enough = [&] {
     if (progressive && !confirming) {
       if (!stopping->Done()) return false;
       confirming = true;
-      needed = RequiredIterations(static_cast<double>(best_inliers) / n, k,
-                                  options.uniform_phase_confidence, options.max_iterations);
+      needed = uniform_needed(best_inliers);
     }
     return uniform_drawn >= options.min_iterations && uniform_drawn >= needed;
   };
@@ -234,10 +240,7 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
         // For progress reports: PROSAC's samples still needed, then the uniform phase's.
         needed = iteration + 1 + stopping->Remaining(prosac->subset_size(), options.max_iterations);
       } else {
-        needed =
-            RequiredIterations(static_cast<double>(inliers) / n, k,
-                               progressive ? options.uniform_phase_confidence : options.confidence,
-                               options.max_iterations);
+        needed = uniform_needed(inliers);
       }
     }
   }

@@ -15,6 +15,7 @@
 #include "linecloud/solvers/minimal_problem.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
+#include "linecloud/util/statistics.h"
 
 namespace linecloud {
 namespace {
@@ -25,13 +26,6 @@ struct MethodTally {
   int queries = 0, successes = 0, localized = 0, wrong = 0;
   std::vector<double> ransac_ms;
 };
-
-double Percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const size_t i = static_cast<size_t>(std::ceil(q * static_cast<double>(v.size()))) - 1;
-  return v[std::min(i, v.size() - 1)];
-}
 
 // One query's result (a row of direct matching's per_query / per_rig) into the tally.
 void Count(const KeySweepOptions& o, const DirectMatchingOptions& dm, const std::string& dataset,
@@ -145,8 +139,8 @@ ojson RunKeySweep(const KeySweepOptions& options) {
                      {"wrong", t.wrong},
                      {"ransac_ms",
                       {{"mean", t.ransac_ms.empty() ? 0.0 : sum / t.ransac_ms.size()},
-                       {"p50", Percentile(t.ransac_ms, 0.5)},
-                       {"p99", Percentile(t.ransac_ms, 0.99)}}}};
+                       {"p50", Percentile(t.ransac_ms, 50)},
+                       {"p99", Percentile(t.ransac_ms, 99)}}}};
   }
   ojson report;
   report["datasets"] = datasets;
