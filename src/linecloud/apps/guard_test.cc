@@ -391,7 +391,7 @@ TEST(Guard, APlantedCacheLinkOrFifoIsNeverUsed) {
   for (const char* map : {"m.lcm", "fifo-map.lcm"}) {
     f = RunScript(
         fmt::format("timeout 60 {} localize --map {} --image {} --camera '{}' "
-                    "--approximate-from 10 --quiet",
+                    "--approximate-from 10 --max-iterations 200 --quiet",
                     Tool(), tmp.Path(map), SharedDataPath("colmap-maupertuis/images/02.jpg"),
                     "SIMPLE_PINHOLE 1919 1079 1847.53 959.5 539.5"),
         env, tmp);
