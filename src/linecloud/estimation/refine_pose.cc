@@ -11,6 +11,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
+#include "linecloud/estimation/local_scale.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
@@ -141,11 +142,14 @@ namespace {
 // e.g. the scale of a Sim3 pose seen by one camera: (s, t) → (e^ε s, e^ε t)
 // moves no projection), and the residuals' Σ r² and row count.
 struct PoseInformation {
+  Eigen::MatrixXd fisher;      // F
   Eigen::MatrixXd inverse;     // F⁺ (F⁻¹ when N is empty)
   Eigen::MatrixXd null_space;  // dim x k, orthonormal columns
   double sum_sq = 0;
   int rows = 0;
 };
+
+void Invert(PoseInformation* info);
 
 PoseInformation InformationAt(const PoseData& data, std::span<const int> indices, const Sim3d& pose,
                               int dim) {
@@ -182,18 +186,45 @@ PoseInformation InformationAt(const PoseData& data, std::span<const int> indices
     info.sum_sq += row.r[0] * row.r[0] + (row.n == 2 ? row.r[1] * row.r[1] : 0.0);
     info.rows += row.n;
   }
-  const Eigen::MatrixXd f = fisher.topLeftCorner(dim, dim);
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(f);
+  info.fisher = fisher.topLeftCorner(dim, dim);
+  Invert(&info);
+  return info;
+}
+
+// F⁺ and the null space of info->fisher.
+void Invert(PoseInformation* info) {
+  const int dim = static_cast<int>(info->fisher.rows());
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(info->fisher);
   const Eigen::VectorXd& values = eigen.eigenvalues();  // ascending
   const double tolerance = 1e-12 * std::max(values[dim - 1], 0.0);
   int null_dim = 0;
   while (null_dim < dim && !(values[null_dim] > tolerance)) ++null_dim;
-  info.null_space = eigen.eigenvectors().leftCols(null_dim);
+  info->null_space = eigen.eigenvectors().leftCols(null_dim);
   Eigen::VectorXd inverse_values = Eigen::VectorXd::Zero(dim);
   for (int k = null_dim; k < dim; ++k) inverse_values[k] = 1.0 / values[k];
-  info.inverse =
+  info->inverse =
       eigen.eigenvectors() * inverse_values.asDiagonal() * eigen.eigenvectors().transpose();
-  return info;
+}
+
+// Σᵢ JᵢᵀJᵢ of the local points' 3D residuals (LocalPointResidual) over the
+// pose's perturbation, by central differences.
+Eigen::MatrixXd LocalPointInformation(const PoseData& data, std::span<const int> indices,
+                                      const Sim3d& pose, int dim) {
+  Eigen::MatrixXd fisher = Eigen::MatrixXd::Zero(dim, dim);
+  const double h = 1e-6 * std::max(1.0, pose.translation.norm());
+  Eigen::Matrix<double, 3, Eigen::Dynamic> j(3, dim);
+  for (const int i : indices) {
+    for (int k = 0; k < dim; ++k) {
+      Eigen::Matrix<double, 7, 1> d = Eigen::Matrix<double, 7, 1>::Zero();
+      const double step = k < 3 || k == 6 ? 1e-7 : h;
+      d[k] = step;
+      const Eigen::Vector3d plus = LocalPointResidual(data, i, PerturbPose(pose, d));
+      d[k] = -step;
+      j.col(k) = (plus - LocalPointResidual(data, i, PerturbPose(pose, d))) / (2 * step);
+    }
+    fisher.noalias() += j.transpose() * j;
+  }
+  return fisher;
 }
 
 // Whether the quantity with Jacobian `jacobian` (rows) is determined by the
@@ -208,16 +239,30 @@ bool Determined(const Eigen::MatrixXd& jacobian, const PoseInformation& info) {
 }  // namespace
 
 PoseUncertainty EstimatePoseUncertainty(const PoseData& data, std::span<const int> indices,
-                                        const Sim3d& query_from_world, bool similarity) {
+                                        const Sim3d& query_from_world, bool similarity,
+                                        double local_sigma) {
   data.Check("EstimatePoseUncertainty");
   CheckIndices(data, indices, "EstimatePoseUncertainty");
   const int dim = similarity ? 7 : 6;
-  const PoseInformation info = InformationAt(data, indices, query_from_world, dim);
+  PoseInformation info = InformationAt(data, indices, query_from_world, dim);
   PoseUncertainty u;
   u.rotation_deg = u.position = std::numeric_limits<double>::infinity();
   const int free = dim - static_cast<int>(info.null_space.cols());
   if (info.rows <= free) return u;
   u.sigma_px = std::sqrt(info.sum_sq / (info.rows - free));
+  if (local_sigma > 0 && !data.points_local.empty() && info.null_space.cols() > 0 &&
+      u.sigma_px > 0) {
+    // F/σ² + F₃/σ₃² = (F + (σ/σ₃)² F₃)/σ²: each kind of residual whitened by
+    // its own noise. Only along the null space N: the estimate takes from the
+    // local points what the reprojections leave free, nothing else.
+    const double weight = (u.sigma_px / local_sigma) * (u.sigma_px / local_sigma);
+    const Eigen::MatrixXd& n = info.null_space;
+    info.fisher +=
+        weight * n *
+        (n.transpose() * LocalPointInformation(data, indices, query_from_world, dim) * n) *
+        n.transpose();
+    Invert(&info);
+  }
   const Eigen::MatrixXd covariance = u.sigma_px * u.sigma_px * info.inverse;
   const Eigen::MatrixXd jr = Eigen::MatrixXd::Identity(3, dim);
   if (Determined(jr, info)) {

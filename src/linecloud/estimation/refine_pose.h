@@ -64,8 +64,14 @@ struct PoseUncertainty {
   double rotation_deg = 0;
   double position = 0;
 };
+//
+// local_sigma > 0 (the local points' noise, FitScaleToLocalPoints): when the
+// reprojections leave a direction free (the scale seen by one camera), the
+// local points' 3D residuals (LocalPointResidual) join them, each kind
+// whitened by its own noise, so the rig origin is reported.
 PoseUncertainty EstimatePoseUncertainty(const PoseData& data, std::span<const int> indices,
-                                        const Sim3d& query_from_world, bool similarity);
+                                        const Sim3d& query_from_world, bool similarity,
+                                        double local_sigma = 0);
 
 // Applies the left perturbation of ReprojectionResidual: (ω, δt, δσ).
 Sim3d PerturbPose(const Sim3d& pose, const Eigen::Matrix<double, 7, 1>& delta);

@@ -16,6 +16,7 @@
 
 #include <Eigen/Core>
 
+#include "linecloud/estimation/local_scale.h"
 #include "linecloud/estimation/pose_data.h"
 #include "linecloud/estimation/ransac.h"
 #include "linecloud/estimation/refine_pose.h"
@@ -144,7 +145,10 @@ struct LocalizeResult {
   // The focal length the inliers fit best, from the calibration check.
   std::optional<double> best_fit_focal;
   std::optional<CalibrationCheck> calibration_check;
-  double given_focal = 0;    // the query camera's (first camera's) mean focal length
+  double given_focal = 0;  // the query camera's (first camera's) mean focal length
+  // +l methods seen by one camera: the scale fitted to the local points
+  // (estimation/local_scale.h), since the reprojections leave it free.
+  std::optional<LocalScaleFit> local_scale;
   Sim3d query_from_world;    // cam_from_world (one image) / rig_from_world / local_from_world
   Sim3d initial;             // RANSAC's estimate before the final refinement
   std::vector<int> inliers;  // observation indices

@@ -189,6 +189,11 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
     j["uncertainty"] = {{"rotation_deg", finite_or_null(r.uncertainty.rotation_deg)},
                         {"position", finite_or_null(r.uncertainty.position)},
                         {"sigma_px", r.uncertainty.sigma_px}};
+    if (r.local_scale) {
+      j["uncertainty"]["scale_from"] = "local_points";
+      j["uncertainty"]["sigma_local"] = r.local_scale->sigma_local;
+      j["uncertainty"]["log_scale_se"] = r.local_scale->log_scale_se;
+    }
   }
   j["stats"] = {{"iterations", r.stats.iterations},
                 {"stop_reason", r.stats.stop_reason},
