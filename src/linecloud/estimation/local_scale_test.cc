@@ -19,10 +19,12 @@ struct OneCamera {
 OneCamera MakeOneCamera(bool lines, std::mt19937_64& rng) {
   std::normal_distribution<double> g;
   OneCamera c;
-  c.truth = Sim3d(2.5, Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized())),
-                  Eigen::Vector3d(0.5, -1, 2));
-  c.data.cam_from_rig = {Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY())),
-                                 Eigen::Vector3d(0.4, 0.1, -0.2))};
+  c.truth =
+      Sim3d(2.5, Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d(1, 2, 3).normalized())),
+            Eigen::Vector3d(0.5, -1, 2));
+  c.data.cam_from_rig = {
+      Rigid3d(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitY())),
+              Eigen::Vector3d(0.4, 0.1, -0.2))};
   const Sim3d world_from_rig = c.truth.Inverse();
   for (int i = 0; i < 20; ++i) {
     const Eigen::Vector3d x_cam(g(rng), g(rng), 5 + g(rng));
@@ -34,8 +36,8 @@ OneCamera MakeOneCamera(bool lines, std::mt19937_64& rng) {
     c.data.bearings.push_back(x_cam.normalized());
     c.data.points_local.push_back(x_rig);
     if (lines) {
-      c.data.lines.push_back(PluckerLine::FromPointAndDirection(
-          x_world, Eigen::Vector3d(g(rng), g(rng), g(rng))));
+      c.data.lines.push_back(
+          PluckerLine::FromPointAndDirection(x_world, Eigen::Vector3d(g(rng), g(rng), g(rng))));
     } else {
       c.data.points.push_back(x_world);
     }
@@ -59,8 +61,7 @@ TEST(LocalScale, ExactLocalPointsGiveTheScaleAndKeepTheCamera) {
     const Eigen::Vector3d centre_rig = c.data.cam_from_rig[0].Inverse().translation;
     const Eigen::Vector3d camera_world = c.truth.Inverse() * centre_rig;
     const double wrong = 0.7 * c.truth.scale;
-    Sim3d pose(wrong, c.truth.rotation,
-               centre_rig - wrong * (c.truth.rotation * camera_world));
+    Sim3d pose(wrong, c.truth.rotation, centre_rig - wrong * (c.truth.rotation * camera_world));
     ASSERT_TRUE(SeenByOneCamera(c.data, all));
     const std::optional<LocalScaleFit> fit = FitScaleToLocalPoints(c.data, all, &pose);
     ASSERT_TRUE(fit.has_value());
@@ -82,7 +83,8 @@ TEST(LocalScale, TheStandardErrorMatchesTheSpread) {
     const int draws = 400;
     for (int k = 0; k < draws; ++k) {
       OneCamera c = MakeOneCamera(lines, rng);
-      for (Eigen::Vector3d& x : c.data.points_local) x += 0.02 * Eigen::Vector3d(g(rng), g(rng), g(rng));
+      for (Eigen::Vector3d& x : c.data.points_local)
+        x += 0.02 * Eigen::Vector3d(g(rng), g(rng), g(rng));
       std::vector<int> all(c.data.size());
       for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
       Sim3d pose = c.truth;

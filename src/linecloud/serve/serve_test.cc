@@ -236,8 +236,19 @@ TEST(Serve, ConsoleRoutesRevealNothingTheMapDoesNot) {
   EXPECT_EQ(info["num_lines"], 400);
   EXPECT_EQ(info["descriptors"]["dim"], 128);
   EXPECT_EQ(c.Get("/v1/maps/other", Bearer("alice-secret"))->status, 404);
+  // [shield] A reader gets poses, not the map: no geometry, no segments
+  // (a line cloud downloaded whole gives most of its points back).
+  EXPECT_FALSE(info.contains("anchor_bbox")) << info.dump();
+  EXPECT_EQ(info["publish_lines"], false);
+  EXPECT_TRUE(
+      json::parse(c.Get("/v1/maps/synth", Bearer("root-secret"))->body).contains("anchor_bbox"));
+  r = c.Get("/v1/maps/synth/segments?limit=999999999", Bearer("alice-secret"));
+  ASSERT_EQ(r->status, 403);
+  EXPECT_NE(json::parse(r->body)["error"].get<std::string>().find("has not published"),
+            std::string::npos)
+      << r->body;
 
-  r = c.Get("/v1/maps/synth/segments?limit=150", Bearer("alice-secret"));
+  r = c.Get("/v1/maps/synth/segments?limit=150", Bearer("root-secret"));
   ASSERT_EQ(r->status, 200) << r->body;
   EXPECT_EQ(r->get_header_value("X-Linecloud-Lines"), "400");
   EXPECT_EQ(r->get_header_value("X-Linecloud-Segments"), "150");
@@ -261,11 +272,28 @@ TEST(Serve, ConsoleRoutesRevealNothingTheMapDoesNot) {
     }
   }
   // The whole map by default here (fewer than 20 000 lines); a prefix of the same order.
-  r = c.Get("/v1/maps/synth/segments", Bearer("alice-secret"));
+  r = c.Get("/v1/maps/synth/segments", Bearer("root-secret"));
   ASSERT_EQ(r->body.size(), 400 * 6 * sizeof(float));
   EXPECT_EQ(std::memcmp(r->body.data(), seg.data(), seg.size() * sizeof(float)), 0);
-  EXPECT_EQ(c.Get("/v1/maps/synth/segments?limit=abc", Bearer("alice-secret"))->status, 400);
+  EXPECT_EQ(c.Get("/v1/maps/synth/segments?limit=abc", Bearer("root-secret"))->status, 400);
   EXPECT_EQ(c.Get("/v1/maps/other/segments", Bearer("alice-secret"))->status, 404);
+  // The owner publishes the lines (ID.json): readers get them, and the map's
+  // details say what that costs by the owner's audit.
+  WriteFileAtomically(f.tmp.Path("maps/synth.json"),
+                      [&](std::ostream& os) { os << R"({"publish_lines": true})"; });
+  const json published_audit = {
+      {"density_attack", {{"recovery", {{"within_diagonal_percent", {{"1", 63.25}}}}}}}};
+  WriteFileAtomically(f.tmp.Path("maps/synth.audit.json"),
+                      [&](std::ostream& os) { os << published_audit.dump(); });
+  server.server().Reload();  // the map file unchanged: its ID.json and audit are read anew
+  r = c.Get("/v1/maps/synth/segments?limit=10", Bearer("alice-secret"));
+  ASSERT_EQ(r->status, 200) << r->body;
+  EXPECT_EQ(r->body.size(), 10 * 6 * sizeof(float));
+  const json published = json::parse(c.Get("/v1/maps/synth", Bearer("alice-secret"))->body);
+  EXPECT_EQ(published["publish_lines"], true);
+  EXPECT_EQ(published["audit_recovered_percent"], 63.25);
+  WriteFileAtomically(f.tmp.Path("maps/synth.audit.json"),
+                      [&](std::ostream& os) { os << audit.dump(); });
 
   // The audit: the owner's only.
   EXPECT_EQ(c.Get("/v1/maps/synth/audit", Bearer("alice-secret"))->status, 404);

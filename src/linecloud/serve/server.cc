@@ -4,6 +4,9 @@
 #include <sys/stat.h>
 
 #include <algorithm>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <arpa/inet.h>
 #include <sys/socket.h>
 #include <cstring>
 #include <cerrno>
@@ -35,6 +38,7 @@
 #include "linecloud/pipeline/localizer.h"
 #include "linecloud/serve/geo.h"
 #include "linecloud/serve/tokens.h"
+#include "linecloud/serve/wire.h"
 #include "linecloud/util/base64.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
@@ -60,6 +64,45 @@ bool IsMapId(const std::string& id) {
 }
 
 // An answer with a status: errors carry {"error": ...}.
+// Header fields a request may carry (cpp-httplib 0.11.4 has no limit of its
+// own: 500 000 headers cost 125 MB before a route saw them).
+constexpr size_t kMaxHeaders = 100;
+
+// The API's routes by path: their method ("GET" / "POST"), "" for any other
+// path (the console's files).
+std::string AllowedMethods(const std::string& path) {
+  if (path == "/healthz" || path == "/readyz" || path == "/metrics" || path == "/v1/maps") {
+    return "GET";
+  }
+  if (path == "/geopose") return "POST";
+  constexpr std::string_view kMaps = "/v1/maps/";
+  if (path.rfind(kMaps, 0) != 0) return "";
+  const std::string rest = path.substr(kMaps.size());
+  const size_t slash = rest.find('/');
+  if (slash == std::string::npos) return "GET";
+  const std::string tail = rest.substr(slash);
+  if (tail == "/localize") return "POST";
+  if (tail == "/segments" || tail == "/audit" || tail == "/audit/points") return "GET";
+  return "";
+}
+
+// The Authorization header whole: cpp-httplib's get_header_value goes
+// through a C string, so "Bearer TOKEN%00junk" (percent-decoded by the
+// library) read as "Bearer TOKEN" and authenticated.
+std::string Authorization(const httplib::Request& req) {
+  const auto it = req.headers.find("Authorization");
+  return it == req.headers.end() ? "" : it->second;
+}
+
+// The route a path belongs to, as the access log and /metrics name it.
+std::string RouteName(const std::string& path) {
+  constexpr std::string_view kMaps = "/v1/maps/";
+  if (path.rfind(kMaps, 0) != 0) return path;
+  const std::string rest = path.substr(kMaps.size());
+  const size_t slash = rest.find('/');
+  return slash == std::string::npos ? "/v1/maps/{id}" : "/v1/maps/{id}" + rest.substr(slash);
+}
+
 struct HttpError {
   int status;
   std::string message;
@@ -143,6 +186,10 @@ class Metrics {
     ++h.count;
     h.sum += ms;
   }
+  void MapLoadError() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ++map_load_errors_;
+  }
   std::string Text(int in_flight, int queued, size_t maps) const {
     std::lock_guard<std::mutex> lock(mutex_);
     std::string out =
@@ -169,8 +216,10 @@ class Metrics {
         "# TYPE linecloud_in_flight gauge\nlinecloud_in_flight {}\n"
         "# TYPE linecloud_queue_length gauge\nlinecloud_queue_length {}\n"
         "# TYPE linecloud_maps gauge\nlinecloud_maps {}\n"
+        "# HELP linecloud_map_load_errors_total Map files (or the folder) that did not load.\n"
+        "# TYPE linecloud_map_load_errors_total counter\nlinecloud_map_load_errors_total {}\n"
         "# TYPE linecloud_resident_bytes gauge\nlinecloud_resident_bytes {}\n",
-        in_flight, queued, maps, ResidentBytes());
+        in_flight, queued, maps, map_load_errors_, ResidentBytes());
     return out;
   }
 
@@ -183,6 +232,7 @@ class Metrics {
   mutable std::mutex mutex_;
   std::map<std::pair<std::string, int>, uint64_t> requests_;
   std::map<std::string, Histogram> stages_;
+  uint64_t map_load_errors_ = 0;
 };
 
 struct LoadedMap {
@@ -195,7 +245,13 @@ struct LoadedMap {
   // prefix is a uniform subset). What the .lcm holds, nothing more.
   std::vector<float> segments;
   std::optional<GeoAnchor> anchor;
-  std::pair<uintmax_t, int64_t> stamp;  // size, mtime: unchanged files are kept on reload
+  // The owner published the lines (DIR/ID.json "publish_lines": true):
+  // reader tokens get /segments too. Never a default: a line cloud
+  // downloaded whole gives back most of its points to the density attack.
+  bool publish_lines = false;
+  // Size and mtime of ID.lcm, ID.json and ID.audit.json: a map whose files
+  // are unchanged is kept on reload.
+  std::vector<std::pair<uintmax_t, int64_t>> stamp;
 };
 using MapSet = std::map<std::string, std::shared_ptr<const LoadedMap>>;
 
@@ -204,6 +260,12 @@ std::pair<uintmax_t, int64_t> FileStamp(const std::string& path) {
   if (::stat(path.c_str(), &st) != 0) return {0, 0};
   return {static_cast<uintmax_t>(st.st_size),
           static_cast<int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec};
+}
+
+// LoadedMap::stamp of the map file DIR/ID.lcm.
+std::vector<std::pair<uintmax_t, int64_t>> MapStamp(const std::string& lcm_path) {
+  const std::string base = lcm_path.substr(0, lcm_path.size() - 4);  // without ".lcm"
+  return {FileStamp(lcm_path), FileStamp(base + ".json"), FileStamp(base + ".audit.json")};
 }
 
 // The segments of LoadedMap::segments.
@@ -272,8 +334,18 @@ std::string DefaultWebDir() {
   return "";
 }
 
-bool IsLoopback(const std::string& host) {
-  return host == "127.0.0.1" || host == "localhost" || host == "::1" || host.rfind("127.", 0) == 0;
+// A loopback address by value (127.0.0.0/8, ::1, "localhost"), not by
+// spelling: "127.evil.com" is a name anyone may point anywhere.
+bool IsLoopback(std::string host) {
+  if (host == "localhost") return true;
+  if (host.size() > 2 && host.front() == '[' && host.back() == ']') {
+    host = host.substr(1, host.size() - 2);
+  }
+  in_addr v4{};
+  if (::inet_pton(AF_INET, host.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
+  in6_addr v6{};
+  if (::inet_pton(AF_INET6, host.c_str(), &v6) == 1) return IN6_IS_ADDR_LOOPBACK(&v6);
+  return false;
 }
 
 }  // namespace
@@ -282,7 +354,11 @@ std::pair<std::string, int> ParseListen(const std::string& listen, const std::st
   const size_t colon = listen.rfind(':');
   if (colon == std::string::npos || colon == 0)
     Fail("{}: expected HOST:PORT, got '{}'", option, listen);
-  const std::string host = listen.substr(0, colon), port = listen.substr(colon + 1);
+  std::string host = listen.substr(0, colon);
+  const std::string port = listen.substr(colon + 1);
+  if (host.size() > 2 && host.front() == '[' && host.back() == ']') {
+    host = host.substr(1, host.size() - 2);  // [::1]:8080
+  }
   if (port.empty() || port.size() > 5 ||
       port.find_first_not_of("0123456789") != std::string::npos || std::stoi(port) > 65535) {
     Fail("{}: '{}' is not a port (0-65535)", option, port);
@@ -339,15 +415,26 @@ struct Server::Impl {
   std::shared_ptr<const LoadedMap> LoadMap(const std::string& id, const std::string& path) const {
     auto m = std::make_shared<LoadedMap>();
     m->id = id;
-    m->stamp = FileStamp(path);
+    m->stamp = MapStamp(path);
     const LineCloud cloud = ReadLineCloud(path);
     LocalizerOptions lo;
     lo.image.max_pixels = options.max_pixels;
     lo.image.threads = 1;  // concurrency comes from the workers
     m->localizer = std::make_unique<Localizer>(cloud, lo, id);
     const std::string anchor_path = JoinPaths(options.maps_dir, id + ".json");
+    json owner_file;
     if (FileExists(anchor_path)) {
-      m->anchor = GeoAnchorFromJson(json::parse(ReadFilePrefix(anchor_path, 1 << 16)), anchor_path);
+      owner_file = ParseRequestJson(ReadFilePrefix(anchor_path, 1 << 16), anchor_path);
+      if (!owner_file.is_object()) Fail("{}: expected a JSON object", anchor_path);
+      if (owner_file.contains("geo_anchor")) {
+        m->anchor = GeoAnchorFromJson(owner_file, anchor_path);
+      }
+      if (owner_file.contains("publish_lines")) {
+        if (!owner_file["publish_lines"].is_boolean()) {
+          Fail("{}: publish_lines: expected true or false", anchor_path);
+        }
+        m->publish_lines = owner_file["publish_lines"].get<bool>();
+      }
     }
     m->info = {{"id", id},
                {"lines", cloud.size()},
@@ -357,9 +444,36 @@ struct Server::Impl {
                {"geo_anchored", m->anchor.has_value()}};
     m->details = LineCloudInfo(cloud);
     m->details["id"] = id;
-    if (m->anchor) m->details["geo_anchor"] = json::parse(ReadFilePrefix(anchor_path, 1 << 16));
+    if (m->anchor) m->details["geo_anchor"] = owner_file["geo_anchor"];
+    m->details["publish_lines"] = m->publish_lines;
+    const std::string audit_path = JoinPaths(options.maps_dir, id + ".audit.json");
+    if (m->publish_lines && FileExists(audit_path)) {
+      // What publishing costs, from the owner's audit: the percentage of
+      // points the density attack recovered within 1 % of the scene diagonal.
+      try {
+        const json audit = ParseRequestJson(ReadFilePrefix(audit_path, 1 << 22), audit_path);
+        const json share = audit.value(
+            json::json_pointer("/density_attack/recovery/within_diagonal_percent/1"), json());
+        if (share.is_number()) m->details["audit_recovered_percent"] = share;
+      } catch (const std::exception& e) {
+        Log(DumpJson(json{{"notice", fmt::format("map {}: audit not read: {}", id, e.what())}}));
+      }
+    }
     m->segments = MapSegments(cloud);
     return m;
+  }
+
+  // On a reload (SIGHUP) nothing stops the service: a folder that is gone or
+  // unreadable keeps every map, a map file that does not load keeps its last
+  // good version; each is logged and counted (linecloud_map_load_errors_total).
+  void Reload() {
+    try {
+      LoadMaps();
+    } catch (const std::exception& e) {
+      metrics.MapLoadError();
+      Log(DumpJson(
+          json{{"notice", fmt::format("reload failed, the maps are kept: {}", e.what())}}));
+    }
   }
 
   void LoadMaps() {
@@ -371,19 +485,27 @@ struct Server::Impl {
       const std::string id = e.path().stem().string();
       if (!IsMapId(id)) {
         Log(fmt::format("{{\"notice\": \"skipped {}: map ids are [A-Za-z0-9_-]{{1,64}}\"}}",
-                        json(e.path().filename().string()).dump()));
+                        DumpJson(json(e.path().filename().string()))));
         continue;
       }
       const std::string path = e.path().string();
       const auto kept = old->find(id);
-      if (kept != old->end() && kept->second->stamp == FileStamp(path)) {
+      if (kept != old->end() && kept->second->stamp == MapStamp(path)) {
         (*next)[id] = kept->second;
         continue;
       }
       try {
         (*next)[id] = LoadMap(id, path);
       } catch (const std::exception& err) {
-        Log(json{{"notice", fmt::format("map {} not loaded: {}", id, err.what())}}.dump());
+        metrics.MapLoadError();
+        if (kept != old->end()) {
+          (*next)[id] = kept->second;
+          Log(DumpJson(
+              json{{"notice", fmt::format("map {} not reloaded, its last version is kept: {}", id,
+                                          err.what())}}));
+        } else {
+          Log(DumpJson(json{{"notice", fmt::format("map {} not loaded: {}", id, err.what())}}));
+        }
       }
     }
     std::lock_guard<std::mutex> lock(maps_mutex);
@@ -394,7 +516,7 @@ struct Server::Impl {
   // 401 without a known token.
   std::optional<TokenEntry> Authorize(const httplib::Request& req) const {
     if (tokens.open()) return std::nullopt;
-    auto e = tokens.Authenticate(req.get_header_value("Authorization"));
+    auto e = tokens.Authenticate(Authorization(req));
     if (!e) Throw(401, "a valid 'Authorization: Bearer TOKEN' header is required");
     return e;
   }
@@ -550,12 +672,7 @@ struct Server::Impl {
   std::function<LocalizerResult()> FeaturesJob(const std::string& body,
                                                std::shared_ptr<const LoadedMap> map,
                                                Clock::time_point deadline) {
-    json j;
-    try {
-      j = json::parse(body);
-    } catch (const json::exception& e) {
-      Throw(400, fmt::format("body: not JSON ({})", e.what()));
-    }
+    const json j = ParseRequestJson(body, "body");
     if (!j.is_object()) Throw(400, "body: expected a JSON object");
     for (const char* key : {"camera", "keypoints", "descriptors"}) {
       if (!j.contains(key)) Throw(400, fmt::format("body: field '{}' is missing", key));
@@ -628,6 +745,9 @@ struct Server::Impl {
   // first N of the map's fixed order (default 20 000).
   std::string Segments(const httplib::Request& req, httplib::Response& res, json* log) {
     const auto [token, map] = RequestMap(req, log);
+    if (token && !token->admin && !map->publish_lines) {
+      Throw(403, "the map's lines are for admin tokens: its owner has not published them");
+    }
     Throttle(token);
     const size_t total = map->segments.size() / 6;
     size_t limit = std::min<size_t>(total, 20000);
@@ -678,14 +798,10 @@ struct Server::Impl {
 
   // POST /geopose (OSCP GeoPose Protocol v2)
   json GeoPoseRoute(const httplib::Request& req, json* log) {
+    // Who, which map and how often before the body is read: a stranger's or
+    // a throttled client's body costs no parsing.
     const auto token = Authorize(req);
     if (token) (*log)["token"] = token->id;
-    json j;
-    try {
-      j = json::parse(req.body);
-    } catch (const json::exception& e) {
-      Throw(400, fmt::format("GeoPoseReq: not JSON ({})", e.what()));
-    }
     std::string id = req.get_param_value("map");
     if (id.empty()) {  // the token's only geo-anchored map
       std::vector<std::string> anchored;
@@ -703,6 +819,7 @@ struct Server::Impl {
     if (!map->anchor) Throw(404, "the map has no geo-anchor");
     Throttle(token);
     const Clock::time_point deadline = Deadline();
+    json j = ParseRequestJson(req.body, "GeoPoseReq");
     const json* reading = nullptr;
     if (j.is_object() && j.contains("sensorReadings") && j["sensorReadings"].is_object() &&
         j["sensorReadings"].contains("cameraReadings") &&
@@ -803,26 +920,28 @@ struct Server::Impl {
                 {"method", req.method}};
     int status = 200;
     try {
-      res.set_content(body(&log).dump(), "application/json");
+      res.set_content(DumpJson(body(&log)), "application/json");
     } catch (const HttpError& e) {
       status = e.status;
-      res.set_content(json{{"error", e.message}}.dump(), "application/json");
+      res.set_content(DumpJson(json{{"error", e.message}}), "application/json");
+      if (status == 401) res.set_header("WWW-Authenticate", "Bearer realm=\"linecloud\"");
+      if (status == 405) res.set_header("Allow", AllowedMethods(req.path));
       if (e.retry_after > 0) {
         res.set_header("Retry-After", std::to_string(static_cast<int>(std::ceil(e.retry_after))));
       }
     } catch (const Error& e) {
       status = 400;
-      res.set_content(json{{"error", e.what()}}.dump(), "application/json");
+      res.set_content(DumpJson(json{{"error", e.what()}}), "application/json");
     } catch (const std::exception& e) {
       status = 500;
-      res.set_content(json{{"error", "internal error"}}.dump(), "application/json");
+      res.set_content(DumpJson(json{{"error", "internal error"}}), "application/json");
       log["exception"] = e.what();
     }
     res.status = status;
     metrics.Request(route, status);
     log["status"] = status;
     log["ms"] = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
-    Log(log.dump());
+    Log(DumpJson(log));
   }
 
   // A GET route answering bytes (application/octet-stream), errors as JSON.
@@ -836,6 +955,39 @@ struct Server::Impl {
       });
       if (res.status == 200) res.set_content(bytes, "application/octet-stream");
     });
+  }
+
+  // Before a request's body is read (cpp-httplib reads it after this
+  // handler): what no route answers with a body, refused at once. Answered
+  // through Handle (logged, counted).
+  httplib::Server::HandlerResponse Screen(const httplib::Request& req, httplib::Response& res) {
+    std::optional<HttpError> refusal;
+    const std::string allowed = AllowedMethods(req.path);
+    if (req.headers.size() > kMaxHeaders) {
+      refusal = HttpError{431, fmt::format("more than {} header fields", kMaxHeaders)};
+    } else if (!allowed.empty() && allowed.find(req.method) == std::string::npos &&
+               !(req.method == "HEAD" && allowed == "GET")) {
+      refusal = HttpError{405, fmt::format("{} is not allowed here ({})", req.method, allowed)};
+    } else if (req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos) {
+      // Debian's cpp-httplib 0.11.4 buffers a chunked body whole, without
+      // --max-body-mb: 300 MB from a stranger before the 401.
+      refusal = HttpError{411, "send the body with a Content-Length (chunked bodies are refused)"};
+    } else if (req.ranges.size() > 1) {
+      // 500 ranges of one file answered 808 MB.
+      refusal = HttpError{416, "one range per request"};
+    } else if (req.method == "POST" && !tokens.open() && !tokens.Authenticate(Authorization(req))) {
+      refusal = HttpError{401, "a valid 'Authorization: Bearer TOKEN' header is required"};
+    }
+    // cpp-httplib cuts any answer to the request's ranges, errors and the
+    // API's JSON too: a range is for the console's files only. The request
+    // is the library's own (non-const) object; this handler is its only
+    // hook before the answer is written.
+    if (refusal || !allowed.empty()) const_cast<httplib::Request&>(req).ranges.clear();
+    if (!refusal) return httplib::Server::HandlerResponse::Unhandled;
+    const std::string route = allowed.empty() ? "static" : RouteName(req.path);
+    Handle(route, req, res, [&](json*) -> json { throw *refusal; });
+    if (refusal->status == 411 || refusal->status == 431) res.set_header("Connection", "close");
+    return httplib::Server::HandlerResponse::Handled;
   }
 
   void Routes() {
@@ -871,8 +1023,13 @@ struct Server::Impl {
       });
     });
     http.Get(R"(/v1/maps/([^/]+))", [this](const httplib::Request& req, httplib::Response& res) {
-      Handle("/v1/maps/{id}", req, res,
-             [&](json* log) { return RequestMap(req, log).second->details; });
+      Handle("/v1/maps/{id}", req, res, [&](json* log) {
+        const auto [token, map] = RequestMap(req, log);
+        if (!token || token->admin) return map->details;
+        json details = map->details;  // readers: no map geometry
+        details.erase("anchor_bbox");
+        return details;
+      });
     });
     GetBytes(R"(/v1/maps/([^/]+)/segments)", "/v1/maps/{id}/segments", &Impl::Segments);
     GetBytes(R"(/v1/maps/([^/]+)/audit/points)", "/v1/maps/{id}/audit/points", &Impl::AuditPoints);
@@ -893,7 +1050,7 @@ struct Server::Impl {
         const std::string message = res.status == 413   ? "the body exceeds --max-body-mb"
                                     : res.status == 404 ? "no such route"
                                                         : "bad request";
-        res.set_content(json{{"error", message}}.dump(), "application/json");
+        res.set_content(DumpJson(json{{"error", message}}), "application/json");
       }
     });
   }
@@ -928,8 +1085,16 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   // here and its backlog raised after binding (Bind).
   h.set_socket_options([impl = impl_.get()](socket_t sock) {
     httplib::default_socket_options(sock);
+    // Accepted sockets inherit it (Linux): without it every keep-alive
+    // answer waited ~40 ms for the client's delayed ACK (Nagle).
+    const int one = 1;
+    ::setsockopt(sock, IPPROTO_TCP, TCP_NODELAY, &one, sizeof(one));
     impl->listen_socket = sock;
   });
+  h.set_pre_routing_handler(
+      [impl = impl_.get()](const httplib::Request& req, httplib::Response& res) {
+        return impl->Screen(req, res);
+      });
   h.new_task_queue = [http_threads] { return new httplib::ThreadPool(http_threads); };
   impl_->Routes();
   const std::string web = o.web_dir.empty() ? DefaultWebDir() : o.web_dir;
@@ -940,7 +1105,7 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
     // 4.8 s to arrive. Another of the HTML standard's JavaScript MIME types,
     // which the library leaves uncompressed: the page loads in ~0.1 s.
     h.set_file_extension_and_mimetype_mapping("js", "application/x-javascript");
-    impl_->Log(json{{"notice", "console at /"}, {"web", web}}.dump());
+    impl_->Log(DumpJson(json{{"notice", "console at /"}, {"web", web}}));
   } else if (!o.web_dir.empty()) {
     Fail("serve: --web {}: no index.html there (build it: bash scripts/build_web.sh)", o.web_dir);
   }
@@ -965,7 +1130,7 @@ void Server::Run() { impl_->http.listen_after_bind(); }
 
 void Server::Stop() { impl_->http.stop(); }
 
-void Server::Reload() { impl_->LoadMaps(); }
+void Server::Reload() { impl_->Reload(); }
 
 size_t Server::num_maps() const { return impl_->Maps()->size(); }
 

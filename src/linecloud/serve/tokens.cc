@@ -3,6 +3,7 @@
 #include <sodium.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <map>
 #include <mutex>
@@ -104,6 +105,13 @@ std::optional<TokenEntry> TokenStore::Authenticate(const std::string& authorizat
     return std::nullopt;
   }
   const std::string token = authorization.substr(kBearer.size());
+  // RFC 6750's token68 characters only: cpp-httplib 0.11.4 percent-decodes
+  // header values, so "TOKEN%00junk" arrived as the token, a NUL and junk.
+  const auto token68 = [](unsigned char c) {
+    return std::isalnum(c) != 0 || c == '-' || c == '.' || c == '_' || c == '~' || c == '+' ||
+           c == '/' || c == '=';
+  };
+  if (!std::all_of(token.begin(), token.end(), token68)) return std::nullopt;
   std::array<unsigned char, crypto_hash_sha256_BYTES> h;
   crypto_hash_sha256(h.data(), reinterpret_cast<const unsigned char*>(token.data()), token.size());
   // Every entry is compared (no early exit on the first match's position).

@@ -1,0 +1,470 @@
+// [shield] The real `linecloud serve` binary, no proxy in front, faced by
+// strangers: the rows of the hostile review (issue #40) as raw requests on a
+// socket. Each test starts its own server on 127.0.0.1 (a random port).
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <fmt/format.h>
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "linecloud/features/image.h"
+#include "linecloud/io/lcm_format.h"
+#include "linecloud/serve/server.h"
+#include "linecloud/serve/tokens.h"
+#include "linecloud/serve/wire.h"
+#include "linecloud/testing/test_util.h"
+#include "linecloud/util/error.h"
+#include "linecloud/util/file.h"
+
+namespace linecloud {
+namespace {
+
+using json = nlohmann::json;
+using testing::SharedDataPath;
+using testing::TempDir;
+namespace fs = std::filesystem;
+
+// A small line cloud with descriptors (what the routes need to run).
+LineCloud SmallCloud() {
+  LineCloud cloud;
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  cloud.descriptor_dim = 128;
+  cloud.descriptor_type = "colmap-sift-uint8";
+  cloud.descriptor_aggregation = "medoid";
+  for (int i = 0; i < 200; ++i) {
+    cloud.ids.push_back(10 + i);
+    cloud.lines.push_back(PluckerLine::FromPointAndDirection(
+        Eigen::Vector3d(u(rng), u(rng), 5 + u(rng)), Eigen::Vector3d(u(rng), u(rng), u(rng))));
+    for (int k = 0; k < 128; ++k) cloud.descriptors.push_back(static_cast<uint8_t>(rng() % 60));
+  }
+  return cloud;
+}
+
+// `linecloud serve` as a child process; its standard error in a file.
+class Served {
+ public:
+  explicit Served(const TempDir& tmp, std::vector<std::string> extra = {}) : err_(tmp.Path("err")) {
+    std::vector<std::string> args = {"linecloud", "serve", "--maps", tmp.Path("maps"),
+                                      "--tokens", tmp.Path("tokens.json"), "--listen",
+                                      "127.0.0.1:0", "--threads", "1"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      const int fd = ::open(err_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
+      ::dup2(fd, 2);
+      std::vector<char*> argv;
+      for (std::string& a : args) argv.push_back(a.data());
+      argv.push_back(nullptr);
+      ::execv(LINECLOUD_BINARY, argv.data());
+      ::_exit(127);
+    }
+    for (int i = 0; i < 400 && port_ == 0; ++i) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(25));
+      const std::string text = ReadFileToString(err_);
+      const std::string key = "listening on http://127.0.0.1:";
+      if (const size_t at = text.find(key); at != std::string::npos) {
+        port_ = std::atoi(text.c_str() + at + key.size());
+      }
+      int status = 0;
+      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+        exited_ = true;
+        exit_status_ = status;
+        break;
+      }
+    }
+  }
+  ~Served() {
+    if (!exited_) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+  }
+  int port() const { return port_; }
+  pid_t pid() const { return pid_; }
+  std::string err() const { return ReadFileToString(err_); }
+  // Still running (no crash).
+  bool Alive() {
+    if (exited_) return false;
+    int status = 0;
+    if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+      exited_ = true;
+      exit_status_ = status;
+    }
+    return !exited_;
+  }
+  int exit_status() const { return exit_status_; }
+
+ private:
+  std::string err_;
+  pid_t pid_ = -1;
+  int port_ = 0;
+  bool exited_ = false;
+  int exit_status_ = 0;
+};
+
+struct Answer {
+  int status = 0;  // 0: no answer
+  std::string head, body;
+  double seconds = 0;
+  std::string Header(const std::string& name) const {
+    std::string lower = head;
+    for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    std::string key = "\r\n" + name + ":";
+    for (char& c : key) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    const size_t at = lower.find(key);
+    if (at == std::string::npos) return "";
+    size_t begin = at + key.size();
+    while (begin < head.size() && head[begin] == ' ') ++begin;
+    return head.substr(begin, head.find("\r\n", begin) - begin);
+  }
+};
+
+int Connect(int port) {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  sockaddr_in addr{};
+  addr.sin_family = AF_INET;
+  addr.sin_port = htons(static_cast<uint16_t>(port));
+  addr.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  if (::connect(fd, reinterpret_cast<sockaddr*>(&addr), sizeof(addr)) != 0) {
+    ::close(fd);
+    return -1;
+  }
+  timeval tv{10, 0};
+  ::setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof(tv));
+  return fd;
+}
+
+// Sends `request` as is; reads one answer (headers, then Content-Length bytes).
+Answer Send(int port, const std::string& request) {
+  const auto start = std::chrono::steady_clock::now();
+  Answer a;
+  const int fd = Connect(port);
+  if (fd < 0) return a;
+  size_t sent = 0;
+  while (sent < request.size()) {
+    const ssize_t n = ::send(fd, request.data() + sent, request.size() - sent, MSG_NOSIGNAL);
+    if (n <= 0) break;  // the server may answer and close before reading everything
+    sent += static_cast<size_t>(n);
+  }
+  std::string in;
+  char buffer[65536];
+  size_t header_end = std::string::npos;
+  size_t length = 0;
+  for (;;) {
+    const ssize_t n = ::recv(fd, buffer, sizeof(buffer), 0);
+    if (n <= 0) break;
+    in.append(buffer, static_cast<size_t>(n));
+    if (header_end == std::string::npos && (header_end = in.find("\r\n\r\n")) != std::string::npos) {
+      a.head = in.substr(0, header_end);
+      const std::string cl = a.Header("Content-Length");
+      length = cl.empty() ? 0 : std::stoul(cl);
+    }
+    if (header_end != std::string::npos && in.size() >= header_end + 4 + length) break;
+  }
+  ::close(fd);
+  if (header_end != std::string::npos) {
+    a.status = std::atoi(in.c_str() + in.find(' ') + 1);
+    a.body = in.substr(header_end + 4);
+  }
+  a.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return a;
+}
+
+std::string Request(const std::string& method, const std::string& path,
+                    const std::vector<std::string>& headers = {}, const std::string& body = "",
+                    bool content_length = true) {
+  std::string r = fmt::format("{} {} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n", method,
+                              path);
+  for (const std::string& h : headers) r += h + "\r\n";
+  if (content_length && (!body.empty() || method == "POST")) {
+    r += fmt::format("Content-Length: {}\r\n", body.size());
+  }
+  return r + "\r\n" + body;
+}
+
+const std::string kRoot = "Authorization: Bearer root-secret";
+const std::string kReader = "Authorization: Bearer alice-secret";
+
+struct Maps {
+  TempDir tmp;
+  Maps() {
+    fs::create_directories(tmp.Path("maps"));
+    WriteLineCloud(SmallCloud(), tmp.Path("maps/synth.lcm"));
+    // Geo-anchored, so /geopose reads the body.
+    std::ofstream(tmp.Path("maps/synth.json"))
+        << R"({"geo_anchor": {"lat": 46.5, "lon": 6.5, "h": 400,
+              "enu_from_map": {"q": [1, 0, 0, 0], "t": [0, 0, 0], "scale": 1}}})";
+    const json tokens = {
+        {"tokens",
+         {{{"id", "alice"}, {"sha256", TokenSha256Hex("alice-secret")}, {"maps", {"synth"}}},
+          {{"id", "slow"},
+           {"sha256", TokenSha256Hex("slow-secret")},
+           {"maps", {"*"}},
+           {"requests_per_minute", 1}},
+          {{"id", "root"},
+           {"sha256", TokenSha256Hex("root-secret")},
+           {"maps", {"*"}},
+           {"admin", true}}}}};
+    std::ofstream(tmp.Path("tokens.json")) << tokens.dump();
+  }
+};
+
+std::string ErrorOf(const Answer& a) {
+  try {
+    return json::parse(a.body).at("error").get<std::string>();
+  } catch (const std::exception&) {
+    return "(no JSON error: " + a.body.substr(0, 200) + ")";
+  }
+}
+
+// Row 1: JSON nested 150 000 deep (306 KB) killed the server (SIGSEGV in a
+// recursive copy). Now 400, on both JSON routes, and the server lives.
+TEST(Hostile, DeeplyNestedJsonIsRefusedAndTheServerLives) {
+  Maps m;
+  Served s(m.tmp);
+  ASSERT_GT(s.port(), 0) << s.err();
+  const std::string deep = std::string(150000, '[') + std::string(150000, ']');
+  const std::string geopose =
+      R"({"sensorReadings": {"cameraReadings": [{"params": {"model": "PINHOLE", "modelParams": )" +
+      deep + "}}]}}";
+  Answer a = Send(s.port(), Request("POST", "/geopose?map=synth", {kRoot}, geopose));
+  EXPECT_EQ(a.status, 400);
+  EXPECT_NE(ErrorOf(a).find("nested deeper than 64"), std::string::npos) << ErrorOf(a);
+  a = Send(s.port(), Request("POST", "/v1/maps/synth/localize",
+                             {kRoot, "Content-Type: application/json"}, R"({"camera": )" + deep + "}"));
+  EXPECT_EQ(a.status, 400);
+  EXPECT_NE(ErrorOf(a).find("nested deeper"), std::string::npos) << ErrorOf(a);
+  EXPECT_TRUE(s.Alive());
+  EXPECT_EQ(Send(s.port(), Request("GET", "/healthz")).status, 200);
+  // Brackets inside strings are text, not nesting.
+  EXPECT_EQ(JsonNestingDepth(R"({"a": "[[[[[[", "b": [1, {"c": "\"]]]"}]})", 100), 3);
+}
+
+// Rows 2, 3, 5, 15: what no route answers with a body is refused before the
+// body is read: many ranges, ranges on the API, chunked bodies, too many
+// header fields, methods a route does not take (and a PUT without a body no
+// longer waits for one).
+TEST(Hostile, RequestsRefusedBeforeTheirBody) {
+  Maps m;
+  fs::create_directories(m.tmp.Path("web"));
+  std::ofstream(m.tmp.Path("web/index.html")) << std::string(100000, 'x');
+  Served s(m.tmp, {"--web", m.tmp.Path("web")});
+  ASSERT_GT(s.port(), 0) << s.err();
+  std::string ranges = "Range: bytes=0-";
+  for (int i = 0; i < 499; ++i) ranges += ",0-";
+  Answer a = Send(s.port(), Request("GET", "/index.html", {ranges}));
+  EXPECT_EQ(a.status, 416);
+  EXPECT_LT(a.body.size(), 1000u);
+  EXPECT_NE(ErrorOf(a).find("one range"), std::string::npos) << a.body;
+  a = Send(s.port(), Request("GET", "/index.html", {"Range: bytes=10-19"}));
+  EXPECT_EQ(a.status, 206);
+  EXPECT_EQ(a.body, std::string(10, 'x'));
+  // The API's JSON is never cut: a range there is ignored (RFC 9110 allows it).
+  a = Send(s.port(), Request("GET", "/v1/maps", {kRoot, "Range: bytes=0-5"}));
+  EXPECT_EQ(a.status, 200);
+  EXPECT_NO_THROW(json::parse(a.body)) << a.body;
+
+  // Chunked, no token: refused at once, nothing buffered.
+  const std::string chunked =
+      "POST /v1/maps/synth/localize HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n"
+      "Content-Type: application/json\r\n\r\n100000\r\n" + std::string(4096, 'a');
+  a = Send(s.port(), chunked);
+  EXPECT_EQ(a.status, 411);
+  EXPECT_LT(a.seconds, 2.0);
+  // A body from a stranger with a length: 401 before it is read.
+  a = Send(s.port(), Request("POST", "/v1/maps/synth/localize", {"Content-Type: application/json"},
+                             std::string(1 << 20, 'a')));
+  EXPECT_EQ(a.status, 401);
+  EXPECT_EQ(a.Header("WWW-Authenticate"), "Bearer realm=\"linecloud\"");
+
+  std::vector<std::string> many;
+  for (int i = 0; i < 500; ++i) many.push_back(fmt::format("X-H{}: v", i));
+  a = Send(s.port(), Request("GET", "/healthz", many));
+  EXPECT_EQ(a.status, 431);
+
+  a = Send(s.port(), Request("PUT", "/v1/maps/synth/localize", {kRoot}, "", false));
+  EXPECT_EQ(a.status, 405);
+  EXPECT_EQ(a.Header("Allow"), "POST");
+  EXPECT_LT(a.seconds, 2.0);
+  a = Send(s.port(), Request("GET", "/geopose", {kRoot}));
+  EXPECT_EQ(a.status, 405);
+  EXPECT_EQ(Send(s.port(), Request("GET", "/no/such/route")).status, 404);
+  EXPECT_TRUE(s.Alive());
+}
+
+// Row 16: only RFC 6750 token characters authenticate (the library
+// percent-decodes header values: "%00junk" arrived as a NUL and junk).
+TEST(Hostile, ATokenWithJunkDoesNotAuthenticate) {
+  Maps m;
+  Served s(m.tmp);
+  ASSERT_GT(s.port(), 0) << s.err();
+  EXPECT_EQ(Send(s.port(), Request("GET", "/v1/maps", {kRoot})).status, 200);
+  for (const char* h : {"Authorization: Bearer root-secret%00junk",
+                               "Authorization: Bearer root-secret junk",
+                               "Authorization: Bearer  root-secret"}) {
+    const Answer a = Send(s.port(), Request("GET", "/v1/maps", {h}));
+    EXPECT_EQ(a.status, 401) << h;
+    EXPECT_EQ(a.Header("WWW-Authenticate"), "Bearer realm=\"linecloud\"") << h;
+  }
+}
+
+// Row 9: who, which map and how often come before the body: a throttled
+// client's bad body is a 429, not parsed.
+TEST(Hostile, GeoPoseThrottlesBeforeParsing) {
+  Maps m;
+  Served s(m.tmp);
+  ASSERT_GT(s.port(), 0) << s.err();
+  const std::string slow = "Authorization: Bearer slow-secret";
+  EXPECT_EQ(Send(s.port(), Request("POST", "/geopose?map=synth", {slow}, "{not json")).status, 400);
+  int throttled = 0;
+  for (int i = 0; i < 10; ++i) {
+    throttled += Send(s.port(), Request("POST", "/geopose?map=synth", {slow}, "{not json")).status ==
+                 429;
+  }
+  EXPECT_GE(throttled, 9);
+}
+
+// Rows 6, 12, 13: SIGHUP never stops the service. A map file that no longer
+// loads keeps its last version (logged, counted); a maps folder that is gone
+// keeps every map; a file name that is not UTF-8 is skipped and logged.
+TEST(Hostile, SighupWithBrokenMapsKeepsServing) {
+  Maps m;
+  std::ofstream(m.tmp.Path("maps/bad\xff\xfe.lcm")) << "not a map";
+  Served s(m.tmp);
+  ASSERT_GT(s.port(), 0) << s.err();
+  EXPECT_NE(s.err().find("skipped"), std::string::npos) << s.err();
+  const auto maps = [&] {
+    const Answer a = Send(s.port(), Request("GET", "/v1/maps", {kRoot}));
+    return a.status == 200 ? json::parse(a.body)["maps"].size() : 0u;
+  };
+  ASSERT_EQ(maps(), 1u);
+  // Truncated on disk, then SIGHUP: the loaded version stays.
+  const std::string good = ReadFileToString(m.tmp.Path("maps/synth.lcm"));
+  std::ofstream(m.tmp.Path("maps/synth.lcm"), std::ios::binary | std::ios::trunc)
+      << good.substr(0, good.size() / 2);
+  ::kill(s.pid(), SIGHUP);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ASSERT_TRUE(s.Alive()) << s.err();
+  EXPECT_EQ(maps(), 1u);
+  EXPECT_NE(s.err().find("its last version is kept"), std::string::npos) << s.err();
+  const Answer metrics = Send(s.port(), Request("GET", "/metrics", {kRoot}));
+  EXPECT_NE(metrics.body.find("linecloud_map_load_errors_total 1"), std::string::npos)
+      << metrics.body;
+  EXPECT_EQ(Send(s.port(), Request("GET", "/readyz")).status, 200);
+  // The folder gone: every map kept.
+  fs::rename(m.tmp.Path("maps"), m.tmp.Path("moved"));
+  ::kill(s.pid(), SIGHUP);
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  ASSERT_TRUE(s.Alive()) << s.err();
+  EXPECT_EQ(maps(), 1u);
+  EXPECT_NE(s.err().find("reload failed, the maps are kept"), std::string::npos) << s.err();
+  // An error echoing bytes that are not UTF-8 (the JSON parser quotes what
+  // it last read) is still JSON, and logged: it was a 500 without a log line.
+  const Answer a = Send(s.port(), Request("POST", "/v1/maps/synth/localize",
+                                          {kRoot, "Content-Type: application/json"},
+                                          "{\"a\": \"\xff\xfe"));
+  EXPECT_EQ(a.status, 400);
+  EXPECT_NE(ErrorOf(a).find("body: not JSON"), std::string::npos) << a.body;
+  EXPECT_NE(s.err().find("\"status\":400"), std::string::npos) << s.err();
+  EXPECT_TRUE(s.Alive());
+}
+
+// Row 18: the loopback check compares addresses, not spellings.
+TEST(Hostile, OnlyLoopbackAddressesListenWithoutTokens) {
+  ServeOptions o;
+  o.maps_dir = "maps";
+  for (const char* listen : {"127.0.0.1:0", "127.1.2.3:80", "[::1]:8080", "localhost:0"}) {
+    o.listen = listen;
+    EXPECT_NO_THROW(o.Check()) << listen;
+  }
+  for (const char* listen : {"127.evil.com:0", "0.0.0.0:80", "[::]:80", "10.0.0.1:80"}) {
+    o.listen = listen;
+    EXPECT_THROW(o.Check(), Error) << listen;
+  }
+}
+
+// A JPEG's first `n` bytes up to and including its first start of scan
+// header, then `extra` bytes of its entropy-coded data and an end of image.
+std::string CutJpeg(const std::string& jpeg, size_t extra) {
+  size_t sos = jpeg.find("\xFF\xDA");
+  EXPECT_NE(sos, std::string::npos);
+  const size_t length = (static_cast<uint8_t>(jpeg[sos + 2]) << 8) | static_cast<uint8_t>(jpeg[sos + 3]);
+  return jpeg.substr(0, sos + 2 + length + extra) + "\xFF\xD9";
+}
+
+// Row 8 and the photo door: a JPEG declaring far more pixels than its bytes
+// can hold, a truncated one ending in an appended end-of-image marker, and
+// one with thousands of scans are refused before they cost anything.
+TEST(Hostile, CraftedAndTruncatedJpegsAreRefused) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/images/00.jpg");
+  const std::string photo = ReadFileToString(SharedDataPath("colmap-maupertuis/images/00.jpg"));
+  const auto decode = [](const std::string& bytes) {
+    try {
+      DecodeGreyImage(std::span(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()),
+                      "photo.jpg", ImageLimits{});
+      return std::string("decoded");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+  };
+  ASSERT_EQ(decode(photo), "decoded");
+  // The header's size patched to 7000 x 7000, the data cut short.
+  std::string bomb = CutJpeg(photo, 100);
+  for (size_t i = 0; i + 8 < bomb.size(); ++i) {
+    const uint8_t marker = static_cast<uint8_t>(bomb[i + 1]);
+    if (static_cast<uint8_t>(bomb[i]) == 0xFF && (marker == 0xC0 || marker == 0xC2)) {
+      bomb[i + 5] = bomb[i + 7] = static_cast<char>(7000 >> 8);
+      bomb[i + 6] = bomb[i + 8] = static_cast<char>(7000 & 0xFF);
+      break;
+    }
+  }
+  EXPECT_NE(decode(bomb).find("cannot hold the 7000x7000 pixels"), std::string::npos)
+      << decode(bomb);
+  // A third of the photo and an end-of-image marker: libjpeg's warning differs
+  // from a plain truncation's ("premature end of data segment").
+  const std::string third = photo.substr(0, photo.size() / 3) + "\xFF\xD9";
+  EXPECT_NE(decode(third).find("truncated"), std::string::npos) << decode(third);
+  const std::string plain_cut = photo.substr(0, photo.size() / 2);
+  EXPECT_NE(decode(plain_cut).find("truncated"), std::string::npos) << decode(plain_cut);
+  std::string scans = photo;
+  for (int i = 0; i < 600; ++i) scans += std::string("\xFF\xDA\x00\x02", 4);
+  EXPECT_NE(decode(scans).find("more than 500 JPEG scans"), std::string::npos) << decode(scans);
+
+  // Through the server: 400 naming the part, and the server alive.
+  Maps m;
+  Served s(m.tmp);
+  ASSERT_GT(s.port(), 0) << s.err();
+  const std::string boundary = "XyZ";
+  const auto multipart = [&](const std::string& image, const std::string& camera) {
+    return fmt::format(
+        "--{0}\r\nContent-Disposition: form-data; name=\"image\"; filename=\"a.jpg\"\r\n"
+        "Content-Type: image/jpeg\r\n\r\n{1}\r\n--{0}\r\nContent-Disposition: form-data; "
+        "name=\"camera\"\r\n\r\n{2}\r\n--{0}--\r\n",
+        boundary, image, camera);
+  };
+  const Answer a =
+      Send(s.port(), Request("POST", "/v1/maps/synth/localize",
+                             {kRoot, "Content-Type: multipart/form-data; boundary=" + boundary},
+                             multipart(bomb, "PINHOLE 7000 7000 5000 5000 3500 3500")));
+  EXPECT_EQ(a.status, 400);
+  EXPECT_NE(ErrorOf(a).find("image: the image is truncated"), std::string::npos) << ErrorOf(a);
+  EXPECT_TRUE(s.Alive());
+}
+
+}  // namespace
+}  // namespace linecloud
