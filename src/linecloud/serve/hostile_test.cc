@@ -24,7 +24,7 @@
 #include "linecloud/features/image.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/serve/server.h"
-#include "linecloud/serve/tokens.h"
+#include "linecloud/serve/test_tokens.h"
 #include "linecloud/serve/wire.h"
 #include "linecloud/testing/test_util.h"
 #include "linecloud/util/error.h"
@@ -59,9 +59,11 @@ LineCloud SmallCloud() {
 class Served {
  public:
   explicit Served(const TempDir& tmp, std::vector<std::string> extra = {}) : err_(tmp.Path("err")) {
-    std::vector<std::string> args = {"linecloud", "serve", "--maps", tmp.Path("maps"),
-                                      "--tokens", tmp.Path("tokens.json"), "--listen",
-                                      "127.0.0.1:0", "--threads", "1"};
+    std::vector<std::string> args = {"linecloud", "serve",
+                                     "--maps",    tmp.Path("maps"),
+                                     "--tokens",  tmp.Path("tokens.json"),
+                                     "--listen",  "127.0.0.1:0",
+                                     "--threads", "1"};
     args.insert(args.end(), extra.begin(), extra.end());
     pid_ = ::fork();
     if (pid_ == 0) {
@@ -169,7 +171,8 @@ Answer Send(int port, const std::string& request) {
     const ssize_t n = ::recv(fd, buffer, sizeof(buffer), 0);
     if (n <= 0) break;
     in.append(buffer, static_cast<size_t>(n));
-    if (header_end == std::string::npos && (header_end = in.find("\r\n\r\n")) != std::string::npos) {
+    if (header_end == std::string::npos &&
+        (header_end = in.find("\r\n\r\n")) != std::string::npos) {
       a.head = in.substr(0, header_end);
       const std::string cl = a.Header("Content-Length");
       length = cl.empty() ? 0 : std::stoul(cl);
@@ -188,8 +191,8 @@ Answer Send(int port, const std::string& request) {
 std::string Request(const std::string& method, const std::string& path,
                     const std::vector<std::string>& headers = {}, const std::string& body = "",
                     bool content_length = true) {
-  std::string r = fmt::format("{} {} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n", method,
-                              path);
+  std::string r =
+      fmt::format("{} {} HTTP/1.1\r\nHost: 127.0.0.1\r\nConnection: close\r\n", method, path);
   for (const std::string& h : headers) r += h + "\r\n";
   if (content_length && (!body.empty() || method == "POST")) {
     r += fmt::format("Content-Length: {}\r\n", body.size());
@@ -209,18 +212,7 @@ struct Maps {
     std::ofstream(tmp.Path("maps/synth.json"))
         << R"({"geo_anchor": {"lat": 46.5, "lon": 6.5, "h": 400,
               "enu_from_map": {"q": [1, 0, 0, 0], "t": [0, 0, 0], "scale": 1}}})";
-    const json tokens = {
-        {"tokens",
-         {{{"id", "alice"}, {"sha256", TokenSha256Hex("alice-secret")}, {"maps", {"synth"}}},
-          {{"id", "slow"},
-           {"sha256", TokenSha256Hex("slow-secret")},
-           {"maps", {"*"}},
-           {"requests_per_minute", 1}},
-          {{"id", "root"},
-           {"sha256", TokenSha256Hex("root-secret")},
-           {"maps", {"*"}},
-           {"admin", true}}}}};
-    std::ofstream(tmp.Path("tokens.json")) << tokens.dump();
+    WriteTestTokens(tmp.Path("tokens.json"));
   }
 };
 
@@ -245,8 +237,9 @@ TEST(Hostile, DeeplyNestedJsonIsRefusedAndTheServerLives) {
   Answer a = Send(s.port(), Request("POST", "/geopose?map=synth", {kRoot}, geopose));
   EXPECT_EQ(a.status, 400);
   EXPECT_NE(ErrorOf(a).find("nested deeper than 64"), std::string::npos) << ErrorOf(a);
-  a = Send(s.port(), Request("POST", "/v1/maps/synth/localize",
-                             {kRoot, "Content-Type: application/json"}, R"({"camera": )" + deep + "}"));
+  a = Send(s.port(),
+           Request("POST", "/v1/maps/synth/localize", {kRoot, "Content-Type: application/json"},
+                   R"({"camera": )" + deep + "}"));
   EXPECT_EQ(a.status, 400);
   EXPECT_NE(ErrorOf(a).find("nested deeper"), std::string::npos) << ErrorOf(a);
   EXPECT_TRUE(s.Alive());
@@ -282,7 +275,8 @@ TEST(Hostile, RequestsRefusedBeforeTheirBody) {
   // Chunked, no token: refused at once, nothing buffered.
   const std::string chunked =
       "POST /v1/maps/synth/localize HTTP/1.1\r\nHost: x\r\nTransfer-Encoding: chunked\r\n"
-      "Content-Type: application/json\r\n\r\n100000\r\n" + std::string(4096, 'a');
+      "Content-Type: application/json\r\n\r\n100000\r\n" +
+      std::string(4096, 'a');
   a = Send(s.port(), chunked);
   EXPECT_EQ(a.status, 411);
   EXPECT_LT(a.seconds, 2.0);
@@ -314,9 +308,9 @@ TEST(Hostile, ATokenWithJunkDoesNotAuthenticate) {
   Served s(m.tmp);
   ASSERT_GT(s.port(), 0) << s.err();
   EXPECT_EQ(Send(s.port(), Request("GET", "/v1/maps", {kRoot})).status, 200);
-  for (const char* h : {"Authorization: Bearer root-secret%00junk",
-                               "Authorization: Bearer root-secret junk",
-                               "Authorization: Bearer  root-secret"}) {
+  for (const char* h :
+       {"Authorization: Bearer root-secret%00junk", "Authorization: Bearer root-secret junk",
+        "Authorization: Bearer  root-secret"}) {
     const Answer a = Send(s.port(), Request("GET", "/v1/maps", {h}));
     EXPECT_EQ(a.status, 401) << h;
     EXPECT_EQ(a.Header("WWW-Authenticate"), "Bearer realm=\"linecloud\"") << h;
@@ -333,8 +327,8 @@ TEST(Hostile, GeoPoseThrottlesBeforeParsing) {
   EXPECT_EQ(Send(s.port(), Request("POST", "/geopose?map=synth", {slow}, "{not json")).status, 400);
   int throttled = 0;
   for (int i = 0; i < 10; ++i) {
-    throttled += Send(s.port(), Request("POST", "/geopose?map=synth", {slow}, "{not json")).status ==
-                 429;
+    throttled +=
+        Send(s.port(), Request("POST", "/geopose?map=synth", {slow}, "{not json")).status == 429;
   }
   EXPECT_GE(throttled, 9);
 }
@@ -375,9 +369,9 @@ TEST(Hostile, SighupWithBrokenMapsKeepsServing) {
   EXPECT_NE(s.err().find("reload failed, the maps are kept"), std::string::npos) << s.err();
   // An error echoing bytes that are not UTF-8 (the JSON parser quotes what
   // it last read) is still JSON, and logged: it was a 500 without a log line.
-  const Answer a = Send(s.port(), Request("POST", "/v1/maps/synth/localize",
-                                          {kRoot, "Content-Type: application/json"},
-                                          "{\"a\": \"\xff\xfe"));
+  const Answer a =
+      Send(s.port(), Request("POST", "/v1/maps/synth/localize",
+                             {kRoot, "Content-Type: application/json"}, "{\"a\": \"\xff\xfe"));
   EXPECT_EQ(a.status, 400);
   EXPECT_NE(ErrorOf(a).find("body: not JSON"), std::string::npos) << a.body;
   EXPECT_NE(s.err().find("\"status\":400"), std::string::npos) << s.err();
@@ -403,7 +397,8 @@ TEST(Hostile, OnlyLoopbackAddressesListenWithoutTokens) {
 std::string CutJpeg(const std::string& jpeg, size_t extra) {
   size_t sos = jpeg.find("\xFF\xDA");
   EXPECT_NE(sos, std::string::npos);
-  const size_t length = (static_cast<uint8_t>(jpeg[sos + 2]) << 8) | static_cast<uint8_t>(jpeg[sos + 3]);
+  const size_t length =
+      (static_cast<uint8_t>(jpeg[sos + 2]) << 8) | static_cast<uint8_t>(jpeg[sos + 3]);
   return jpeg.substr(0, sos + 2 + length + extra) + "\xFF\xD9";
 }
 

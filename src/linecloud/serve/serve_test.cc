@@ -24,6 +24,7 @@
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/serve/geo.h"
 #include "linecloud/serve/server.h"
+#include "linecloud/serve/test_tokens.h"
 #include "linecloud/serve/tokens.h"
 #include "linecloud/testing/test_util.h"
 #include "linecloud/util/base64.h"
@@ -157,19 +158,7 @@ struct Fixture {
     std::filesystem::create_directories(tmp.Path("maps"));
     WriteLineCloud(scene.cloud, tmp.Path("maps/synth.lcm"));
     WriteLineCloud(scene.cloud, tmp.Path("maps/other.lcm"));
-    json tokens = {
-        {"tokens",
-         {{{"id", "alice"}, {"sha256", TokenSha256Hex("alice-secret")}, {"maps", {"synth"}}},
-          {{"id", "bob"}, {"sha256", TokenSha256Hex("bob-secret")}, {"maps", {"other"}}},
-          {{"id", "slow"},
-           {"sha256", TokenSha256Hex("slow-secret")},
-           {"maps", {"*"}},
-           {"requests_per_minute", 1}},
-          {{"id", "root"},
-           {"sha256", TokenSha256Hex("root-secret")},
-           {"maps", {"*"}},
-           {"admin", true}}}}};
-    WriteFileAtomically(tmp.Path("tokens.json"), [&](std::ostream& os) { os << tokens.dump(); });
+    WriteTestTokens(tmp.Path("tokens.json"));
   }
   ServeOptions Options(bool with_tokens = true) const {
     ServeOptions o;
