@@ -237,6 +237,9 @@ LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
   LocalizerResult result;
   std::vector<Rigid3d> rig;
   for (const QueryPhoto& photo : photos) {
+    if (request.deadline && Clock::now() >= *request.deadline) {
+      return PastDeadline(method, std::move(result), "reading " + photo.name, start);
+    }
     result.photos.push_back(MatchPhoto(photo, request));
     rig.push_back(photo.cam_from_rig);
     const ImageQueryTimes& t = result.photos.back().times;
@@ -273,6 +276,16 @@ LocalizerResult Localizer::LocalizeFeatures(const SiftFeatures& features, const 
   return LocalizePhotos(std::span(&photo, 1), request);
 }
 
+LocalizerResult Localizer::PastDeadline(const MethodInfo& method, LocalizerResult result,
+                                        const std::string& stage, Clock::time_point start) const {
+  result.method = method.name;
+  result.status = LocalizerStatus::kNoPose;
+  result.reason = fmt::format("the request's deadline passed before {}", stage);
+  result.pose.failure = result.reason;
+  result.times.total_ms = MsSince(start);
+  return result;
+}
+
 LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult result,
                                   const LocalizeRequest& request, std::string_view source,
                                   Clock::time_point start) const {
@@ -291,6 +304,13 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
   if (request.threshold_px) options.ransac.max_error = *request.threshold_px;
   if (request.seed) options.ransac.seed = *request.seed;
   if (request.max_seconds) options.ransac.max_seconds = *request.max_seconds;
+  if (request.deadline) {
+    const double left = std::chrono::duration<double>(*request.deadline - Clock::now()).count();
+    if (left <= 0) return PastDeadline(method, std::move(result), "RANSAC", start);
+    if (options.ransac.max_seconds <= 0 || options.ransac.max_seconds > left) {
+      options.ransac.max_seconds = left;
+    }
+  }
   if (request.refine_focal) options.refine_focal = *request.refine_focal;
   if (request.ransac_progress) options.ransac.progress = request.ransac_progress;
   if (!result.photos.empty() &&

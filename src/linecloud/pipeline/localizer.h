@@ -72,6 +72,11 @@ struct LocalizeRequest {
   std::optional<Eigen::Vector3d> gravity;  // gravity direction in the query (rig) frame
   std::optional<double> threshold_px;
   std::optional<double> max_seconds;  // RANSAC's time budget
+  // When the caller stops waiting (a service's request deadline): a stage
+  // not started by then is skipped, and RANSAC's budget ends there. The
+  // result is then "no pose", its reason naming the stage. (A stage already
+  // running, e.g. SIFT on one photo, finishes first.)
+  std::optional<std::chrono::steady_clock::time_point> deadline;
   std::optional<bool> refine_focal;
   std::optional<uint64_t> seed;
   int threads = 0;           // this request's matching threads (0: the Localizer's image.threads)
@@ -165,6 +170,10 @@ class Localizer {
   LocalizerResult Finish(const MethodInfo& method, LocalizerResult result,
                          const LocalizeRequest& request, std::string_view source,
                          std::chrono::steady_clock::time_point start) const;
+  // "No pose": the request's deadline passed before `stage`.
+  LocalizerResult PastDeadline(const MethodInfo& method, LocalizerResult result,
+                               const std::string& stage,
+                               std::chrono::steady_clock::time_point start) const;
 };
 
 }  // namespace linecloud

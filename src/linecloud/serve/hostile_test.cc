@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -27,6 +28,7 @@
 #include "linecloud/serve/test_tokens.h"
 #include "linecloud/serve/wire.h"
 #include "linecloud/testing/test_util.h"
+#include "linecloud/util/base64.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
@@ -50,7 +52,16 @@ LineCloud SmallCloud() {
     cloud.ids.push_back(10 + i);
     cloud.lines.push_back(PluckerLine::FromPointAndDirection(
         Eigen::Vector3d(u(rng), u(rng), 5 + u(rng)), Eigen::Vector3d(u(rng), u(rng), u(rng))));
-    for (int k = 0; k < 128; ++k) cloud.descriptors.push_back(static_cast<uint8_t>(rng() % 60));
+    // SIFT-like: on the sphere of radius 512 (COLMAP's normalisation).
+    std::vector<double> v(128);
+    double norm = 0;
+    for (double& x : v) {
+      x = static_cast<double>(rng() % 1000);
+      norm += x * x;
+    }
+    for (const double x : v) {
+      cloud.descriptors.push_back(static_cast<uint8_t>(std::lround(512 * x / std::sqrt(norm))));
+    }
   }
   return cloud;
 }
@@ -375,6 +386,60 @@ TEST(Hostile, SighupWithBrokenMapsKeepsServing) {
   EXPECT_EQ(a.status, 400);
   EXPECT_NE(ErrorOf(a).find("body: not JSON"), std::string::npos) << a.body;
   EXPECT_NE(s.err().find("\"status\":400"), std::string::npos) << s.err();
+  EXPECT_TRUE(s.Alive());
+}
+
+// A features body: `n` keypoints at random pixels with the map's own
+// descriptors (every one matches, no pose fits them: RANSAC cannot finish),
+// or, with `own` false, unrelated descriptors (few matches: a quick "no pose").
+std::string FeaturesBody(int n, bool own) {
+  const LineCloud cloud = SmallCloud();
+  std::mt19937_64 rng(9);
+  json kp = json::array();
+  std::string descriptors;
+  for (int i = 0; i < n; ++i) {
+    kp.push_back({static_cast<double>(rng() % 640), static_cast<double>(rng() % 480)});
+    for (int k = 0; k < 128; ++k) {
+      descriptors.push_back(static_cast<char>(own ? cloud.descriptors[128 * i + k] : 200));
+    }
+  }
+  return json{
+      {"camera",
+       {{"model", "PINHOLE"},
+        {"width", 640},
+        {"height", 480},
+        {"params", {500.0, 500.0, 320.0, 240.0}}}},
+      {"keypoints", kp},
+      {"descriptors", Base64Encode(std::vector<uint8_t>(descriptors.begin(), descriptors.end()))}}
+      .dump();
+}
+
+// Row 7: work stops at the request's deadline. Three requests RANSAC cannot
+// finish on one worker (each answered 504) held it for 31 s; now the queued
+// ones are skipped once their deadline has passed, and the next client's
+// request is answered at once.
+TEST(Hostile, WorkStopsAtTheDeadline) {
+  Maps m;
+  Served s(m.tmp, {"--request-seconds", "2", "--queue", "8"});
+  ASSERT_GT(s.port(), 0) << s.err();
+  const std::string hopeless =
+      Request("POST", "/v1/maps/synth/localize", {kRoot, "Content-Type: application/json"},
+              FeaturesBody(200, true));
+  std::vector<std::thread> clients;
+  std::vector<Answer> answers(3);
+  for (int i = 0; i < 3; ++i) {
+    clients.emplace_back([&, i] { answers[i] = Send(s.port(), hopeless); });
+  }
+  for (std::thread& t : clients) t.join();
+  for (const Answer& a : answers) {
+    EXPECT_EQ(a.status, 504) << a.body;
+    EXPECT_LT(a.seconds, 3.0);
+  }
+  const Answer next =
+      Send(s.port(), Request("POST", "/v1/maps/synth/localize",
+                             {kRoot, "Content-Type: application/json"}, FeaturesBody(20, false)));
+  EXPECT_EQ(next.status, 200) << next.body;
+  EXPECT_LT(next.seconds, 1.0);
   EXPECT_TRUE(s.Alive());
 }
 

@@ -577,8 +577,15 @@ struct Server::Impl {
     LocalizeRequest r;
     r.method = method;
     if (!gravity.empty()) r.gravity = ParseDirection(gravity, "gravity");
-    const double left = std::chrono::duration<double>(deadline - Clock::now()).count();
-    r.max_seconds = std::max(0.01, std::min(max_seconds.value_or(left), left));
+    if (max_seconds && !(*max_seconds > 0 && std::isfinite(*max_seconds))) {
+      Fail("max_seconds: expected a positive number of seconds");
+    }
+    r.max_seconds = max_seconds;
+    // Counted when the work starts, not when the request arrived: a job that
+    // waited in the queue past its deadline (already answered 504) is
+    // skipped, and RANSAC stops at it (3 requests RANSAC could not finish
+    // held one worker 31 s).
+    r.deadline = deadline;
     return r;
   }
 
