@@ -916,6 +916,13 @@ TEST(Cli, AuditMeasuresWhatLeaksFromARealMap) {
   for (const char* f : {"report.json", "report.md", "recovered.ply", "audit.png"}) {
     EXPECT_TRUE(FileExists(tmp.Path(std::string("audit/") + f))) << f;
   }
+  // What the attack recovered is the owner's only (it was world-readable).
+  for (const char* f : {"recovered.ply", "audit.png"}) {
+    const auto perms = std::filesystem::status(tmp.Path(std::string("audit/") + f)).permissions();
+    EXPECT_EQ(perms & (std::filesystem::perms::group_all | std::filesystem::perms::others_all),
+              std::filesystem::perms::none)
+        << f;
+  }
   EXPECT_NE(ReadFileToString(tmp.Path("audit/report.md")).find("| 1 % of the diagonal |"),
             std::string::npos);
   EXPECT_EQ(ReadFileToString(tmp.Path("map.lcm")), map_before);

@@ -126,7 +126,9 @@ void WriteAuditFigure(const std::string& path, std::span<const Eigen::Vector3d> 
   }
   cairo_surface_destroy(surface);
   if (png.empty()) Fail("{}: cannot render the audit figure", path);
-  WriteFileAtomically(path, [&](std::ostream& out) { out.write(png.data(), png.size()); });
+  // The recovered points are the secret the map protects: the owner's only.
+  WriteFileAtomically(
+      path, [&](std::ostream& out) { out.write(png.data(), png.size()); }, 0600);
 }
 
 }  // namespace linecloud

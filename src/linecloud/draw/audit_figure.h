@@ -24,6 +24,7 @@ std::array<double, 3> ErrorColour(double error, double diagonal);
 // along the middle one ("top"), both drawn in the plane of the two others.
 // Colours: green (error 0) → yellow (1 % of `diagonal`) → red (≥ 2 %).
 // Throws Error naming `path` when it cannot be written.
+// Written mode 0600 (it shows the secret points).
 void WriteAuditFigure(const std::string& path, std::span<const Eigen::Vector3d> secret,
                       std::span<const Eigen::Vector3d> recovered, std::span<const double> errors,
                       double diagonal, const AuditFigureText& text);

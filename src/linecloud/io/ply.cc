@@ -63,22 +63,27 @@ void WriteLineCloudPly(const LineCloud& cloud, const std::string& path, double s
 }
 
 void WritePointsPly(const std::string& path, const std::vector<Eigen::Vector3d>& points,
-                    const std::vector<std::array<uint8_t, 3>>& colors, const std::string& comment) {
+                    const std::vector<std::array<uint8_t, 3>>& colors, const std::string& comment,
+                    unsigned mode) {
   if (!colors.empty() && colors.size() != points.size()) {
     Fail("{}: {} colours for {} points", path, colors.size(), points.size());
   }
-  WriteFileAtomically(path, [&](std::ostream& out) {
-    out << "ply\nformat binary_little_endian 1.0\n";
-    if (!comment.empty()) out << "comment " << comment << "\n";
-    out << "element vertex " << points.size() << "\n"
-        << "property float x\nproperty float y\nproperty float z\n";
-    if (!colors.empty()) out << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
-    out << "end_header\n";
-    for (size_t i = 0; i < points.size(); ++i) {
-      for (int k = 0; k < 3; ++k) WriteLE(out, static_cast<float>(points[i][k]));
-      if (!colors.empty()) out.write(reinterpret_cast<const char*>(colors[i].data()), 3);
-    }
-  });
+  WriteFileAtomically(
+      path,
+      [&](std::ostream& out) {
+        out << "ply\nformat binary_little_endian 1.0\n";
+        if (!comment.empty()) out << "comment " << comment << "\n";
+        out << "element vertex " << points.size() << "\n"
+            << "property float x\nproperty float y\nproperty float z\n";
+        if (!colors.empty())
+          out << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+        out << "end_header\n";
+        for (size_t i = 0; i < points.size(); ++i) {
+          for (int k = 0; k < 3; ++k) WriteLE(out, static_cast<float>(points[i][k]));
+          if (!colors.empty()) out.write(reinterpret_cast<const char*>(colors[i].data()), 3);
+        }
+      },
+      mode);
 }
 
 void ReadColoredPointsPly(const std::string& path, size_t max_points, std::vector<float>* xyz,

@@ -22,8 +22,10 @@ void WriteLineCloudPly(const LineCloud& cloud, const std::string& path, double s
 void WriteModelPly(const Reconstruction& reconstruction, const std::string& path);
 
 // Points, optionally coloured (`colors` empty or one RGB triple per point).
+// `mode` as WriteFileAtomically's (0600 for points recovered from a map).
 void WritePointsPly(const std::string& path, const std::vector<Eigen::Vector3d>& points,
-                    const std::vector<std::array<uint8_t, 3>>& colors, const std::string& comment);
+                    const std::vector<std::array<uint8_t, 3>>& colors, const std::string& comment,
+                    unsigned mode = 0644);
 
 // Reads back what WritePointsPly wrote with colours (binary little-endian,
 // float x y z, uchar red green blue): xyz N x 3, rgb N x 3. Throws Error

@@ -271,7 +271,7 @@ TEST(Serve, ConsoleRoutesRevealNothingTheMapDoesNot) {
   WriteFileAtomically(f.tmp.Path("maps/synth.json"),
                       [&](std::ostream& os) { os << R"({"publish_lines": true})"; });
   const json published_audit = {
-      {"density_attack", {{"recovery", {{"within_diagonal_percent", {{"1", 63.25}}}}}}}};
+      {"density_attack", {{"recovery", {{"within_diagonal_percent", {{"1", 0.6325}}}}}}}};
   WriteFileAtomically(f.tmp.Path("maps/synth.audit.json"),
                       [&](std::ostream& os) { os << published_audit.dump(); });
   server.server().Reload();  // the map file unchanged: its ID.json and audit are read anew
@@ -280,7 +280,7 @@ TEST(Serve, ConsoleRoutesRevealNothingTheMapDoesNot) {
   EXPECT_EQ(r->body.size(), 10 * 6 * sizeof(float));
   const json published = json::parse(c.Get("/v1/maps/synth", Bearer("alice-secret"))->body);
   EXPECT_EQ(published["publish_lines"], true);
-  EXPECT_EQ(published["audit_recovered_percent"], 63.25);
+  EXPECT_EQ(published["audit_recovered_share"], 0.6325);
   WriteFileAtomically(f.tmp.Path("maps/synth.audit.json"),
                       [&](std::ostream& os) { os << audit.dump(); });
 

@@ -94,6 +94,42 @@ std::string Authorization(const httplib::Request& req) {
   return it == req.headers.end() ? "" : it->second;
 }
 
+// The console's Content-Security-Policy: its own files, and its inline
+// import map by hash (Chromium reads import maps inline only), nothing else;
+// never framed. `index_html` is the page ("" when there is no console).
+std::string ConsolePolicy(const std::string& index_html) {
+  std::string scripts = "'self'";
+  const std::string open = "<script type=\"importmap\">", close = "</script>";
+  const size_t begin = index_html.find(open);
+  if (begin != std::string::npos) {
+    const size_t start = begin + open.size();
+    const size_t end = index_html.find(close, start);
+    if (end != std::string::npos) {
+      unsigned char digest[crypto_hash_sha256_BYTES];
+      crypto_hash_sha256(digest, reinterpret_cast<const unsigned char*>(index_html.data() + start),
+                         end - start);
+      std::string b64(sodium_base64_ENCODED_LEN(sizeof(digest), sodium_base64_VARIANT_ORIGINAL),
+                      '\0');
+      sodium_bin2base64(b64.data(), b64.size(), digest, sizeof(digest),
+                        sodium_base64_VARIANT_ORIGINAL);
+      b64.resize(std::strlen(b64.c_str()));
+      scripts += " 'sha256-" + b64 + "'";
+    }
+  }
+  return "default-src 'self'; script-src " + scripts +
+         "; style-src 'self'; img-src 'self' data: blob:; connect-src 'self'; object-src 'none'; "
+         "base-uri 'none'; form-action 'self'; frame-ancestors 'none'";
+}
+
+// The announced Content-Length (0 when absent; UINT64_MAX when it is not a
+// number below 10^15: no body that large is read).
+uint64_t BodyLength(const httplib::Request& req) {
+  const std::string v = req.get_header_value("Content-Length");
+  if (v.empty()) return 0;
+  if (v.size() > 15 || !std::all_of(v.begin(), v.end(), ::isdigit)) return UINT64_MAX;
+  return std::stoull(v);
+}
+
 // The route a path belongs to, as the access log and /metrics name it.
 std::string RouteName(const std::string& path) {
   constexpr std::string_view kMaps = "/v1/maps/";
@@ -448,13 +484,13 @@ struct Server::Impl {
     m->details["publish_lines"] = m->publish_lines;
     const std::string audit_path = JoinPaths(options.maps_dir, id + ".audit.json");
     if (m->publish_lines && FileExists(audit_path)) {
-      // What publishing costs, from the owner's audit: the percentage of
-      // points the density attack recovered within 1 % of the scene diagonal.
+      // What publishing costs, from the owner's audit: the share of points
+      // the density attack recovered within 1 % of the scene diagonal.
       try {
         const json audit = ParseRequestJson(ReadFilePrefix(audit_path, 1 << 22), audit_path);
         const json share = audit.value(
             json::json_pointer("/density_attack/recovery/within_diagonal_percent/1"), json());
-        if (share.is_number()) m->details["audit_recovered_percent"] = share;
+        if (share.is_number()) m->details["audit_recovered_share"] = share;
       } catch (const std::exception& e) {
         Log(DumpJson(json{{"notice", fmt::format("map {}: audit not read: {}", id, e.what())}}));
       }
@@ -924,7 +960,8 @@ struct Server::Impl {
                              std::chrono::system_clock::now().time_since_epoch())
                              .count()},
                 {"route", route},
-                {"method", req.method}};
+                {"method", req.method},
+                {"client", req.remote_addr}};
     int status = 200;
     try {
       res.set_content(DumpJson(body(&log)), "application/json");
@@ -975,6 +1012,11 @@ struct Server::Impl {
     } else if (!allowed.empty() && allowed.find(req.method) == std::string::npos &&
                !(req.method == "HEAD" && allowed == "GET")) {
       refusal = HttpError{405, fmt::format("{} is not allowed here ({})", req.method, allowed)};
+    } else if (BodyLength(req) > static_cast<uint64_t>(4 * options.max_body_mb * 1024 * 1024)) {
+      // Far over the cap: answered at once and the connection closed (the
+      // library would read and drop the whole announced body first). A body
+      // just over the cap is still drained, so its client reads the 413.
+      refusal = HttpError{413, "the body exceeds --max-body-mb"};
     } else if (req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos) {
       // Debian's cpp-httplib 0.11.4 buffers a chunked body whole, without
       // --max-body-mb: 300 MB from a stranger before the 401.
@@ -993,9 +1035,14 @@ struct Server::Impl {
     if (!refusal) return httplib::Server::HandlerResponse::Unhandled;
     const std::string route = allowed.empty() ? "static" : RouteName(req.path);
     Handle(route, req, res, [&](json*) -> json { throw *refusal; });
-    if (refusal->status == 411 || refusal->status == 431) res.set_header("Connection", "close");
+    if (refusal->status == 411 || refusal->status == 413 || refusal->status == 431) {
+      res.set_header("Connection", "close");  // the body is never read
+    }
     return httplib::Server::HandlerResponse::Handled;
   }
+
+  // Content-Security-Policy of every answer (ConsolePolicy).
+  std::string security_policy = ConsolePolicy("");
 
   void Routes() {
     http.Get("/healthz", [this](const httplib::Request& req, httplib::Response& res) {
@@ -1052,13 +1099,31 @@ struct Server::Impl {
       Handle("/geopose", req, res, [&](json* log) { return GeoPoseRoute(req, log); });
     });
     // Unknown routes and methods: JSON errors too.
-    http.set_error_handler([](const httplib::Request&, httplib::Response& res) {
+    // The library's own answers (a request it could not parse, a body over
+    // --max-body-mb, a path no route or file has) are JSON and logged too.
+    http.set_error_handler([this](const httplib::Request& req, httplib::Response& res) {
       if (res.body.empty()) {
         const std::string message = res.status == 413   ? "the body exceeds --max-body-mb"
                                     : res.status == 404 ? "no such route"
                                                         : "bad request";
         res.set_content(DumpJson(json{{"error", message}}), "application/json");
+        metrics.Request("other", res.status);
+        Log(DumpJson(json{{"time", std::chrono::duration_cast<std::chrono::milliseconds>(
+                                       std::chrono::system_clock::now().time_since_epoch())
+                                       .count()},
+                          {"route", "other"},
+                          {"method", req.method},
+                          {"client", req.remote_addr},
+                          {"status", res.status}}));
       }
+    });
+    // Every answer: no sniffing, no framing, no referrer; the console's page
+    // may run its own files and its import map only (security_policy).
+    http.set_post_routing_handler([this](const httplib::Request&, httplib::Response& res) {
+      res.set_header("X-Content-Type-Options", "nosniff");
+      res.set_header("X-Frame-Options", "DENY");
+      res.set_header("Referrer-Policy", "no-referrer");
+      res.set_header("Content-Security-Policy", security_policy);
     });
   }
 };
@@ -1107,6 +1172,8 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   const std::string web = o.web_dir.empty() ? DefaultWebDir() : o.web_dir;
   if (!web.empty() && fs::is_regular_file(fs::path(web) / "index.html")) {
     h.set_mount_point("/", web);
+    impl_->security_policy =
+        ConsolePolicy(ReadFilePrefix((fs::path(web) / "index.html").string(), 1 << 20));
     // Debian's cpp-httplib compresses every text/* and application/javascript
     // answer for a browser with brotli at its slowest quality: three.js took
     // 4.8 s to arrive. Another of the HTML standard's JavaScript MIME types,
