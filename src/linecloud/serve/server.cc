@@ -63,7 +63,6 @@ bool IsMapId(const std::string& id) {
                      [](unsigned char c) { return std::isalnum(c) != 0 || c == '_' || c == '-'; });
 }
 
-// An answer with a status: errors carry {"error": ...}.
 // Header fields a request may carry (cpp-httplib 0.11.4 has no limit of its
 // own: 500 000 headers cost 125 MB before a route saw them).
 constexpr size_t kMaxHeaders = 100;
@@ -139,6 +138,7 @@ std::string RouteName(const std::string& path) {
   return slash == std::string::npos ? "/v1/maps/{id}" : "/v1/maps/{id}" + rest.substr(slash);
 }
 
+// An answer with a status: errors carry {"error": ...}.
 struct HttpError {
   int status;
   std::string message;
