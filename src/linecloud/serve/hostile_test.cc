@@ -312,6 +312,21 @@ TEST(Hostile, RequestsRefusedBeforeTheirBody) {
   a = Send(s.port(), chunked);
   EXPECT_EQ(a.status, 411);
   EXPECT_LT(a.seconds, 2.0);
+  // Found by an outsider's attack: other codings got no answer at all,
+  // malformed or doubled lengths a 413 or a processed request, a decoded
+  // %00 served app.js as HTML.
+  a = Send(s.port(), "POST /v1/maps/synth/localize HTTP/1.1\r\nHost: x\r\n" + kRoot +
+                         "\r\nTransfer-Encoding: gzip\r\nContent-Type: application/json\r\n\r\n{}");
+  EXPECT_EQ(a.status, 411);
+  for (const char* length :
+       {"Content-Length: -1", "Content-Length: 0x10", "Content-Length: 5\r\nContent-Length: 6"}) {
+    a = Send(s.port(), "POST /v1/maps/synth/localize HTTP/1.1\r\nHost: x\r\n" + kRoot + "\r\n" +
+                           length + "\r\nContent-Type: application/json\r\n\r\nabcdef");
+    EXPECT_EQ(a.status, 400) << length;
+    EXPECT_NE(ErrorOf(a).find("Content-Length"), std::string::npos) << length;
+  }
+  a = Send(s.port(), Request("GET", "/index.html%00.js"));
+  EXPECT_EQ(a.status, 400);
   // A body from a stranger with a length: 401 before it is read.
   a = Send(s.port(), Request("POST", "/v1/maps/synth/localize", {"Content-Type: application/json"},
                              std::string(1 << 20, 'a')));

@@ -1007,8 +1007,16 @@ struct Server::Impl {
   httplib::Server::HandlerResponse Screen(const httplib::Request& req, httplib::Response& res) {
     std::optional<HttpError> refusal;
     const std::string allowed = AllowedMethods(req.path);
+    const std::string length = req.get_header_value("Content-Length");
     if (req.headers.size() > kMaxHeaders) {
       refusal = HttpError{431, fmt::format("more than {} header fields", kMaxHeaders)};
+    } else if (req.path.find('\0') != std::string::npos) {
+      // A decoded %00 cut a console file's name short (app.js%00.html was
+      // served as HTML).
+      refusal = HttpError{400, "the path holds a NUL byte"};
+    } else if (req.get_header_value_count("Content-Length") > 1 ||
+               (!length.empty() && !std::all_of(length.begin(), length.end(), ::isdigit))) {
+      refusal = HttpError{400, "Content-Length: one decimal number expected"};
     } else if (!allowed.empty() && allowed.find(req.method) == std::string::npos &&
                !(req.method == "HEAD" && allowed == "GET")) {
       refusal = HttpError{405, fmt::format("{} is not allowed here ({})", req.method, allowed)};
@@ -1017,10 +1025,12 @@ struct Server::Impl {
       // library would read and drop the whole announced body first). A body
       // just over the cap is still drained, so its client reads the 413.
       refusal = HttpError{413, "the body exceeds --max-body-mb"};
-    } else if (req.get_header_value("Transfer-Encoding").find("chunked") != std::string::npos) {
+    } else if (req.has_header("Transfer-Encoding")) {
       // Debian's cpp-httplib 0.11.4 buffers a chunked body whole, without
-      // --max-body-mb: 300 MB from a stranger before the 401.
-      refusal = HttpError{411, "send the body with a Content-Length (chunked bodies are refused)"};
+      // --max-body-mb (300 MB from a stranger before the 401), and closes
+      // on other codings without an answer.
+      refusal =
+          HttpError{411, "send the body with a Content-Length (Transfer-Encoding is refused)"};
     } else if (req.ranges.size() > 1) {
       // 500 ranges of one file answered 808 MB.
       refusal = HttpError{416, "one range per request"};
