@@ -25,7 +25,7 @@
 #include "linecloud/features/image.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/serve/server.h"
-#include "linecloud/serve/test_tokens.h"
+#include "linecloud/serve/serve_testing.h"
 #include "linecloud/serve/wire.h"
 #include "linecloud/testing/test_util.h"
 #include "linecloud/util/base64.h"
@@ -66,68 +66,20 @@ LineCloud SmallCloud() {
   return cloud;
 }
 
-// `linecloud serve` as a child process; its standard error in a file.
-class Served {
+// `linecloud serve` on the test's maps and tokens, one worker, a random port.
+class Served : public ServedBinary {
  public:
-  explicit Served(const TempDir& tmp, std::vector<std::string> extra = {}) : err_(tmp.Path("err")) {
-    std::vector<std::string> args = {"linecloud", "serve",
-                                     "--maps",    tmp.Path("maps"),
-                                     "--tokens",  tmp.Path("tokens.json"),
-                                     "--listen",  "127.0.0.1:0",
-                                     "--threads", "1"};
-    args.insert(args.end(), extra.begin(), extra.end());
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      const int fd = ::open(err_.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
-      ::dup2(fd, 2);
-      std::vector<char*> argv;
-      for (std::string& a : args) argv.push_back(a.data());
-      argv.push_back(nullptr);
-      ::execv(LINECLOUD_BINARY, argv.data());
-      ::_exit(127);
-    }
-    for (int i = 0; i < 400 && port_ == 0; ++i) {
-      std::this_thread::sleep_for(std::chrono::milliseconds(25));
-      const std::string text = ReadFileToString(err_);
-      const std::string key = "listening on http://127.0.0.1:";
-      if (const size_t at = text.find(key); at != std::string::npos) {
-        port_ = std::atoi(text.c_str() + at + key.size());
-      }
-      int status = 0;
-      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
-        exited_ = true;
-        exit_status_ = status;
-        break;
-      }
-    }
-  }
-  ~Served() {
-    if (!exited_) {
-      ::kill(pid_, SIGKILL);
-      ::waitpid(pid_, nullptr, 0);
-    }
-  }
-  int port() const { return port_; }
-  pid_t pid() const { return pid_; }
-  std::string err() const { return ReadFileToString(err_); }
-  // Still running (no crash).
-  bool Alive() {
-    if (exited_) return false;
-    int status = 0;
-    if (::waitpid(pid_, &status, WNOHANG) == pid_) {
-      exited_ = true;
-      exit_status_ = status;
-    }
-    return !exited_;
-  }
-  int exit_status() const { return exit_status_; }
+  explicit Served(const TempDir& tmp, std::vector<std::string> extra = {})
+      : ServedBinary(Args(tmp, std::move(extra)), tmp.Path("err")) {}
 
  private:
-  std::string err_;
-  pid_t pid_ = -1;
-  int port_ = 0;
-  bool exited_ = false;
-  int exit_status_ = 0;
+  static std::vector<std::string> Args(const TempDir& tmp, std::vector<std::string> extra) {
+    std::vector<std::string> args = {
+        "serve",    "--maps",      tmp.Path("maps"), "--tokens", tmp.Path("tokens.json"),
+        "--listen", "127.0.0.1:0", "--threads",      "1"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return args;
+  }
 };
 
 struct Answer {

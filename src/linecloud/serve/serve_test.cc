@@ -24,7 +24,7 @@
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/serve/geo.h"
 #include "linecloud/serve/server.h"
-#include "linecloud/serve/test_tokens.h"
+#include "linecloud/serve/serve_testing.h"
 #include "linecloud/serve/tokens.h"
 #include "linecloud/testing/test_util.h"
 #include "linecloud/util/base64.h"
@@ -659,26 +659,12 @@ TEST(Geo, GeodeticRoundTripsAndPosesComeBack) {
 TEST(Serve, SighupReloadsAndSigtermDrainsUnderLoad) {
   Fixture f;
   std::filesystem::remove(f.tmp.Path("maps/other.lcm"));
-  const std::string err = f.tmp.Path("serve.err");
-  const pid_t pid = ::fork();
-  if (pid == 0) {
-    const int fd = ::open(err.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
-    ::dup2(fd, 2);
-    ::execl(LINECLOUD_BINARY, "linecloud", "serve", "--maps", f.tmp.Path("maps").c_str(),
-            "--listen", "127.0.0.1:0", "--threads", "2", "--queue", "64",
-            static_cast<char*>(nullptr));
-    ::_exit(127);
-  }
-  int port = 0;
-  for (int i = 0; i < 200 && port == 0; ++i) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    const std::string text = ReadFileToString(err);
-    const std::string key = "listening on http://127.0.0.1:";
-    if (const size_t at = text.find(key); at != std::string::npos) {
-      port = std::atoi(text.c_str() + at + key.size());
-    }
-  }
-  ASSERT_GT(port, 0) << ReadFileToString(err);
+  ServedBinary server({"serve", "--maps", f.tmp.Path("maps"), "--listen", "127.0.0.1:0",
+                       "--threads", "2", "--queue", "64"},
+                      f.tmp.Path("serve.err"));
+  const int port = server.port();
+  const pid_t pid = server.pid();
+  ASSERT_GT(port, 0) << server.err();
   const std::string body = FeaturesBody(f.scene).dump();
   std::atomic<int> ok = 0, failed = 0;
   const auto load = [&](int n) {
@@ -711,9 +697,8 @@ TEST(Serve, SighupReloadsAndSigtermDrainsUnderLoad) {
   std::this_thread::sleep_for(std::chrono::milliseconds(20));
   ::kill(pid, SIGTERM);
   for (auto& t : second) t.join();
-  int status = 0;
-  ::waitpid(pid, &status, 0);
-  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << ReadFileToString(err);
+  const int status = server.Wait();
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << server.err();
   EXPECT_EQ(failed.load(), 0);  // no request cut: answered, or never accepted
   EXPECT_GT(ok.load(), 0);
 }
