@@ -371,12 +371,10 @@ std::string DefaultWebDir() {
 }
 
 // A loopback address by value (127.0.0.0/8, ::1, "localhost"), not by
-// spelling: "127.evil.com" is a name anyone may point anywhere.
-bool IsLoopback(std::string host) {
+// spelling: "127.evil.com" is a name anyone may point anywhere. `host` as
+// ParseListen gives it (an IPv6 address without its brackets).
+bool IsLoopback(const std::string& host) {
   if (host == "localhost") return true;
-  if (host.size() > 2 && host.front() == '[' && host.back() == ']') {
-    host = host.substr(1, host.size() - 2);
-  }
   in_addr v4{};
   if (::inet_pton(AF_INET, host.c_str(), &v4) == 1) return (ntohl(v4.s_addr) >> 24) == 127;
   in6_addr v6{};
