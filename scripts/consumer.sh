@@ -4,6 +4,8 @@
 # linecloud::core; it localizes one synthetic query) against it, and again
 # with linecloud as a subdirectory (add_subdirectory: libraries only).
 # Expects ./build configured and built (scripts/run.sh test or demo).
+#   --subdirectory-configure-only   configure the subdirectory variant without compiling the
+#                                   library's sources a second time (CI: the same sources as ./build)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 prefix="$PWD/build/consumer/prefix"
@@ -14,8 +16,12 @@ cmake -S tests/consumer -B build/consumer/installed -G Ninja -DCMAKE_PREFIX_PATH
 cmake --build build/consumer/installed
 ./build/consumer/installed/consumer
 cmake -S tests/consumer -B build/consumer/subdirectory -G Ninja -DLINECLOUD_SOURCE_DIR="$PWD" >/dev/null
-cmake --build build/consumer/subdirectory -j2
-./build/consumer/subdirectory/consumer
+if [ "${1:-}" = "--subdirectory-configure-only" ]; then
+  echo "subdirectory: configured (not compiled: --subdirectory-configure-only)"
+else
+  cmake --build build/consumer/subdirectory -j2
+  ./build/consumer/subdirectory/consumer
+fi
 # The README's Localizer example (tests/consumer/photos.cc): a map loaded once,
 # photos from memory and from features. On the shared model's photo (a fixed
 # key, a throwaway key store; its heavily compressed photos give no pose), and

@@ -5,12 +5,14 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET="${1:-30}"
-CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DLINECLOUD_FUZZ=ON -DLINECLOUD_BUILD_TESTS=OFF -DLINECLOUD_BUILD_BENCH=OFF >/dev/null
-cmake --build build-fuzz -j2
-corpus=build-fuzz/corpus
+# The sanitizer build's folder (scripts/sanitize.sh): one clang ASan + UBSan build for both.
+CC=clang CXX=clang++ cmake -S . -B build-san -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+  -DLINECLOUD_SANITIZE=ON -DLINECLOUD_FUZZ=ON -DLINECLOUD_BUILD_BENCH=OFF >/dev/null
+cmake --build build-san -j2 --target linecloud lcm_fuzzer colmap_binary_fuzzer colmap_text_fuzzer \
+  json_fuzzer colmap_database_fuzzer image_fuzzer index_cache_fuzzer
+corpus=build-san/corpus
 rm -rf "$corpus" && mkdir -p "$corpus"/{lcm,bin,txt,json,db,image,cache}
-./build-fuzz/linecloud demo --out "$corpus/demo" --points 300 --images 4 --queries 1 >/dev/null
+./build-san/linecloud demo --out "$corpus/demo" --points 300 --images 4 --queries 1 >/dev/null
 cp "$corpus/demo/map.lcm" "$corpus/lcm/full.lcm"
 cp "$corpus/demo/map_compact.lcm" "$corpus/lcm/compact.lcm"
 i=0
@@ -31,7 +33,7 @@ fi
 run() {
   local target=$1 dir=$2
   echo "fuzzing $target for ${SECONDS_PER_TARGET}s"
-  ./build-fuzz/"$target" -max_total_time="$SECONDS_PER_TARGET" -rss_limit_mb=2048 \
+  ./build-san/"$target" -max_total_time="$SECONDS_PER_TARGET" -rss_limit_mb=2048 \
     -max_len=65536 -print_final_stats=1 "$dir" 2>&1 | grep -E "^(stat::number_of_executed_units|stat::peak_rss_mb|==|SUMMARY|Done)" || true
   # libFuzzer exits non-zero and writes crash-* files on a finding.
   if ls crash-* leak-* timeout-* oom-* >/dev/null 2>&1; then

@@ -7,6 +7,7 @@
 #                          chromium (web/tests), then the service behind nginx with one server
 #                          killed (scripts/fault_test.sh)
 #   scripts/run.sh bench   the benchmarks (Google Benchmark)
+#   scripts/run.sh build   only the build (everything: library, tools, tests, benchmarks, module)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 job="${1:-demo}"
@@ -22,6 +23,7 @@ case "$job" in
   test) cmake --build build -j2 && ctest --test-dir build --output-on-failure -j2 &&
         bash scripts/python_test.sh && bash scripts/build_web.sh &&
         node web/tests/console.test.mjs && bash scripts/fault_test.sh ;;
+  build) cmake --build build -j2 ;;
   bench) cmake --build build -j2 && ./build/linecloud_bench ;;
-  *) echo "error: unknown job '$job' (demo, test, bench)" >&2; exit 2 ;;
+  *) echo "error: unknown job '$job' (demo, test, bench, build)" >&2; exit 2 ;;
 esac
