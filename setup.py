@@ -25,9 +25,20 @@ def _version() -> str:
     raise RuntimeError("CMakeLists.txt: no project version")
 
 
+def _build_dir() -> Path:
+    """LINECLOUD_CMAKE_BUILD_DIR; else ./build when it is a configured build with the module on
+    (the one `scripts/run.sh` makes: nothing is compiled again); else build/pip."""
+    if os.environ.get("LINECLOUD_CMAKE_BUILD_DIR"):
+        return Path(os.environ["LINECLOUD_CMAKE_BUILD_DIR"]).resolve()
+    cache = ROOT / "build" / "CMakeCache.txt"
+    if cache.exists() and "LINECLOUD_PYTHON:BOOL=ON" in cache.read_text(errors="replace"):
+        return ROOT / "build"
+    return ROOT / "build" / "pip"
+
+
 class CMakeBuild(build_ext):
     def build_extension(self, ext):
-        build = Path(os.environ.get("LINECLOUD_CMAKE_BUILD_DIR", ROOT / "build" / "pip")).resolve()
+        build = _build_dir()
         configure = ["cmake", "-S", str(ROOT), "-B", str(build), "-DLINECLOUD_PYTHON=ON"]
         if not (build / "CMakeCache.txt").exists():
             generator = ["-G", "Ninja"] if shutil.which("ninja") else []
@@ -35,17 +46,21 @@ class CMakeBuild(build_ext):
                 "-DCMAKE_BUILD_TYPE=Release", "-DLINECLOUD_BUILD_TESTS=OFF",
                 "-DLINECLOUD_BUILD_BENCH=OFF", "-DLINECLOUD_INSTALL=OFF",
                 f"-DPython3_EXECUTABLE={sys.executable}"]
+        print(f"linecloud: CMake build folder {build}", flush=True)
         subprocess.run(configure, check=True)
         jobs = os.environ.get("CMAKE_BUILD_PARALLEL_LEVEL", str(os.cpu_count() or 1))
-        subprocess.run(["cmake", "--build", str(build), "--target", "linecloud_python", "-j", jobs],
-                       check=True)
+        # The module and the command-line tool (shipped in the package: `python -m linecloud`).
+        subprocess.run(["cmake", "--build", str(build), "--target", "linecloud_python", "linecloud",
+                        "-j", jobs], check=True)
         built = list((build / "python" / "linecloud").glob("_core*.so"))
         if len(built) != 1:
             raise RuntimeError(f"{build}/python/linecloud: expected one _core module, got {built}")
         target = Path(self.get_ext_fullpath(ext.name))
         target.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(built[0], target)
-
+        tool = target.parent / "bin" / "linecloud"
+        tool.parent.mkdir(exist_ok=True)
+        shutil.copy2(build / "linecloud", tool)
 
 setup(
     name="linecloud",
@@ -60,5 +75,6 @@ setup(
     package_data={"linecloud": ["py.typed", "*.pyi"]},
     ext_modules=[Extension("linecloud._core", sources=[])],
     cmdclass={"build_ext": CMakeBuild},
+    entry_points={"console_scripts": ["linecloud = linecloud.__main__:main"]},
     zip_safe=False,
 )

@@ -12,16 +12,15 @@
 #include "linecloud/features/image.h"
 #include "linecloud/features/sift.h"
 #include "linecloud/features/sift_opencv.h"
+#include "linecloud/testing/data_dir.h"
 
 namespace linecloud {
 namespace {
 
-// The photo, or nullptr when ../shared (or $LINECLOUD_SHARED) does not hold it.
+// The photo, or nullptr when the data folder (testing/data_dir.h) does not hold it.
 const GreyImage* Photo() {
   static const GreyImage* photo = []() -> const GreyImage* {
-    const char* shared = std::getenv("LINECLOUD_SHARED");
-    const std::filesystem::path path = std::filesystem::path(shared ? shared : "../shared") /
-                                       "data/strecha/fountain-P11/images/0000.jpg";
+    const std::filesystem::path path = testing::DataPath("strecha/fountain-P11/images/0000.jpg");
     if (!std::filesystem::exists(path)) return nullptr;
     return new GreyImage(ReadGreyImage(path.string()));
   }();
@@ -31,7 +30,9 @@ const GreyImage* Photo() {
 void Extract(benchmark::State& state, SiftOptions options) {
   const GreyImage* photo = Photo();
   if (!photo) {
-    state.SkipWithError("real data absent: ../shared/data/strecha (set LINECLOUD_SHARED)");
+    static const std::string why = "real data absent: " + testing::DataPath("strecha") +
+                                   " (scripts/get_data.sh, or set LINECLOUD_DATA)";
+    state.SkipWithError(why.c_str());
     return;
   }
   // One untimed run first: the scale-space buffers are pooled, so the timed

@@ -30,8 +30,8 @@ fi
 keys="$PWD/build/consumer/keys"
 key="$PWD/build/consumer/fixed.key"
 (umask 077; printf 'directions sphere\n%s\n' "$(printf '3c%.0s' $(seq 32))" > "$key")
-shared="${LINECLOUD_SHARED:-../shared}"
-maupertuis="$shared/data/colmap-maupertuis"
+data="$(bash scripts/data_dir.sh)"
+maupertuis="$data/colmap-maupertuis"
 if [ -d "$maupertuis" ]; then
   LINECLOUD_KEY_STORE="$keys" ./build/linecloud lift --model "$maupertuis/reconstruction" \
     --database "$maupertuis/colmap.db" --key-file "$key" --out build/consumer/maupertuis.lcm >/dev/null
@@ -47,7 +47,7 @@ if [ -f "$work/prepared.json" ] && [ -f "$work/lifting.key" ]; then
     --out build/consumer/fountain-g00.lcm >/dev/null
   ./build/consumer/installed/photos --expect-success build/consumer/fountain-g00.lcm \
     "PINHOLE 1536 1024 1379.74 1382.08 760.095 503.155" \
-    "$shared/data/strecha/fountain-P11/images/0000.jpg" "$shared/data/strecha/fountain-P11/images/0001.jpg"
+    "$data/strecha/fountain-P11/images/0000.jpg" "$data/strecha/fountain-P11/images/0001.jpg"
 fi
 # The pkg-config file names the installed core library.
 PKG_CONFIG_PATH="$prefix/lib/pkgconfig" pkg-config --modversion linecloud

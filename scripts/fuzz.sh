@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets with clang (ASan + UBSan) and runs each for
-# SECONDS seconds (default 30), seeded with real files from ../shared/data and
+# SECONDS seconds (default 30), seeded with real files from the data folder (scripts/data_dir.sh) and
 # files the demo writes. Exits non-zero when a fuzzer finds a crash.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -8,11 +8,14 @@ SECONDS_PER_TARGET="${1:-30}"
 # The sanitizer build's folder (scripts/sanitize.sh): one clang ASan + UBSan build for both.
 CC=clang CXX=clang++ cmake -S . -B build-san -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DLINECLOUD_SANITIZE=ON -DLINECLOUD_FUZZ=ON -DLINECLOUD_BUILD_BENCH=OFF >/dev/null
-cmake --build build-san -j2 --target linecloud lcm_fuzzer colmap_binary_fuzzer colmap_text_fuzzer \
+cmake --build build-san -j2 --target lcm_fuzzer colmap_binary_fuzzer colmap_text_fuzzer \
   json_fuzzer colmap_database_fuzzer image_fuzzer index_cache_fuzzer
+# The seed files come from the demo of the Release build (scripts/run.sh), else of this one.
+tool=./build/linecloud
+if [ ! -x "$tool" ]; then cmake --build build-san -j2 --target linecloud; tool=./build-san/linecloud; fi
 corpus=build-san/corpus
 rm -rf "$corpus" && mkdir -p "$corpus"/{lcm,bin,txt,json,db,image,cache}
-./build-san/linecloud demo --out "$corpus/demo" --points 300 --images 4 --queries 1 >/dev/null
+"$tool" demo --out "$corpus/demo" --points 300 --images 4 --queries 1 >/dev/null
 cp "$corpus/demo/map.lcm" "$corpus/lcm/full.lcm"
 cp "$corpus/demo/map_compact.lcm" "$corpus/lcm/compact.lcm"
 i=0
@@ -20,7 +23,8 @@ for f in cameras images points3D; do
   { printf "\\x$(printf %02x $i)"; cat "$corpus/demo/model/$f.bin"; } > "$corpus/bin/$f"
   i=$((i + 1))
 done
-shared_model="../shared/data/colmap-maupertuis/reconstruction"
+data="$(bash scripts/data_dir.sh)"
+shared_model="$data/colmap-maupertuis/reconstruction"
 if [ -d "$shared_model" ]; then
   i=0
   for f in cameras images points3D; do
@@ -55,8 +59,8 @@ if command -v colmap >/dev/null; then
 fi
 # Photos: two small JPEGs of the shared model and a bare PNG signature; the
 # index cache starts empty (its reader refuses all but authenticated files).
-if [ -d ../shared/data/colmap-maupertuis/images ]; then
-  cp ../shared/data/colmap-maupertuis/images/0[01].jpg "$corpus/image/"
+if [ -d "$data/colmap-maupertuis/images" ]; then
+  cp "$data"/colmap-maupertuis/images/0[01].jpg "$corpus/image/"
 fi
 printf '\x89PNG\r\n\x1a\n' > "$corpus/image/signature.png"
 run lcm_fuzzer "$corpus/lcm"

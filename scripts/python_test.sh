@@ -12,4 +12,6 @@ LINECLOUD_CMAKE_BUILD_DIR="$PWD/build" "$venv/bin/pip" install --quiet --no-inde
 # Imported from the environment, not from the source tree.
 python="$PWD/$venv/bin/python"
 (cd / && "$python" -c 'import linecloud; print("linecloud", linecloud.__version__, "from", linecloud.__file__)')
-LINECLOUD_BINARY="$PWD/build/linecloud" "$venv/bin/python" -m pytest -q -p no:cacheprovider python/tests
+# The tests use the package's own command-line tool (installed with it: `python -m linecloud`).
+(cd / && "$venv/bin/linecloud" --version >/dev/null)
+"$venv/bin/python" -m pytest -q -p no:cacheprovider python/tests

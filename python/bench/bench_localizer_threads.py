@@ -4,7 +4,7 @@ released while a request runs): client features of a fountain-P11 photo
 against 2, 4 and 8, each request matching on one thread.
 
     PYTHONPATH=build/python python3 python/bench/bench_localizer_threads.py \
-        --work build/eval/fountain-P11 --photo ../shared/data/strecha/fountain-P11/images/0000.jpg
+        --work build/eval/fountain-P11 --photo $(bash scripts/data_dir.sh)/strecha/fountain-P11/images/0000.jpg
 """
 
 import argparse

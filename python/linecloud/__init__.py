@@ -10,6 +10,8 @@ parameter order); poses are ``cam_from_world`` dicts ``{"q": (w, x, y, z),
 "t": (x, y, z)}`` (+ ``"scale"`` for Sim3 methods); arrays are numpy.
 """
 
+from pathlib import Path as _Path
+
 from . import interop
 from ._core import (
     LineCloud,
@@ -24,12 +26,25 @@ from ._core import (
     solve,
 )
 
+
+
+def cli_path() -> str:
+    """The `linecloud` command-line tool installed with this package (``python -m linecloud``);
+    in a build folder (PYTHONPATH=build/python) the one built beside it."""
+    here = _Path(__file__).resolve().parent
+    for candidate in (here / "bin" / "linecloud", here.parent.parent / "linecloud"):
+        if candidate.is_file():
+            return str(candidate)
+    raise FileNotFoundError(f"no linecloud tool in {here / 'bin'}: reinstall the package")
+
+
 __all__ = [
     "LineCloud",
     "Localizer",
     "__version__",
     "attack",
     "audit",
+    "cli_path",
     "estimate_pose",
     "interop",
     "lift",

@@ -12,9 +12,14 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def _binary() -> Path:
-    path = Path(os.environ.get("LINECLOUD_BINARY", REPO / "build" / "linecloud"))
+    """The package's own command-line tool (installed with it), or LINECLOUD_BINARY."""
+    if os.environ.get("LINECLOUD_BINARY"):
+        path = Path(os.environ["LINECLOUD_BINARY"])
+    else:
+        import linecloud
+        path = Path(linecloud.cli_path())
     if not path.exists():
-        pytest.fail(f"the linecloud binary is not at {path} (set LINECLOUD_BINARY)")
+        pytest.fail(f"the linecloud tool is not at {path}")
     return path
 
 
@@ -49,8 +54,21 @@ def key_store(tmp_path, monkeypatch) -> Path:
     return store
 
 
-def _shared() -> Path:
-    return Path(os.environ.get("LINECLOUD_SHARED", REPO.parent / "shared"))
+def data_dir() -> Path:
+    """The real data sets, by the rule of docs/data.md: $LINECLOUD_DATA, else ../shared/data
+    beside the checkout where it exists, else data/ in the checkout (scripts/get_data.sh)."""
+    if os.environ.get("LINECLOUD_DATA"):
+        return Path(os.environ["LINECLOUD_DATA"])
+    beside = REPO.parent / "shared" / "data"
+    return beside if beside.is_dir() else REPO / "data"
+
+
+def skip_or_fail(reason: str):
+    """A missing prerequisite: a skip, or a failure under the test command
+    (LINECLOUD_REQUIRE_ALL=1: a part that could not run is an error there)."""
+    if os.environ.get("LINECLOUD_REQUIRE_ALL") == "1":
+        pytest.fail(f"required but absent: {reason}")
+    pytest.skip(reason)
 
 
 @pytest.fixture(scope="session")
@@ -60,17 +78,18 @@ def fountain():
     database, the photo and its true pose."""
     work = Path(os.environ.get("LINECLOUD_FOUNTAIN_WORK", REPO / "build" / "eval" / "fountain-P11"))
     if not (work / "prepared.json").exists():
-        pytest.skip(f"no eval prepare work of fountain-P11 at {work} (CI sets "
-                    "LINECLOUD_FOUNTAIN_WORK)")
+        skip_or_fail(f"no eval prepare work of fountain-P11 at {work} (scripts/run.sh test "
+                     "prepares it; or set LINECLOUD_FOUNTAIN_WORK)")
     prepared = json.loads((work / "prepared.json").read_text())
     image = prepared["groups"][0]["images"][0]
     assert image["name"] == "0000.jpg"
     dataset = Path(prepared["dataset_dir"])
     if not dataset.is_absolute():
-        dataset = _shared() / "data" / "strecha" / "fountain-P11"
+        dataset = data_dir() / "strecha" / "fountain-P11"
     photo = dataset / "images" / "0000.jpg"
     if not photo.exists():
-        pytest.skip(f"the fountain-P11 photo is absent: {photo} (../shared/data, see its README)")
+        skip_or_fail(f"the fountain-P11 photo is absent: {photo} (scripts/get_data.sh, or set "
+                     "LINECLOUD_DATA)")
     return {
         "model": work / "groups" / "g00" / "map",
         "database": work / "colmap" / "database.db",

@@ -1,6 +1,6 @@
 // The linecloud console: maps, their line clouds in 3D, photos localized
 // through the API, and the owner's audit. Talks only to linecloud serve's API
-// (../shared/SPEC.md) with the bearer token the user gives.
+// (docs/http_api.md) with the bearer token the user gives.
 import * as THREE from "three";
 import { OrbitControls } from "three/addons/controls/OrbitControls.js";
 

@@ -187,8 +187,9 @@ void RegisterBenchCommand(CLI::App& app) {
   m->add_option("--index", *match_kinds, "Indexes: faiss-ivf, faiss-hnsw, hnswlib, flann")
       ->capture_default_str();
   m->add_option("--threads", match->threads, "Thread counts to time")->capture_default_str();
-  m->add_option("--real", *match_real,
-                "Real descriptors from the photos under this folder (../shared/data)");
+  m->add_option(
+      "--real", *match_real,
+      "Real descriptors from the photos under this folder (the data folder, docs/data.md)");
   m->add_option("--nprobe", match->index.nprobe, "FAISS IVF: cells scanned per query")
       ->capture_default_str();
   m->add_option("--nlist", match->index.nlist, "FAISS IVF: cells (0: 4 sqrt(n))")
@@ -249,7 +250,7 @@ void RegisterBenchCommand(CLI::App& app) {
       ->capture_default_str();
   ph->add_option("--padding", photo->padding_dir,
                  "folder of other scenes' photos whose descriptors pad the maps "
-                 "(e.g. ../shared/data/strecha)");
+                 "(e.g. DATA/strecha, docs/data.md)");
   ph->add_option("--features", *photo_features, "extractors: opencv, colmap")
       ->capture_default_str();
   ph->add_option("--threads", photo->threads, "thread counts")->capture_default_str();

@@ -13,7 +13,7 @@ namespace linecloud {
 
 void RegisterEvalCommand(CLI::App& app) {
   CLI::App* eval = app.add_subcommand(
-      "eval", "The paper's experiments on a real image dataset (see ../shared/data/README.md)");
+      "eval", "The paper's experiments on a real image dataset (layout: docs/data.md)");
   eval->require_subcommand(1);
 
   auto prepare_options = std::make_shared<EvalPrepareOptions>();

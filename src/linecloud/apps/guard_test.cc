@@ -37,8 +37,8 @@ namespace linecloud {
 namespace {
 
 namespace fs = std::filesystem;
+using testing::DataPath;
 using testing::ErrorOf;
-using testing::SharedDataPath;
 using testing::TempDir;
 
 const std::string kMaupertuis = "colmap-maupertuis/reconstruction";
@@ -123,7 +123,7 @@ unsigned Mode(const std::string& path) {
 TEST(Guard, ConcurrentLiftsOfANewModelMakeOneKey) {
   LINECLOUD_REQUIRE_DATA(kMaupertuis);
   TempDir tmp;
-  const std::string model = SharedDataPath(kMaupertuis);
+  const std::string model = DataPath(kMaupertuis);
   const int trials = testing::InstanceCount(50);
   int double_keys = 0;
   for (int trial = 0; trial < trials; ++trial) {
@@ -155,7 +155,7 @@ std::string CopyModel(const TempDir& tmp, const std::string& name,
   const std::string dir = tmp.Path(name);
   fs::create_directories(dir);
   for (const char* file : {"cameras.txt", "images.txt", "points3D.txt"}) {
-    std::string text = ReadFileToString(SharedDataPath(kMaupertuis) + "/" + file);
+    std::string text = ReadFileToString(DataPath(kMaupertuis) + "/" + file);
     if (edit && std::string(file) == "images.txt") text = edit(text);
     WriteFileAtomically(dir + "/" + file, [&](std::ostream& os) { os << text; });
   }
@@ -164,9 +164,9 @@ std::string CopyModel(const TempDir& tmp, const std::string& name,
 
 // Lifts the shared model to OUT with the key store STORE (a real process).
 void LiftIntoStore(const std::string& store, const std::string& out, const TempDir& tmp) {
-  const Finished f = RunScript(
-      fmt::format("{} lift --model {} --out {}", Tool(), SharedDataPath(kMaupertuis), out),
-      {"LINECLOUD_KEY_STORE=" + store}, tmp);
+  const Finished f =
+      RunScript(fmt::format("{} lift --model {} --out {}", Tool(), DataPath(kMaupertuis), out),
+                {"LINECLOUD_KEY_STORE=" + store}, tmp);
   ASSERT_EQ(f.code, 0) << f.err;
 }
 
@@ -176,7 +176,7 @@ TEST(Guard, AKeyEditedInTheStoreIsRefused) {
   TempDir tmp;
   const std::string store = tmp.Path("store");
   const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + store};
-  const std::string model = SharedDataPath(kMaupertuis);
+  const std::string model = DataPath(kMaupertuis);
   LiftIntoStore(store, tmp.Path("a.lcm"), tmp);
   const std::vector<std::string> keys = StoreFiles(store, ".key");
   ASSERT_EQ(keys.size(), 1u);
@@ -233,7 +233,7 @@ TEST(Guard, RenamedImagesAreStillTheSameModel) {
 TEST(Guard, KeyStoreParentsOwnerAndLinks) {
   LINECLOUD_REQUIRE_DATA(kMaupertuis);
   TempDir tmp;
-  const std::string model = SharedDataPath(kMaupertuis);
+  const std::string model = DataPath(kMaupertuis);
   const std::string store = tmp.Path("home/.local/share/linecloud/keys");
   Finished f = RunScript(
       fmt::format("umask 000; {} lift --model {} --out {}", Tool(), model, tmp.Path("a.lcm")),
@@ -266,7 +266,7 @@ TEST(Guard, LiftNeverWritesIntoTheKeyStore) {
   TempDir tmp;
   const std::string store = tmp.Path("store");
   const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + store};
-  const std::string model = SharedDataPath(kMaupertuis);
+  const std::string model = DataPath(kMaupertuis);
   LiftIntoStore(store, tmp.Path("a.lcm"), tmp);
   const std::string key_path = store + "/" + StoreFiles(store, ".key").at(0);
   const std::string key_text = ReadFileToString(key_path);
@@ -295,9 +295,9 @@ TEST(Guard, ABadStoreEntryStopsKeyCreationAndIsNamed) {
         store + "/x.model", [](std::ostream&) {}, 0600);
   }
   const auto lift = [&](const std::string& out) {
-    return RunScript(fmt::format("{} lift --model {} --out {}", Tool(), SharedDataPath(kMaupertuis),
-                                 tmp.Path(out)),
-                     {"LINECLOUD_KEY_STORE=" + store}, tmp);
+    return RunScript(
+        fmt::format("{} lift --model {} --out {}", Tool(), DataPath(kMaupertuis), tmp.Path(out)),
+        {"LINECLOUD_KEY_STORE=" + store}, tmp);
   };
   Finished f = lift("a.lcm");
   EXPECT_NE(f.code, 0);
@@ -329,9 +329,9 @@ TEST(Guard, NoCommandWritesIntoTheKeyStore) {
   const std::string store = tmp.Path("store");
   const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + store,
                                         "XDG_CACHE_HOME=" + tmp.Path("cache")};
-  const std::string model = SharedDataPath(kMaupertuis);
-  const std::string db = SharedDataPath("colmap-maupertuis/colmap.db");
-  const std::string photo = SharedDataPath("colmap-maupertuis/images/02.jpg");
+  const std::string model = DataPath(kMaupertuis);
+  const std::string db = DataPath("colmap-maupertuis/colmap.db");
+  const std::string photo = DataPath("colmap-maupertuis/images/02.jpg");
   const std::string camera = "'SIMPLE_PINHOLE 1919 1079 1847.53 959.5 539.5'";
   Finished f = RunScript(fmt::format("{} lift --model {} --database {} --out {}", Tool(), model, db,
                                      tmp.Path("m.lcm")),
@@ -379,8 +379,8 @@ TEST(Guard, APlantedCacheLinkOrFifoIsNeverUsed) {
   const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + store,
                                         "XDG_CACHE_HOME=" + tmp.Path("cache")};
   Finished f = RunScript(
-      fmt::format("{} lift --model {} --database {} --out {}", Tool(), SharedDataPath(kMaupertuis),
-                  SharedDataPath("colmap-maupertuis/colmap.db"), tmp.Path("m.lcm")),
+      fmt::format("{} lift --model {} --database {} --out {}", Tool(), DataPath(kMaupertuis),
+                  DataPath("colmap-maupertuis/colmap.db"), tmp.Path("m.lcm")),
       env, tmp);
   ASSERT_EQ(f.code, 0) << f.err;
   const std::string victim = tmp.Path("authorized_keys");
@@ -389,12 +389,11 @@ TEST(Guard, APlantedCacheLinkOrFifoIsNeverUsed) {
   ASSERT_EQ(::mkfifo(tmp.Path("fifo-map.lcm.index").c_str(), 0644), 0);
   fs::copy_file(tmp.Path("m.lcm"), tmp.Path("fifo-map.lcm"));
   for (const char* map : {"m.lcm", "fifo-map.lcm"}) {
-    f = RunScript(
-        fmt::format("timeout 60 {} localize --map {} --image {} --camera '{}' "
-                    "--approximate-from 10 --max-iterations 200 --quiet",
-                    Tool(), tmp.Path(map), SharedDataPath("colmap-maupertuis/images/02.jpg"),
-                    "SIMPLE_PINHOLE 1919 1079 1847.53 959.5 539.5"),
-        env, tmp);
+    f = RunScript(fmt::format("timeout 60 {} localize --map {} --image {} --camera '{}' "
+                              "--approximate-from 10 --max-iterations 200 --quiet",
+                              Tool(), tmp.Path(map), DataPath("colmap-maupertuis/images/02.jpg"),
+                              "SIMPLE_PINHOLE 1919 1079 1847.53 959.5 539.5"),
+                  env, tmp);
     EXPECT_EQ(f.code, 0) << map << ": " << f.err;
   }
   EXPECT_EQ(ReadFileToString(victim), "ssh-ed25519 AAAA the owner's\n");
@@ -419,9 +418,9 @@ TEST(Guard, AHeldStoreLockIsReportedAndGivenUp) {
   ASSERT_GE(fd, 0);
   ASSERT_EQ(::flock(fd, LOCK_EX), 0);
   const auto start = std::chrono::steady_clock::now();
-  const Finished f = RunScript(fmt::format("{} lift --model {} --out {}", Tool(),
-                                           SharedDataPath(kMaupertuis), tmp.Path("a.lcm")),
-                               {"LINECLOUD_KEY_STORE=" + store, "LINECLOUD_LOCK_TIMEOUT=2"}, tmp);
+  const Finished f = RunScript(
+      fmt::format("{} lift --model {} --out {}", Tool(), DataPath(kMaupertuis), tmp.Path("a.lcm")),
+      {"LINECLOUD_KEY_STORE=" + store, "LINECLOUD_LOCK_TIMEOUT=2"}, tmp);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   ::close(fd);
@@ -440,9 +439,9 @@ TEST(Guard, ALiftRefusedAtItsOutputMakesNoKey) {
   TempDir tmp;
   const std::string store = tmp.Path("store");
   std::ofstream(tmp.Path("a.lcm")) << "not a map";
-  const Finished f = RunScript(fmt::format("{} lift --model {} --out {}", Tool(),
-                                           SharedDataPath(kMaupertuis), tmp.Path("a.lcm")),
-                               {"LINECLOUD_KEY_STORE=" + store}, tmp);
+  const Finished f = RunScript(
+      fmt::format("{} lift --model {} --out {}", Tool(), DataPath(kMaupertuis), tmp.Path("a.lcm")),
+      {"LINECLOUD_KEY_STORE=" + store}, tmp);
   EXPECT_NE(f.code, 0);
   EXPECT_NE(f.err.find("not a readable line cloud"), std::string::npos) << f.err;
   EXPECT_TRUE(StoreFiles(store, ".key").empty());
@@ -469,9 +468,9 @@ TEST(Guard, AMapOfAnotherVersionIsRefusedFromItsHeader) {
   EXPECT_LT(f.max_rss_kb, BaselineRssKb(tmp) + 100 * 1024);
   // A real map grown to 1 GB: its header's sizes refuse it before the body is read.
   LINECLOUD_REQUIRE_DATA(kMaupertuis);
-  f = RunScript(fmt::format("{} lift --model {} --out {}", Tool(), SharedDataPath(kMaupertuis),
-                            tmp.Path("m.lcm")),
-                {"LINECLOUD_KEY_STORE=" + tmp.Path("store")}, tmp);
+  f = RunScript(
+      fmt::format("{} lift --model {} --out {}", Tool(), DataPath(kMaupertuis), tmp.Path("m.lcm")),
+      {"LINECLOUD_KEY_STORE=" + tmp.Path("store")}, tmp);
   ASSERT_EQ(f.code, 0) << f.err;
   fs::resize_file(tmp.Path("m.lcm"), uint64_t{1} << 30);
   f = RunScript(fmt::format("{} info --map {}", Tool(), tmp.Path("m.lcm")), {}, tmp);
@@ -485,7 +484,7 @@ TEST(Guard, AMapOfAnotherVersionIsRefusedFromItsHeader) {
 TEST(Guard, OutputsRespectTheUmaskAndReplacedFilesKeepTheirMode) {
   LINECLOUD_REQUIRE_DATA(kMaupertuis);
   TempDir tmp;
-  const std::string model = SharedDataPath(kMaupertuis);
+  const std::string model = DataPath(kMaupertuis);
   const Finished f = RunScript(
       fmt::format("umask 077; {0} export --model {1} --ply {2} && {0} lift --model {1} --out {3} "
                   "&& {0} make-query --model {1} --image 02.jpg --out {4}",
@@ -513,7 +512,7 @@ TEST(Guard, AFifoOutputWithoutAReaderIsRefused) {
   ASSERT_EQ(::mkfifo(tmp.Path("fifo").c_str(), 0600), 0);
   // `timeout` turns a hang into exit code 124.
   const Finished f = RunScript(fmt::format("timeout 60 {} export --model {} --ply {}", Tool(),
-                                           SharedDataPath(kMaupertuis), tmp.Path("fifo")),
+                                           DataPath(kMaupertuis), tmp.Path("fifo")),
                                {}, tmp);
   EXPECT_EQ(f.code, 1) << f.err;
   EXPECT_NE(f.err.find("nothing reads"), std::string::npos) << f.err;
@@ -522,7 +521,7 @@ TEST(Guard, AFifoOutputWithoutAReaderIsRefused) {
   const int fd = ::open(tmp.Path("fifo").c_str(), O_RDONLY | O_NONBLOCK);
   ASSERT_GE(fd, 0);
   const Process p = Start(fmt::format("timeout 60 {} export --model {} --ply {}", Tool(),
-                                      SharedDataPath(kMaupertuis), tmp.Path("fifo")),
+                                      DataPath(kMaupertuis), tmp.Path("fifo")),
                           {}, tmp);
   std::string received;
   char buffer[4096];
@@ -567,7 +566,7 @@ TEST(Guard, ADecompressionBombIsRefusedFromItsHeader) {
   TempDir tmp;
   WriteFileAtomically(tmp.Path("bomb.png"), [&](std::ostream& os) { os << png; });
   const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + tmp.Path("store")};
-  const std::string m = SharedDataPath("colmap-maupertuis");
+  const std::string m = DataPath("colmap-maupertuis");
   ASSERT_EQ(
       RunScript(fmt::format("{} lift --model {}/reconstruction --database {}/colmap.db --out {}",
                             Tool(), m, m, tmp.Path("m.lcm")),
@@ -587,7 +586,7 @@ TEST(Guard, ADecompressionBombIsRefusedFromItsHeader) {
 // Row 13: the first 8 000 bytes of a JPEG are an error, not half a photo.
 TEST(Guard, ATruncatedJpegIsAnError) {
   LINECLOUD_REQUIRE_DATA("strecha/fountain-P11/images/0000.jpg");
-  const std::string jpeg = ReadFileToString(SharedDataPath("strecha/fountain-P11/images/0000.jpg"));
+  const std::string jpeg = ReadFileToString(DataPath("strecha/fountain-P11/images/0000.jpg"));
   const std::string head = jpeg.substr(0, 8000);
   const auto decode = [](const std::string& data) {
     return DecodeGreyImage(std::span(reinterpret_cast<const uint8_t*>(data.data()), data.size()),
@@ -597,15 +596,14 @@ TEST(Guard, ATruncatedJpegIsAnError) {
             std::string::npos);
   // The whole file decodes, from bytes exactly as from the path.
   const GreyImage whole = decode(jpeg);
-  EXPECT_EQ(whole.pixels,
-            ReadGreyImage(SharedDataPath("strecha/fountain-P11/images/0000.jpg")).pixels);
+  EXPECT_EQ(whole.pixels, ReadGreyImage(DataPath("strecha/fountain-P11/images/0000.jpg")).pixels);
 }
 
 // Row 11: NaN 2D points in a binary model are refused (as in text models).
 TEST(Guard, NonFinite2DPointsInABinaryModelAreRefused) {
   LINECLOUD_REQUIRE_DATA(kMaupertuis);
   TempDir tmp;
-  Reconstruction rec = ReadColmapModel(SharedDataPath(kMaupertuis));
+  Reconstruction rec = ReadColmapModel(DataPath(kMaupertuis));
   rec.images.begin()->second.points2D.at(3).xy.x() = std::nan("");
   WriteColmapModel(rec, tmp.Path("model"), ModelFormat::kBinary);
   EXPECT_NE(ErrorOf([&] { ReadColmapModel(tmp.Path("model")); }).find("field 'points2D.x' at byte"),
@@ -646,7 +644,7 @@ TEST(Guard, AnOverflowingDatabaseShapeIsAClearError) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
   TempDir tmp;
   const std::string db = tmp.Path("colmap.db");
-  fs::copy_file(SharedDataPath("colmap-maupertuis/colmap.db"), db);
+  fs::copy_file(DataPath("colmap-maupertuis/colmap.db"), db);
   sqlite3* handle = nullptr;
   ASSERT_EQ(sqlite3_open(db.c_str(), &handle), SQLITE_OK);
   ASSERT_EQ(sqlite3_exec(handle,
@@ -690,8 +688,8 @@ TEST(Guard, TheAttackStopsAtItsTimeBudget) {
   LINECLOUD_REQUIRE_DATA(kMaupertuis);
   TempDir tmp;
   const std::vector<std::string> env = {"LINECLOUD_KEY_STORE=" + tmp.Path("store")};
-  ASSERT_EQ(RunScript(fmt::format("{} lift --model {} --out {}", Tool(),
-                                  SharedDataPath(kMaupertuis), tmp.Path("m.lcm")),
+  ASSERT_EQ(RunScript(fmt::format("{} lift --model {} --out {}", Tool(), DataPath(kMaupertuis),
+                                  tmp.Path("m.lcm")),
                       env, tmp)
                 .code,
             0);

@@ -51,7 +51,7 @@ void RegisterServeCommand(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "serve",
       "HTTP localization service over a folder of line clouds (DIR/ID.lcm): photos or client "
-      "features in, poses out (../shared/SPEC.md)");
+      "features in, poses out (docs/http_api.md)");
   cmd->add_option("--maps", o->maps_dir, "Folder of ID.lcm maps (+ optional ID.json geo-anchor)")
       ->required();
   cmd->add_option("--listen", o->listen, "HOST:PORT (port 0: a free one)")->capture_default_str();

@@ -42,7 +42,7 @@ struct MatchBenchOptions {
 // Every JPEG / PNG file under `dir` (recursively), sorted.
 std::vector<std::string> PhotosUnder(const std::string& dir);
 
-// The photos of ../shared/data for real descriptors: fountain-P11's 0000.jpg
+// The photos of the data folder (docs/data.md) for real descriptors: fountain-P11's 0000.jpg
 // first (the queries), then fountain-P11's others, the other Strecha scenes,
 // and every other JPEG / PNG under `data_dir`.
 std::vector<std::string> RealBenchImages(const std::string& data_dir);

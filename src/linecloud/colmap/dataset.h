@@ -1,4 +1,4 @@
-// The evaluation dataset layout of ../shared/data/README.md: images/,
+// The evaluation dataset layout of docs/data.md: images/,
 // cameras.txt (known, fixed intrinsics), optional image_cameras.txt,
 // queries.txt (query groups), optional gt/images.txt (independent ground
 // truth, cam_from_world) and optional meta/ (EuRoC sensor files: a

@@ -60,7 +60,7 @@ void MakeDataset(const TempDir& tmp, const std::string& queries) {
 
 TEST(EvalDataset, ReadsTheStrechaLayout) {
   LINECLOUD_REQUIRE_DATA("strecha/fountain-P11");
-  const EvalDataset d = ReadEvalDataset(testing::SharedDataPath("strecha/fountain-P11"));
+  const EvalDataset d = ReadEvalDataset(testing::DataPath("strecha/fountain-P11"));
   EXPECT_EQ(d.name, "fountain-P11");
   EXPECT_EQ(d.images.size(), 11u);
   ASSERT_EQ(d.cameras.size(), 1u);
@@ -73,7 +73,7 @@ TEST(EvalDataset, ReadsTheStrechaLayout) {
 
 TEST(EvalDataset, ReadsTheEurocRigAndImu) {
   LINECLOUD_REQUIRE_DATA("euroc-v101-micro");
-  const EvalDataset d = ReadEvalDataset(testing::SharedDataPath("euroc-v101-micro"));
+  const EvalDataset d = ReadEvalDataset(testing::DataPath("euroc-v101-micro"));
   ASSERT_TRUE(d.sensors.has_value());
   ASSERT_EQ(d.sensors->body_from_cam.size(), 2u);
   // The stereo baseline of the VI-Sensor is about 11 cm.
@@ -394,8 +394,8 @@ TEST(EvalRun, SyntheticWorkLocalizesEveryQueryWithAllMethods) {
 TEST(DirectMatching, RefusesAMapThatRegistersTheQueryImage) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
   const Reconstruction model =
-      ReadColmapModel(testing::SharedDataPath("colmap-maupertuis/reconstruction"));
-  const std::string db = testing::SharedDataPath("colmap-maupertuis/colmap.db");
+      ReadColmapModel(testing::DataPath("colmap-maupertuis/reconstruction"));
+  const std::string db = testing::DataPath("colmap-maupertuis/colmap.db");
   try {
     MapDescriptorsExcluding(model, db, {"02.jpg"});
     ADD_FAILURE() << "accepted a map that registers the query image";
@@ -439,7 +439,8 @@ TEST(DirectMatching, RefusesRigMethodsThatCannotTakeARigOfPhotos) {
 TEST(EvalReport, StrechaSceneMeetsTheMeasuredTargets) {
   const char* path = std::getenv("LINECLOUD_EVAL_REPORT");
   if (!path)
-    GTEST_SKIP() << "LINECLOUD_EVAL_REPORT is not set (CI sets it after `linecloud eval run`)";
+    LINECLOUD_ABSENT(
+        "LINECLOUD_EVAL_REPORT is not set (.ci/run sets it after `linecloud eval run`)");
   const nlohmann::json r = ReadJsonFile(path);
   EXPECT_LE(Number(r, "/reconstruction/ground_truth/max_rotation_deg"), 0.1);
   EXPECT_LE(Number(r, "/reconstruction/ground_truth/max_position_m"), 0.01);
@@ -489,8 +490,8 @@ namespace {
 TEST(EvalPrivacy, FountainTradeoffMeetsTheMeasuredFigures) {
   const char* path = std::getenv("LINECLOUD_PRIVACY_REPORT");
   if (!path)
-    GTEST_SKIP()
-        << "LINECLOUD_PRIVACY_REPORT is not set (CI sets it after `linecloud eval privacy`)";
+    LINECLOUD_ABSENT(
+        "LINECLOUD_PRIVACY_REPORT is not set (.ci/run sets it after `linecloud eval privacy`)");
   const nlohmann::json r = ReadJsonFile(path);
   const nlohmann::json& rows = r["liftings"];
   ASSERT_GE(rows.size(), 2u);
@@ -549,8 +550,9 @@ TEST(EvalReport, ColmapFeaturesAtOpenCVsSpeedAndOpenCVsLocalizeAlike) {
   const char* main_report = std::getenv("LINECLOUD_EVAL_REPORT");
   const char* other = std::getenv("LINECLOUD_EVAL_OPENCV_FEATURES_REPORT");
   if (!main_report || !other) {
-    GTEST_SKIP() << "LINECLOUD_EVAL_REPORT / LINECLOUD_EVAL_OPENCV_FEATURES_REPORT are not set "
-                    "(CI runs eval run with each extractor)";
+    LINECLOUD_ABSENT(
+        "LINECLOUD_EVAL_REPORT / LINECLOUD_EVAL_OPENCV_FEATURES_REPORT are not set "
+        "(.ci/run runs eval run with each extractor)");
   }
   const nlohmann::json report = ReadJsonFile(main_report);
   const double resolution = Number(report, "/reconstruction/ground_truth/max_rotation_deg");
@@ -576,7 +578,8 @@ TEST(EvalReport, ColmapFeaturesAtOpenCVsSpeedAndOpenCVsLocalizeAlike) {
 TEST(EvalColmap, P6lAgainstColmapsOwnRegistration) {
   const char* path = std::getenv("LINECLOUD_COLMAP_REPORT");
   if (!path)
-    GTEST_SKIP() << "LINECLOUD_COLMAP_REPORT is not set (CI sets it after `linecloud eval colmap`)";
+    LINECLOUD_ABSENT(
+        "LINECLOUD_COLMAP_REPORT is not set (.ci/run sets it after `linecloud eval colmap`)");
   const nlohmann::json s = ReadJsonFile(path)["summary"];
   EXPECT_EQ(Number(s, "/colmap_registered"), Number(s, "/images"));
   ASSERT_TRUE(s.contains("p6L_median_rotation_deg")) << "eval colmap without --ours";
@@ -639,7 +642,9 @@ std::span<const uint8_t> Bytes(const std::string& s) {
 TEST(PhotoOrientation, ATurnedPhotoWithItsExifTagGivesTheOriginalsPose) {
   const char* work_dir = std::getenv("LINECLOUD_FOUNTAIN_WORK");
   if (!work_dir || !FileExists(JoinPaths(work_dir, "prepared.json"))) {
-    GTEST_SKIP() << "LINECLOUD_FOUNTAIN_WORK is not an `eval prepare` work of fountain-P11";
+    LINECLOUD_ABSENT(
+        "LINECLOUD_FOUNTAIN_WORK is not an `eval prepare` work of fountain-P11 "
+        "(scripts/run.sh test prepares it)");
   }
   const EvalWork work = ReadPreparedWork(work_dir);
   const EvalGroup& group = work.groups.at(0);
@@ -648,7 +653,7 @@ TEST(PhotoOrientation, ATurnedPhotoWithItsExifTagGivesTheOriginalsPose) {
   GroupMapData data =
       LoadGroupMapData(work_dir, group, LiftingKey(LiftingKey::Bytes{7}), MapLifting{});
   const Localizer localizer(std::move(data.lines), std::move(data.descriptors));
-  const std::string path = testing::SharedDataPath("strecha/fountain-P11/images/" + image.name);
+  const std::string path = testing::DataPath("strecha/fountain-P11/images/" + image.name);
   FIBITMAP* photo = FreeImage_Load(FIF_JPEG, path.c_str(), 0);
   ASSERT_NE(photo, nullptr);
   // Debian's FreeImage has no lossless JPEG transform: the original and the
@@ -709,7 +714,7 @@ TEST(PhotoOrientation, ATurnedPhotoWithItsExifTagGivesTheOriginalsPose) {
 // encoded photo, pixel for pixel; raw grey pixels are taken as they are.
 TEST(PhotoOrientation, RawPixelsGiveTheGreyOfTheEncodedPhoto) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/images/00.jpg");
-  const std::string path = testing::SharedDataPath("colmap-maupertuis/images/00.jpg");
+  const std::string path = testing::DataPath("colmap-maupertuis/images/00.jpg");
   const std::string jpeg = ReadFileToString(path);
   const GreyImage decoded = DecodeGreyImage(Bytes(jpeg), path);
   FIBITMAP* bitmap = FreeImage_Load(FIF_JPEG, path.c_str(), 0);

@@ -15,7 +15,7 @@
 namespace linecloud {
 namespace {
 
-using testing::SharedDataPath;
+using testing::DataPath;
 
 double Cosine(const uint8_t* a, const uint8_t* b) {
   double ab = 0, aa = 0, bb = 0;
@@ -38,7 +38,7 @@ double AngleDifference(double a, double b) {
 // near 0.7, a wrong orientation convention angles far apart).
 TEST(SiftOpenCV, AgreesWithTheColmapExtractorWhereBothFindAKeypoint) {
   LINECLOUD_REQUIRE_DATA("strecha/fountain-P11/images/0000.jpg");
-  const GreyImage image = ReadGreyImage(SharedDataPath("strecha/fountain-P11/images/0000.jpg"));
+  const GreyImage image = ReadGreyImage(DataPath("strecha/fountain-P11/images/0000.jpg"));
   const SiftFeatures colmap = ExtractSiftColmap(image);
   const SiftFeatures opencv = ExtractSiftOpenCV(image);
   ASSERT_GT(colmap.size(), 5000u);

@@ -20,7 +20,7 @@ extern "C" {
 namespace linecloud {
 namespace {
 
-using testing::SharedDataPath;
+using testing::DataPath;
 using Filter = std::unique_ptr<VlSiftFilt, void (*)(VlSiftFilt*)>;
 
 Filter NewFilter(int width, int height, int first_octave) {
@@ -138,7 +138,7 @@ TEST(SiftScaleSpace, GaussianFilterIsVlFeatsWidthAndSumsToOne) {
 // descriptors as with VLFeat's own scale space, on one and two threads.
 TEST(SiftScaleSpace, ExtractorGivesVlFeatsFeaturesOnAnyThreadCount) {
   LINECLOUD_REQUIRE_DATA("strecha/Herz-Jesus-P8/images/0003.jpg");
-  const GreyImage photo = ReadGreyImage(SharedDataPath("strecha/Herz-Jesus-P8/images/0003.jpg"));
+  const GreyImage photo = ReadGreyImage(DataPath("strecha/Herz-Jesus-P8/images/0003.jpg"));
   SiftOptions reference;
   reference.extractor = SiftExtractor::kColmap;
   reference.vlfeat_scale_space = true;
@@ -166,8 +166,8 @@ TEST(SiftScaleSpace, ExtractorGivesVlFeatsFeaturesOnAnyThreadCount) {
 TEST(SiftScaleSpace, PooledBuffersKeepNoTraceOfThePreviousPhoto) {
   LINECLOUD_REQUIRE_DATA("strecha/fountain-P11/images/0000.jpg");
   LINECLOUD_REQUIRE_DATA("strecha/entry-P10/images/0004.jpg");
-  const GreyImage a = ReadGreyImage(SharedDataPath("strecha/entry-P10/images/0004.jpg"));
-  const GreyImage b = ReadGreyImage(SharedDataPath("strecha/fountain-P11/images/0000.jpg"));
+  const GreyImage a = ReadGreyImage(DataPath("strecha/entry-P10/images/0004.jpg"));
+  const GreyImage b = ReadGreyImage(DataPath("strecha/fountain-P11/images/0000.jpg"));
   ASSERT_EQ(a.width, b.width);  // the same buffer sizes: each is reused
   SiftOptions options;
   options.extractor = SiftExtractor::kColmap;

@@ -14,17 +14,17 @@
 namespace linecloud {
 namespace {
 
-using testing::SharedDataPath;
+using testing::DataPath;
 using testing::TempDir;
 
 TEST(Sift, ReproducesColmapsCpuExtractor) {
   LINECLOUD_REQUIRE_DATA("strecha/fountain-P11/images/0000.jpg");
   if (std::system("colmap -h > /dev/null 2>&1") != 0) {
-    GTEST_SKIP() << "COLMAP's command line is not installed (apt-get install colmap)";
+    LINECLOUD_ABSENT("COLMAP's command line is not installed (apt-get install colmap)");
   }
   TempDir tmp;
   const SiftAgreement a =
-      CompareSiftWithColmap(SharedDataPath("strecha/fountain-P11/images"), "0000.jpg", tmp.Path());
+      CompareSiftWithColmap(DataPath("strecha/fountain-P11/images"), "0000.jpg", tmp.Path());
   std::cout << "[ SIFT vs COLMAP 3.8 CPU, fountain-P11/0000.jpg ] COLMAP " << a.colmap << ", ours "
             << a.ours << ", located within 0.05 px " << a.located << ", descriptors identical "
             << a.identical << ", within ±1 " << a.within_one << "\n";

@@ -130,7 +130,7 @@ void LineGrid::CellsNear(const Eigen::Vector3d& a, const Eigen::Vector3d& b,
 
 void LineGrid::LinesNear(const Eigen::Vector3d& x, std::vector<uint32_t>* out) const {
   out->clear();
-  if (cells_.empty()) return;
+  if (cells_.empty() || !box_.contains(x)) return;  // the last cells reach past the box
   const Eigen::Vector3d xc = x - centre_;
   const int64_t c = CellOf(xc);
   if (c < 0) return;
@@ -167,7 +167,12 @@ void LineGrid::CrossingPairs(
         if (!ClosestPoints(centred_[i], centred_[j], &pi, &pj)) continue;
         const Eigen::Vector3d mid = 0.5 * (pi + pj);
         if (CellOf(mid) != cells_[k]) continue;  // another cell reports it
-        pair(std::min(i, j), std::max(i, j), mid + centre_, d);
+        // The last cell of an axis reaches past the box: crossings there are outside it.
+        const Eigen::Vector3d lo = box_.min() - centre_, hi = box_.max() - centre_;
+        if ((mid.array() < lo.array()).any() || (mid.array() > hi.array()).any()) continue;
+        // In the box in centred coordinates; adding the centre back may round an ulp past it.
+        const Eigen::Vector3d world = (mid + centre_).cwiseMax(box_.min()).cwiseMin(box_.max());
+        pair(std::min(i, j), std::max(i, j), world, d);
       }
     }
   }

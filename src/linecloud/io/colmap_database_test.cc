@@ -13,8 +13,8 @@
 namespace linecloud {
 namespace {
 
+using testing::DataPath;
 using testing::ErrorOf;
-using testing::SharedDataPath;
 using testing::TempDir;
 
 TEST(ColmapDatabase, PairIds) {
@@ -31,7 +31,7 @@ TEST(ColmapDatabase, PairIds) {
 
 TEST(ColmapDatabase, ReadsMaupertuis) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
-  const ColmapDatabase db(SharedDataPath("colmap-maupertuis/colmap.db"));
+  const ColmapDatabase db(DataPath("colmap-maupertuis/colmap.db"));
   const auto cameras = db.ReadCameras();
   ASSERT_EQ(cameras.size(), 1u);
   EXPECT_EQ(cameras[0].model_id, CameraModelId::kSimplePinhole);
@@ -74,7 +74,7 @@ TEST(ColmapDatabase, ReadingLeavesNoFileBehind) {
   testing::TempDir tmp;
   std::filesystem::create_directories(tmp.Path("ro dir"));
   const std::string db = tmp.Path("ro dir/colmap.db");
-  std::filesystem::copy_file(testing::SharedDataPath("colmap-maupertuis/colmap.db"), db);
+  std::filesystem::copy_file(testing::DataPath("colmap-maupertuis/colmap.db"), db);
   {
     const ColmapDatabase database(db);
     EXPECT_EQ(database.ReadImages().size(), 4u);
@@ -89,8 +89,8 @@ TEST(ColmapDatabase, ReadingLeavesNoFileBehind) {
 
 TEST(ColmapDatabase, DescriptorsPerPointFromTracks) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
-  const ColmapDatabase db(SharedDataPath("colmap-maupertuis/colmap.db"));
-  const Reconstruction rec = ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
+  const ColmapDatabase db(DataPath("colmap-maupertuis/colmap.db"));
+  const Reconstruction rec = ReadColmapModel(DataPath("colmap-maupertuis/reconstruction"));
   const std::vector<uint64_t> ids = rec.SortedPoint3DIds();
   const PointDescriptors medoid =
       ComputePointDescriptors(rec, ids, db, DescriptorAggregation::kMedoid);
@@ -133,7 +133,7 @@ TEST(ColmapDatabase, BadFilesGiveErrorsNamingTheFile) {
   const std::string not_db = ErrorOf([&] { ColmapDatabase db(tmp.Path("text.db")); });
   EXPECT_NE(not_db.find("text.db"), std::string::npos) << not_db;
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
-  const std::string full = ReadFileToString(SharedDataPath("colmap-maupertuis/colmap.db"));
+  const std::string full = ReadFileToString(DataPath("colmap-maupertuis/colmap.db"));
   std::ofstream(tmp.Path("cut.db"), std::ios::binary).write(full.data(), full.size() / 3);
   const std::string cut = ErrorOf([&] {
     ColmapDatabase db(tmp.Path("cut.db"));

@@ -13,8 +13,8 @@
 namespace linecloud {
 namespace {
 
+using testing::DataPath;
 using testing::ErrorOf;
-using testing::SharedDataPath;
 using testing::TempDir;
 
 void ExpectSameModel(const Reconstruction& a, const Reconstruction& b) {
@@ -55,7 +55,7 @@ void ExpectSameModel(const Reconstruction& a, const Reconstruction& b) {
 
 TEST(ColmapModel, ReadsMaupertuisText) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/reconstruction");
-  const Reconstruction rec = ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
+  const Reconstruction rec = ReadColmapModel(DataPath("colmap-maupertuis/reconstruction"));
   ASSERT_EQ(rec.cameras.size(), 1u);
   const Camera& camera = rec.cameras.at(1);
   EXPECT_EQ(camera.model_id, CameraModelId::kSimplePinhole);
@@ -80,7 +80,7 @@ TEST(ColmapModel, ReadsMaupertuisText) {
 
 TEST(ColmapModel, TextBinaryRoundTripOnRealModel) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/reconstruction");
-  const Reconstruction rec = ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
+  const Reconstruction rec = ReadColmapModel(DataPath("colmap-maupertuis/reconstruction"));
   TempDir tmp;
   WriteColmapModel(rec, tmp.Path("bin"), ModelFormat::kBinary);
   const Reconstruction from_bin = ReadColmapModel(tmp.Path("bin"));

@@ -13,7 +13,7 @@
 namespace linecloud {
 namespace {
 
-using testing::SharedDataPath;
+using testing::DataPath;
 
 void ExpectSameQuery(const ImageQuery& a, const ImageQuery& b) {
   ASSERT_EQ(a.matches.size(), b.matches.size());
@@ -36,9 +36,9 @@ void ExpectSameQuery(const ImageQuery& a, const ImageQuery& b) {
 // earlier match leaves nothing behind.
 TEST(ImageQuery, ExtractedOnceMatchesEachMapAsAFreshExtraction) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
-  const Reconstruction model = ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
+  const Reconstruction model = ReadColmapModel(DataPath("colmap-maupertuis/reconstruction"));
   const MapDescriptors full =
-      MapDescriptorsFromModel(model, SharedDataPath("colmap-maupertuis/colmap.db"));
+      MapDescriptorsFromModel(model, DataPath("colmap-maupertuis/colmap.db"));
   MapDescriptors half;  // every other descriptor: another map
   for (size_t i = 0; i < full.ids.size(); i += 2) {
     half.ids.push_back(full.ids[i]);
@@ -51,7 +51,7 @@ TEST(ImageQuery, ExtractedOnceMatchesEachMapAsAFreshExtraction) {
   }
   ASSERT_NE(image, nullptr);
   const Camera& camera = model.cameras.at(image->camera_id);
-  const std::string path = SharedDataPath("colmap-maupertuis/images/02.jpg");
+  const std::string path = DataPath("colmap-maupertuis/images/02.jpg");
   ImageQueryOptions o;
   o.sift.max_image_size = 960;  // half size: a quarter of the time
 
@@ -78,9 +78,9 @@ TEST(ImageQuery, ExtractedOnceMatchesEachMapAsAFreshExtraction) {
 // localized on 8 threads at once give exactly what one thread gives.
 TEST(ImageQuery, EightThreadsGiveWhatOneThreadGives) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
-  const Reconstruction model = ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
+  const Reconstruction model = ReadColmapModel(DataPath("colmap-maupertuis/reconstruction"));
   const MapDescriptors map =
-      MapDescriptorsFromModel(model, SharedDataPath("colmap-maupertuis/colmap.db"));
+      MapDescriptorsFromModel(model, DataPath("colmap-maupertuis/colmap.db"));
   const DescriptorIndex index(map.descriptors, {});  // shared by every thread
   const LocalizationMap points(PointMapFromModel(model));
   const MethodInfo& method = FindMethod("p3P");
@@ -93,7 +93,7 @@ TEST(ImageQuery, EightThreadsGiveWhatOneThreadGives) {
   std::vector<Photo> photos;
   for (const auto& [id, im] : model.images) {
     photos.push_back(
-        {SharedDataPath("colmap-maupertuis/images/" + im.name), &model.cameras.at(im.camera_id)});
+        {DataPath("colmap-maupertuis/images/" + im.name), &model.cameras.at(im.camera_id)});
   }
   ASSERT_GE(photos.size(), 4u);
   struct Outcome {

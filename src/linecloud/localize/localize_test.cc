@@ -151,7 +151,7 @@ INSTANTIATE_TEST_SUITE_P(Methods, LocalizeTest,
                          ::testing::ValuesIn(testing::ImplementedMethodNames()),
                          testing::MethodTestName);
 
-// Real data: image 03.jpg of ../shared/data/colmap-maupertuis as a query (its
+// Real data: image 03.jpg of the data sets' colmap-maupertuis as a query (its
 // 611 COLMAP observations with their point ids), against the point model
 // (p3P) and against the line cloud lifted from it with a fresh key (p6L):
 // both must give back COLMAP's own pose of that image — to ~0.01° for the
@@ -161,7 +161,7 @@ INSTANTIATE_TEST_SUITE_P(Methods, LocalizeTest,
 TEST(Localize, RealImageAgainstItsModelAndLineCloud) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/reconstruction");
   const Reconstruction model =
-      ReadColmapModel(testing::SharedDataPath("colmap-maupertuis/reconstruction"));
+      ReadColmapModel(testing::DataPath("colmap-maupertuis/reconstruction"));
   const Image* image = nullptr;
   for (const auto& [id, im] : model.images) {
     if (im.name == "03.jpg") image = &im;

@@ -1,4 +1,4 @@
-// QUERY.json of `linecloud localize` (../shared/SPEC.md) and its result JSON.
+// QUERY.json of `linecloud localize` (docs/formats.md) and its result JSON.
 #pragma once
 
 #include <span>

@@ -16,8 +16,8 @@
 namespace linecloud {
 namespace {
 
+using testing::DataPath;
 using testing::ErrorOf;
-using testing::SharedDataPath;
 
 void ExpectSamePose(const LocalizerResult& a, const LocalizerResult& b) {
   EXPECT_EQ(a.status, b.status);
@@ -68,10 +68,10 @@ struct Maupertuis {
 
 Maupertuis LoadMaupertuis() {
   Maupertuis m;
-  m.model = ReadColmapModel(SharedDataPath("colmap-maupertuis/reconstruction"));
-  m.database = SharedDataPath("colmap-maupertuis/colmap.db");
+  m.model = ReadColmapModel(DataPath("colmap-maupertuis/reconstruction"));
+  m.database = DataPath("colmap-maupertuis/colmap.db");
   for (const auto& [id, im] : m.model.images) {
-    m.photos.emplace_back(SharedDataPath("colmap-maupertuis/images/" + im.name),
+    m.photos.emplace_back(DataPath("colmap-maupertuis/images/" + im.name),
                           &m.model.cameras.at(im.camera_id));
   }
   return m;

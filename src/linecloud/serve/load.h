@@ -33,7 +33,7 @@ struct LoadOptions {
 
 nlohmann::json RunLoad(const LoadOptions& options);
 
-// The JSON body of a client-features request (../shared/SPEC.md) for a photo:
+// The JSON body of a client-features request (docs/http_api.md) for a photo:
 // its SIFT by `extractor`, keypoints in COLMAP's pixel convention,
 // descriptors base64. `camera` is "MODEL W H PARAMS...".
 // `max_features` caps the detections as COLMAP does (whole levels from the

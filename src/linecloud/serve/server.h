@@ -1,4 +1,4 @@
-// `linecloud serve`: the localization service of ../shared/SPEC.md — the
+// `linecloud serve`: the localization service of docs/http_api.md — the
 // paper's first scenario (Speciale et al., CVPR 2019: a cloud service that
 // holds only line clouds) over HTTP/1.1 (cpp-httplib, Debian's 0.11).
 //

@@ -1,4 +1,4 @@
-// Who may call `linecloud serve`: TOKENS.json (../shared/SPEC.md) holds, per
+// Who may call `linecloud serve`: TOKENS.json (docs/http_api.md) holds, per
 // client, an id, the SHA-256 of its bearer token (never the token), the maps
 // it may use ("*": all), its rate and whether it is an admin (metrics, the
 // console's owner views). A presented token is hashed and compared with every

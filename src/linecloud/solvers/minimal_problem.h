@@ -1,7 +1,7 @@
 // The 16 pose problems of Speciale et al., CVPR 2019 (Table 1), as data: one
 // minimal sample type for all of them, a dispatcher to each method's minimal
 // solver, and the residual of each method's constraint. Names, sample sizes
-// and conventions: ../shared/METHODS.md.
+// and conventions: docs/methods.md.
 #pragma once
 
 #include <array>

@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <random>
+#include <sstream>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -12,6 +13,7 @@
 #include <gtest/gtest.h>
 
 #include "linecloud/solvers/minimal_problem.h"
+#include "linecloud/testing/data_dir.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud::testing {
@@ -40,23 +42,31 @@ inline int InstanceCount(int full) {
   return std::getenv("LINECLOUD_QUICK_TESTS") ? std::max(full / 10, 1) : full;
 }
 
-// ../shared next to the checkout, or $LINECLOUD_SHARED.
-inline std::string SharedDir() {
-  if (const char* env = std::getenv("LINECLOUD_SHARED")) return env;
-  return LINECLOUD_SHARED_DIR;
+// Under the test command (scripts/run.sh test sets LINECLOUD_REQUIRE_ALL=1) every part must
+// run: a missing prerequisite is then a failure, not a skip.
+inline bool RequireAll() {
+  const char* v = std::getenv("LINECLOUD_REQUIRE_ALL");
+  return v && std::string_view(v) == "1";
 }
 
-inline std::string SharedDataPath(const std::string& relative) {
-  return (std::filesystem::path(SharedDir()) / "data" / relative).string();
-}
+// A prerequisite (data, a prepared work, a tool) is absent: the test is skipped, saying why, or
+// fails under the test command. `reason` may be a stream expression.
+#define LINECLOUD_ABSENT(reason)                                       \
+  do {                                                                 \
+    std::ostringstream absent_reason_;                                 \
+    absent_reason_ << reason;                                          \
+    if (::linecloud::testing::RequireAll())                            \
+      GTEST_FAIL() << "required but absent: " << absent_reason_.str(); \
+    GTEST_SKIP() << absent_reason_.str();                              \
+  } while (0)
 
-// Skips the test, saying why, when a real data set is not present.
-#define LINECLOUD_REQUIRE_DATA(relative)                                                     \
-  do {                                                                                       \
-    if (!std::filesystem::exists(::linecloud::testing::SharedDataPath(relative))) {          \
-      GTEST_SKIP() << "real data absent: " << ::linecloud::testing::SharedDataPath(relative) \
-                   << " (set LINECLOUD_SHARED to the shared/ folder)";                       \
-    }                                                                                        \
+// Skips (or fails, see LINECLOUD_ABSENT) when a real data set is not present.
+#define LINECLOUD_REQUIRE_DATA(relative)                                                         \
+  do {                                                                                           \
+    if (!std::filesystem::exists(::linecloud::testing::DataPath(relative))) {                    \
+      LINECLOUD_ABSENT("real data absent: " << ::linecloud::testing::DataPath(relative)          \
+                                            << " (scripts/get_data.sh, or set LINECLOUD_DATA)"); \
+    }                                                                                            \
   } while (0)
 
 // The message of the linecloud::Error that `f` throws ("" when none).
