@@ -13,5 +13,5 @@ LINECLOUD_CMAKE_BUILD_DIR="$PWD/build" "$venv/bin/pip" install --quiet --no-inde
 python="$PWD/$venv/bin/python"
 (cd / && "$python" -c 'import linecloud; print("linecloud", linecloud.__version__, "from", linecloud.__file__)')
 # The tests use the package's own command-line tool (installed with it: `python -m linecloud`).
-(cd / && "$venv/bin/linecloud" --version >/dev/null)
+(cd / && "$OLDPWD/$venv/bin/linecloud" --version)
 "$venv/bin/python" -m pytest -q -p no:cacheprovider python/tests
