@@ -83,10 +83,9 @@ def fountain():
     prepared = json.loads((work / "prepared.json").read_text())
     image = prepared["groups"][0]["images"][0]
     assert image["name"] == "0000.jpg"
-    dataset = Path(prepared["dataset_dir"])
-    if not dataset.is_absolute():
-        dataset = data_dir() / "strecha" / "fountain-P11"
-    photo = dataset / "images" / "0000.jpg"
+    # Through the data locator: the work's dataset_dir is where the data was when it was
+    # prepared, and data folders move.
+    photo = data_dir() / "strecha" / "fountain-P11" / "images" / "0000.jpg"
     if not photo.exists():
         skip_or_fail(f"the fountain-P11 photo is absent: {photo} (scripts/get_data.sh, or set "
                      "LINECLOUD_DATA)")
