@@ -62,6 +62,7 @@ class CMakeBuild(build_ext):
         tool.parent.mkdir(exist_ok=True)
         shutil.copy2(build / "linecloud", tool)
 
+
 setup(
     name="linecloud",
     version=_version(),

@@ -5,9 +5,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SECONDS_PER_TARGET="${1:-30}"
-# The sanitizer build's folder (scripts/sanitize.sh): one clang ASan + UBSan build for both.
-CC=clang CXX=clang++ cmake -S . -B build-san -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-  -DLINECLOUD_SANITIZE=ON -DLINECLOUD_FUZZ=ON -DLINECLOUD_BUILD_BENCH=OFF >/dev/null
+# The sanitizer build's folder, configured by scripts/sanitize.sh: one clang ASan + UBSan build for both.
+bash scripts/sanitize.sh --configure-only
 cmake --build build-san -j2 --target lcm_fuzzer colmap_binary_fuzzer colmap_text_fuzzer \
   json_fuzzer colmap_database_fuzzer image_fuzzer index_cache_fuzzer
 # The seed files come from the demo of the Release build (scripts/run.sh), else of this one.

@@ -4,6 +4,7 @@
 #   scripts/sanitize.sh               build, then run the tests
 #   scripts/sanitize.sh --build-only  build the tests and the fuzzers
 #   scripts/sanitize.sh --test-only   run the tests of an existing build
+#   scripts/sanitize.sh --configure-only   configure build-san only (scripts/fuzz.sh)
 #   --all (with any of the above)     every test program, the CLI's and the service binary's too
 # By default (CI) the libraries' own test programs — core (geometry, solvers, estimation, lifting,
 # readers and writers, localization), features (images, SIFT, matching), privacy, serve (in
@@ -15,7 +16,7 @@ cd "$(dirname "$0")/.."
 mode=all scope=libraries
 for a in "$@"; do
   case "$a" in
-    --build-only|--test-only) mode="$a" ;;
+    --build-only|--test-only|--configure-only) mode="$a" ;;
     --all) scope=all ;;
     *) echo "error: unknown argument '$a'" >&2; exit 2 ;;
   esac
@@ -24,6 +25,7 @@ programs=(linecloud_core_tests linecloud_features_tests linecloud_privacy_tests 
 if [ "$mode" != "--test-only" ]; then
   CC=clang CXX=clang++ cmake -S . -B build-san -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DLINECLOUD_SANITIZE=ON -DLINECLOUD_FUZZ=ON -DLINECLOUD_BUILD_BENCH=OFF >/dev/null
+  [ "$mode" = "--configure-only" ] && exit 0
   if [ "$scope" = all ]; then
     cmake --build build-san -j2
   else

@@ -8,7 +8,6 @@
 # .ci/run's eval stage, which makes those reports; they are not part of this command.
 set -uo pipefail
 cd "$(dirname "$0")/.."
-data="$(bash scripts/data_dir.sh)"
 export LINECLOUD_REQUIRE_ALL=1
 logs=build/test-logs
 mkdir -p "$logs"
@@ -24,23 +23,9 @@ table() {
 }
 trap table EXIT
 
-# A prepared `eval prepare` work of a Strecha scene (COLMAP on the CPU, once: reused while its
-# prepared.json exists), with the fixed public key of the evaluation's maps.
-prepare() {
-  local scene=$1 work=build/eval/$1
-  if [ ! -d "$data/strecha/$scene/images" ]; then
-    echo "error: $data/strecha/$scene is absent: run scripts/get_data.sh (or set LINECLOUD_DATA)" >&2
-    return 1
-  fi
-  if [ ! -f "$work/prepared.json" ]; then
-    echo "preparing $work (COLMAP on the CPU, a few minutes, once)"
-    ./build/linecloud eval prepare --dataset "$data/strecha/$scene" --work "$work" || return 1
-  fi
-  [ -f "$work/lifting.key" ] || (umask 077; printf '# fixed public key of the evaluation\ndirections sphere\n%s\n' \
-    "$(printf '5a%.0s' $(seq 32))" > "$work/lifting.key")
-}
 t0=$SECONDS
-if prepare fountain-P11 >"$logs/prepare.log" 2>&1 && prepare Herz-Jesus-P8 >>"$logs/prepare.log" 2>&1; then
+if bash scripts/prepare_work.sh fountain-P11 >"$logs/prepare.log" 2>&1 &&
+   bash scripts/prepare_work.sh Herz-Jesus-P8 >>"$logs/prepare.log" 2>&1; then
   row "real-data works (eval prepare)" ok - - $((SECONDS - t0))
 else
   cat "$logs/prepare.log"; row "real-data works (eval prepare)" FAILED - - $((SECONDS - t0)); failed=1

@@ -27,7 +27,6 @@ from ._core import (
 )
 
 
-
 def cli_path() -> str:
     """The `linecloud` command-line tool installed with this package (``python -m linecloud``);
     in a build folder (PYTHONPATH=build/python) the one built beside it."""

@@ -150,6 +150,7 @@ void LineGrid::CrossingPairs(
     Fail("line grid: {} group labels for {} lines", group.size(), centred_.size());
   }
   const double min_sin = std::sin(min_angle_rad);
+  const Eigen::Vector3d lo = box_.min() - centre_, hi = box_.max() - centre_;  // box, centred
   std::vector<uint32_t> in_cell;
   for (size_t k = 0; k < cells_.size(); ++k) {
     in_cell.clear();
@@ -168,7 +169,6 @@ void LineGrid::CrossingPairs(
         const Eigen::Vector3d mid = 0.5 * (pi + pj);
         if (CellOf(mid) != cells_[k]) continue;  // another cell reports it
         // The last cell of an axis reaches past the box: crossings there are outside it.
-        const Eigen::Vector3d lo = box_.min() - centre_, hi = box_.max() - centre_;
         if ((mid.array() < lo.array()).any() || (mid.array() > hi.array()).any()) continue;
         // In the box in centred coordinates; adding the centre back may round an ulp past it.
         const Eigen::Vector3d world = (mid + centre_).cwiseMax(box_.min()).cwiseMin(box_.max());
