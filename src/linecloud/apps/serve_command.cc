@@ -72,6 +72,10 @@ void RegisterServeCommand(CLI::App& app) {
   cmd->add_option("--max-pixels", o->max_pixels,
                   "Largest photo, from its header before decoding (then 413)")
       ->capture_default_str();
+  cmd->add_option("--memory-budget-mb", o->memory_budget_mb,
+                  "SIFT's scale space of all requests together (a photo needing more alone: "
+                  "413; others wait for room)")
+      ->capture_default_str();
   cmd->add_option("--request-seconds", o->request_seconds,
                   "Deadline of a localization, queue wait included (then 504)")
       ->capture_default_str();

@@ -157,6 +157,25 @@ void SiftOptions::Check() const {
   if (threads < 1) Fail("SIFT threads must be at least 1, got {}", threads);
 }
 
+namespace {
+
+// The size DownscaleToMaxSize gives.
+std::pair<int, int> DownscaledSize(int width, int height, int max_size) {
+  if (std::max(width, height) <= max_size) return {width, height};
+  const double scale = static_cast<double>(max_size) / std::max(width, height);
+  return {std::max(1, static_cast<int>(width * scale)),
+          std::max(1, static_cast<int>(height * scale))};
+}
+
+}  // namespace
+
+size_t SiftScaleSpaceBytes(int width, int height, const SiftOptions& options) {
+  options.Check();
+  const auto [w, h] = DownscaledSize(width, height, options.max_image_size);
+  return SiftFilterBytes(w, h, options.num_octaves, options.octave_resolution,
+                         options.first_octave);
+}
+
 SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& options) {
   options.Check();
   if (input.width < 8 || input.height < 8) {
@@ -181,7 +200,7 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
   // finest level, which the cap drops).
   const bool own = !options.vlfeat_scale_space && options.first_octave >= -1;
   SiftFilter sift(image.width, image.height, options.num_octaves, options.octave_resolution,
-                  options.first_octave, /*vlfeat_gradients=*/!own);
+                  options.first_octave, /*vlfeat_gradients=*/!own, options.deadline);
   VlSiftFilt* f = sift.get();
   vl_sift_set_peak_thresh(f, options.peak_threshold);
   vl_sift_set_edge_thresh(f, options.edge_threshold);
@@ -192,10 +211,11 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
   const int threads = own ? options.threads : 1;
   std::vector<Level> levels;
   std::vector<OctaveGradients> octaves;
-  for (bool more = own ? ProcessFirstOctave(f, pixels.data(), threads)
+  for (bool more = own ? ProcessFirstOctave(f, pixels.data(), threads, options.deadline)
                        : vl_sift_process_first_octave(f, pixels.data()) != VL_ERR_EOF;
-       more;
-       more = own ? ProcessNextOctave(f, threads) : vl_sift_process_next_octave(f) != VL_ERR_EOF) {
+       more; more = own ? ProcessNextOctave(f, threads, options.deadline)
+                        : vl_sift_process_next_octave(f) != VL_ERR_EOF) {
+    StopAtSiftDeadline(options.deadline);
     vl_sift_detect(f);
     const size_t first_new = levels.size();
     AppendLevels(f, static_cast<int>(octaves.size()), &levels);
@@ -203,6 +223,7 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
       const size_t pixels_here = static_cast<size_t>(f->octave_width) * f->octave_height;
       f->grad = sift.Allocate(2 * (f->s_max - f->s_min - 2) * pixels_here);
       f->grad_o = f->o_min - 1;  // not computed yet
+      StopAtSiftDeadline(options.deadline);
       UpdateGradients(f, threads);
       octaves.push_back({f->o_cur, f->octave_width, f->octave_height, f->grad});
     } else {
@@ -213,6 +234,7 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
   const size_t first_kept = FirstKeptLevel(levels, options.max_num_features);
   if (own) {
     for (size_t i = first_kept; i < levels.size(); ++i) {
+      StopAtSiftDeadline(options.deadline);
       const OctaveGradients& octave = octaves[levels[i].octave];
       f->o_cur = f->grad_o = octave.o;
       f->octave_width = octave.width;

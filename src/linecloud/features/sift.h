@@ -19,7 +19,9 @@
 // normalisation (sift_opencv.h); `SiftOptions::extractor` chooses.
 #pragma once
 
+#include <chrono>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -56,6 +58,11 @@ struct SiftOptions {
   // thread, ~2x slower, the same features): the reference of tests and
   // benchmarks (sift_scale_space.h).
   bool vlfeat_scale_space = false;
+  // When the caller stops waiting (a service's request): the colmap
+  // extractor stops between octaves and between described levels, and its
+  // wait for scale-space memory (SetSiftMemoryLimit) ends, with
+  // DeadlinePassed. OpenCV's extractor runs to its end.
+  std::optional<std::chrono::steady_clock::time_point> deadline;
 
   void Check() const;
 };
@@ -79,6 +86,12 @@ struct SiftFeatures {
 SiftFeatures ExtractSift(const GreyImage& image, const SiftOptions& options = {});
 // The COLMAP-identical extractor (VLFeat), whatever options.extractor says.
 SiftFeatures ExtractSiftColmap(const GreyImage& image, const SiftOptions& options = {});
+
+// The scale-space bytes the colmap extractor maps for a `width` x `height`
+// photo (after downscaling to max_image_size; ~320 bytes per pixel at the
+// default first octave -1): what it reserves under SetSiftMemoryLimit
+// (sift_scale_space.h). The photo's decoding comes on top.
+size_t SiftScaleSpaceBytes(int width, int height, const SiftOptions& options = {});
 
 // A SIFT descriptor of any positive scale in UBC bin order (VLFeat's after
 // reordering, OpenCV's, Lowe's) to COLMAP's bytes: L1-normalised,

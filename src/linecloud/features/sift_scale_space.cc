@@ -9,6 +9,7 @@ extern "C" {
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <condition_variable>
 #include <mutex>
 #include <utility>
 
@@ -108,9 +109,10 @@ void SmoothOrCopy(const float* in, float* out, int width, int height, double sig
 }
 
 // Every level after the first: each the previous smoothed by VLFeat's step.
-void FillLevels(VlSiftFilt* f, int threads) {
+void FillLevels(VlSiftFilt* f, int threads, const SiftDeadline& deadline) {
   const int w = f->octave_width, h = f->octave_height;
   for (int s = f->s_min + 1; s <= f->s_max; ++s) {
+    StopAtSiftDeadline(deadline);
     const double sd = f->dsigma0 * std::pow(f->sigmak, s);
     SmoothGaussian(vl_sift_get_octave(f, s - 1), vl_sift_get_octave(f, s), w, h,
                    VlFeatGaussianFilter(sd), threads);
@@ -371,11 +373,19 @@ namespace {
 constexpr size_t kHugePage = size_t{2} << 20;
 constexpr size_t kMaxPooledBytes = size_t{2} << 30;
 
+// What a mapping of `bytes` usable bytes costs: rounded to huge pages, plus
+// one for the alignment.
+size_t MappedBytes(size_t bytes) {
+  return (bytes + kHugePage - 1) / kHugePage * kHugePage + kHugePage;
+}
+
 // Scale-space buffers given back by finished extractions, for the next ones.
 // Mapping afresh each time cost page faults and zeroing of ~550 MB per
 // 1.6 MP photo — in a virtual machine also the host's first touch of memory:
 // 1.25 s instead of 0.73 s for a run on cold memory. At most 2 GB are kept
 // (three such photos); the buffers are written before they are read.
+// With a limit (SetSiftMemoryLimit), reserved + pooled <= limit at all times:
+// a reservation waits for room, pooled buffers are unmapped to make it.
 class MappingPool {
  public:
   static MappingPool& Get() {
@@ -383,17 +393,47 @@ class MappingPool {
     return *pool;
   }
 
-  // A 2 MB-aligned mapping of at least `bytes` (advised to use huge pages):
-  // the smallest pooled one that fits and is at most twice as large (a
-  // photo's large buffers are not spent on a small one's), or a new one;
-  // data is nullptr if none can be made.
-  Mapping Take(size_t bytes) {
+  void SetLimit(size_t bytes) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    limit_ = bytes;
+    if (limit_) Evict(limit_ - std::min(limit_, reserved_));
+  }
+
+  SiftMemoryUse Use() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return {limit_, reserved_, pooled_};
+  }
+
+  // Reserves `bytes` under the limit (at once without one), unless the limit
+  // alone is smaller or `until` passes first.
+  enum class Reservation { kMade, kOverLimit, kTimedOut };
+  Reservation Reserve(size_t bytes, std::optional<std::chrono::steady_clock::time_point> until,
+                      size_t* limit) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    *limit = limit_;
+    if (limit_ && bytes > limit_) return Reservation::kOverLimit;
+    const auto fits = [&] { return !limit_ || reserved_ + bytes <= limit_; };
+    if (until) {
+      if (!room_.wait_until(lock, *until, fits)) return Reservation::kTimedOut;
+    } else {
+      room_.wait(lock, fits);
+    }
+    reserved_ += bytes;
+    if (limit_) Evict(limit_ - reserved_);
+    return Reservation::kMade;
+  }
+
+  // A 2 MB-aligned mapping of at least `bytes` (advised to use huge pages)
+  // of at most `budget` mapped bytes: the smallest pooled one that fits
+  // and is at most twice as large (a photo's large buffers are not spent on a
+  // small one's), or a new one; data is nullptr if none can be made.
+  Mapping Take(size_t bytes, size_t budget) {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       size_t best = free_.size();
       for (size_t i = 0; i < free_.size(); ++i) {
         const size_t have = free_[i].bytes;
-        if (have >= bytes && have <= 2 * bytes + kHugePage &&
+        if (have >= bytes && have <= 2 * bytes + kHugePage && free_[i].mapped <= budget &&
             (best == free_.size() || have < free_[best].bytes)) {
           best = i;
         }
@@ -401,47 +441,117 @@ class MappingPool {
       if (best < free_.size()) {
         const Mapping m = free_[best];
         free_.erase(free_.begin() + static_cast<ptrdiff_t>(best));
-        pooled_ -= m.bytes;
+        pooled_ -= m.mapped;
         return m;
       }
     }
-    const size_t rounded = (bytes + kHugePage - 1) / kHugePage * kHugePage;
-    void* base = mmap(nullptr, rounded + kHugePage, PROT_READ | PROT_WRITE,
-                      MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
+    const size_t mapped = MappedBytes(bytes);
+    if (mapped > budget) return {};
+    void* base = mmap(nullptr, mapped, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
     if (base == MAP_FAILED) return {};
     // The first huge-page boundary inside the mapping: whole 2 MB pages follow.
     const uintptr_t aligned =
         (reinterpret_cast<uintptr_t>(base) + kHugePage - 1) & ~(uintptr_t{kHugePage} - 1);
+    const size_t usable = mapped - kHugePage;
 #ifdef MADV_HUGEPAGE
-    madvise(reinterpret_cast<void*>(aligned), rounded, MADV_HUGEPAGE);
+    madvise(reinterpret_cast<void*>(aligned), usable, MADV_HUGEPAGE);
 #endif
-    return {base, rounded + kHugePage, reinterpret_cast<float*>(aligned), rounded};
+    return {base, mapped, reinterpret_cast<float*>(aligned), usable};
   }
 
-  void Give(const Mapping& m) {
+  // A filter's mappings back, then its reservation.
+  void Give(const std::vector<Mapping>& mappings, size_t reserved) {
+    std::vector<Mapping> unmap;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      if (pooled_ + m.bytes <= kMaxPooledBytes) {
-        free_.push_back(m);
-        pooled_ += m.bytes;
-        return;
+      reserved_ -= reserved;
+      for (const Mapping& m : mappings) {
+        const bool room = pooled_ + m.mapped <= kMaxPooledBytes &&
+                          (!limit_ || reserved_ + pooled_ + m.mapped <= limit_);
+        if (room) {
+          free_.push_back(m);
+          pooled_ += m.mapped;
+        } else {
+          unmap.push_back(m);
+        }
       }
     }
-    munmap(m.base, m.mapped);
+    room_.notify_all();
+    for (const Mapping& m : unmap) munmap(m.base, m.mapped);
   }
 
  private:
+  // Unmaps pooled buffers, largest first, until at most `keep` bytes stay.
+  void Evict(size_t keep) {
+    std::sort(free_.begin(), free_.end(),
+              [](const Mapping& a, const Mapping& b) { return a.mapped < b.mapped; });
+    while (pooled_ > keep && !free_.empty()) {
+      munmap(free_.back().base, free_.back().mapped);
+      pooled_ -= free_.back().mapped;
+      free_.pop_back();
+    }
+  }
+
   std::mutex mutex_;
+  std::condition_variable room_;
   std::vector<Mapping> free_;
-  size_t pooled_ = 0;
+  size_t pooled_ = 0;    // mapped bytes in free_
+  size_t reserved_ = 0;  // by live filters
+  size_t limit_ = 0;     // 0: none
 };
 
 }  // namespace
 
+void StopAtSiftDeadline(const SiftDeadline& deadline) {
+  if (deadline && std::chrono::steady_clock::now() >= *deadline) {
+    throw DeadlinePassed("the request's deadline passed during SIFT");
+  }
+}
+
+void SetSiftMemoryLimit(size_t bytes) { MappingPool::Get().SetLimit(bytes); }
+
+SiftMemoryUse SiftMemoryInUse() { return MappingPool::Get().Use(); }
+
+size_t SiftFilterBytes(int width, int height, int octaves, int levels, int first_octave) {
+  const auto pixels_at = [&](int o) {
+    return static_cast<size_t>(std::max(ShiftLeft(width, -o), 0)) *
+           static_cast<size_t>(std::max(ShiftLeft(height, -o), 0));
+  };
+  const size_t pixels = pixels_at(first_octave);
+  const size_t kept = static_cast<size_t>(levels) + 3;  // VLFeat's s_min = -1 .. s_max = levels + 1
+  const size_t f = sizeof(float);
+  // temp, octave, DoG, and the larger of VLFeat's one gradient buffer or ours per octave.
+  size_t bytes = MappedBytes(f * pixels) + MappedBytes(f * pixels * kept) +
+                 MappedBytes(f * pixels * (kept - 1));
+  size_t ours = 0;
+  for (int o = first_octave; o < first_octave + octaves; ++o) {
+    ours += MappedBytes(f * 2 * static_cast<size_t>(levels) * pixels_at(o));
+  }
+  return bytes + std::max(ours, MappedBytes(f * 2 * pixels * (kept - 1)));
+}
+
 SiftFilter::SiftFilter(int width, int height, int octaves, int levels, int first_octave,
-                       bool vlfeat_gradients)
-    : filter_(vl_sift_new(width, height, octaves, levels, first_octave)) {
-  if (!filter_) Fail("VLFeat could not set up SIFT for a {}x{} image", width, height);
+                       bool vlfeat_gradients, SiftDeadline wait_until) {
+  const size_t need = SiftFilterBytes(width, height, octaves, levels, first_octave);
+  size_t limit = 0;
+  switch (MappingPool::Get().Reserve(need, wait_until, &limit)) {
+    case MappingPool::Reservation::kMade:
+      break;
+    case MappingPool::Reservation::kOverLimit:
+      Fail("SIFT on a {}x{} image needs {} MB of scale space, more than the memory limit of {} MB",
+           width, height, need >> 20, limit >> 20);
+    case MappingPool::Reservation::kTimedOut:
+      throw DeadlinePassed(fmt::format(
+          "the deadline passed while SIFT waited for {} MB of scale space (limit {} MB)",
+          need >> 20, limit >> 20));
+  }
+  reserved_ = need;
+  bounded_ = limit != 0;
+  filter_ = vl_sift_new(width, height, octaves, levels, first_octave);
+  if (!filter_) {
+    Release();
+    Fail("VLFeat could not set up SIFT for a {}x{} image", width, height);
+  }
   VlSiftFilt* f = filter_;
   const size_t pixels = static_cast<size_t>(ShiftLeft(width, -first_octave)) *
                         static_cast<size_t>(ShiftLeft(height, -first_octave));
@@ -466,17 +576,26 @@ void SiftFilter::Release() {
     vl_sift_delete(filter_);
     filter_ = nullptr;
   }
-  for (const Mapping& m : mappings_) MappingPool::Get().Give(m);
+  MappingPool::Get().Give(mappings_, reserved_);
   mappings_.clear();
+  reserved_ = mapped_ = 0;
 }
 
 float* SiftFilter::Allocate(size_t floats) {
-  const Mapping m = MappingPool::Get().Take(floats * sizeof(float));
+  // Under a limit, a pooled buffer may not cost more than a new one: the
+  // reservation (SiftFilterBytes) counts new ones.
+  const size_t cost = MappedBytes(floats * sizeof(float));
+  const bool fits = !bounded_ || mapped_ + cost <= reserved_;
+  const Mapping m =
+      fits ? MappingPool::Get().Take(floats * sizeof(float), bounded_ ? cost : SIZE_MAX)
+           : Mapping{};
   if (!m.data) {
+    const size_t mb = (floats * sizeof(float)) >> 20;
     Release();  // also when the constructor throws (no destructor runs then)
-    Fail("could not map {} MB for SIFT's scale space", (floats * sizeof(float)) >> 20);
+    Fail("could not map {} MB for SIFT's scale space", mb);
   }
   mappings_.push_back(m);
+  mapped_ += m.mapped;
   return m.data;
 }
 
@@ -520,7 +639,8 @@ void SmoothGaussian(const float* in, float* out, int width, int height,
   });
 }
 
-bool ProcessFirstOctave(VlSiftFilt* f, const float* image, int threads) {
+bool ProcessFirstOctave(VlSiftFilt* f, const float* image, int threads,
+                        const SiftDeadline& deadline) {
   if (f->o_min < -1) Fail("the first SIFT octave must be -1 or above here, got {}", f->o_min);
   f->o_cur = f->o_min;
   f->nkeys = 0;
@@ -541,11 +661,11 @@ bool ProcessFirstOctave(VlSiftFilt* f, const float* image, int threads) {
   const double sb = f->sigman * std::pow(2.0, -f->o_min);
   SmoothOrCopy(f->temp, vl_sift_get_octave(f, f->s_min), w, h,
                sa > sb ? std::sqrt(sa * sa - sb * sb) : 0.0, threads);
-  FillLevels(f, threads);
+  FillLevels(f, threads, deadline);
   return true;
 }
 
-bool ProcessNextOctave(VlSiftFilt* f, int threads) {
+bool ProcessNextOctave(VlSiftFilt* f, int threads, const SiftDeadline& deadline) {
   if (f->o_cur == f->o_min + f->O - 1) return false;
   const int s_best = std::min(f->s_min + f->S, f->s_max);
   Downsample(vl_sift_get_octave(f, s_best), f->octave_width, f->octave_height, 1, f->temp);
@@ -559,7 +679,7 @@ bool ProcessNextOctave(VlSiftFilt* f, int threads) {
   const double sb = f->sigma0 * std::pow(k, static_cast<float>(s_best - f->S));
   SmoothOrCopy(f->temp, vl_sift_get_octave(f, f->s_min), w, h,
                sa > sb ? std::sqrt(sa * sa - sb * sb) : 0.0, threads);
-  FillLevels(f, threads);
+  FillLevels(f, threads, deadline);
   return true;
 }
 

@@ -16,7 +16,9 @@
 // VLFeat's (sift_scale_space_test.cc).
 #pragma once
 
+#include <chrono>
 #include <cstddef>
+#include <optional>
 #include <utility>
 #include <vector>
 
@@ -34,16 +36,42 @@ struct Mapping {
   size_t bytes = 0;
 };
 
+// When the caller stops waiting; none: run to the end.
+using SiftDeadline = std::optional<std::chrono::steady_clock::time_point>;
+// Throws DeadlinePassed once `deadline` has passed.
+void StopAtSiftDeadline(const SiftDeadline& deadline);
+
+// The scale space's memory, process-wide: every SiftFilter reserves the bytes
+// its image needs (SiftFilterBytes) before it maps anything, and a reservation
+// waits until it fits under the limit — pooled buffers of finished filters
+// are given back to the system to make room. With a limit, the scale space of
+// all extractions together (live and pooled) never exceeds it. 0: no limit
+// (the default; the pool then keeps at most 2 GB).
+void SetSiftMemoryLimit(size_t bytes);
+struct SiftMemoryUse {
+  size_t limit = 0;     // 0: none
+  size_t reserved = 0;  // by live filters
+  size_t pooled = 0;    // mapped, kept for the next filters
+};
+SiftMemoryUse SiftMemoryInUse();
+
+// An upper bound of the bytes a SiftFilter of these arguments maps, the
+// per-octave gradient buffers of our scale space included (sift.cc).
+size_t SiftFilterBytes(int width, int height, int octaves, int levels, int first_octave);
+
 // A VLFeat SIFT filter (vl_sift_new's) whose image buffers — hundreds of MB
 // for a doubled photo — are anonymous mappings advised to use huge pages and
 // kept in a process-wide pool (up to 2 GB) for the next filters: no page
 // faults or zeroing once warm (a sixth of the extraction's time otherwise).
 // VLFeat's one gradient buffer only with `vlfeat_gradients` (VLFeat's own
 // code computes into it; ours keeps one per octave, see Allocate).
+// The constructor reserves SiftFilterBytes under the memory limit, waiting
+// until `wait_until` at most (then DeadlinePassed); a filter that alone
+// exceeds the limit is an Error naming both.
 class SiftFilter {
  public:
   SiftFilter(int width, int height, int octaves, int levels, int first_octave,
-             bool vlfeat_gradients);
+             bool vlfeat_gradients, SiftDeadline wait_until = std::nullopt);
   ~SiftFilter();
   SiftFilter(const SiftFilter&) = delete;
   SiftFilter& operator=(const SiftFilter&) = delete;
@@ -56,6 +84,9 @@ class SiftFilter {
   void Release();
   VlSiftFilt* filter_ = nullptr;
   std::vector<Mapping> mappings_;
+  size_t reserved_ = 0;   // bytes reserved under the memory limit
+  size_t mapped_ = 0;     // of which mapped by mappings_
+  bool bounded_ = false;  // a limit held when it was reserved: mappings stay within it
 };
 
 // VLFeat's Gaussian filter of standard deviation `sigma`: 2W + 1 taps,
@@ -74,9 +105,11 @@ void SmoothGaussian(const float* in, float* out, int width, int height,
 // refused: VLFeat's second doubling reads non-square images with the sides
 // swapped, which this does not reproduce (ExtractSiftColmap leaves them to
 // VLFeat).
-bool ProcessFirstOctave(VlSiftFilt* sift, const float* image, int threads);
+// With a deadline: DeadlinePassed between levels once it has passed.
+bool ProcessFirstOctave(VlSiftFilt* sift, const float* image, int threads,
+                        const SiftDeadline& deadline = std::nullopt);
 // The next octave, as `vl_sift_process_next_octave`; false after the last.
-bool ProcessNextOctave(VlSiftFilt* sift, int threads);
+bool ProcessNextOctave(VlSiftFilt* sift, int threads, const SiftDeadline& deadline = std::nullopt);
 // The current octave's gradient images, as VLFeat computes them on its first
 // orientation or descriptor call; afterwards VLFeat's orientation and
 // descriptor calls of this octave only read the filter (any thread).

@@ -4,10 +4,13 @@ extern "C" {
 #include <vl/sift.h>
 }
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <memory>
 #include <random>
+#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -198,6 +201,100 @@ TEST(SiftScaleSpace, RefusesImagesTooSmallForTheOctaves) {
   options.threads = 0;
   options.num_octaves = 4;
   EXPECT_THROW(ExtractSift(tiny, options), Error);
+}
+
+// SetSiftMemoryLimit for one test; the process's limit is none again after it.
+class SiftMemoryLimitFor {
+ public:
+  explicit SiftMemoryLimitFor(size_t bytes) { SetSiftMemoryLimit(bytes); }
+  ~SiftMemoryLimitFor() { SetSiftMemoryLimit(0); }
+};
+
+GreyImage TestGrey(int width, int height, uint32_t seed) {
+  const std::vector<float> values = TestImage(width, height, seed);
+  GreyImage image;
+  image.width = width;
+  image.height = height;
+  image.pixels.resize(values.size());
+  for (size_t i = 0; i < values.size(); ++i) {
+    image.pixels[i] = static_cast<uint8_t>(std::clamp(values[i], 0.0f, 1.0f) * 255.0f);
+  }
+  return image;
+}
+
+// SiftScaleSpaceBytes is what an extraction maps at most: with the limit set
+// to exactly it, extraction succeeds (every mapping must fit the reservation,
+// or Allocate fails), 2 MB less is refused up front naming both sizes, and a
+// photo above max_image_size is charged as its downscaled size.
+TEST(SiftMemory, TheEstimateBoundsWhatAnExtractionMaps) {
+  const GreyImage image = TestGrey(640, 480, 3);
+  const size_t need = SiftScaleSpaceBytes(image.width, image.height);
+  // ~320 bytes per pixel at first octave -1, plus rounding to 2 MB pages.
+  EXPECT_GT(need, size_t{300} * 640 * 480);
+  EXPECT_LT(need, size_t{400} * 640 * 480 + (size_t{40} << 20));
+  SiftFeatures unlimited = ExtractSiftColmap(image);
+  {
+    SiftMemoryLimitFor limit(need);
+    SiftOptions threaded;
+    threaded.threads = 2;
+    const SiftFeatures bounded = ExtractSiftColmap(image, threaded);
+    EXPECT_EQ(bounded.descriptors, unlimited.descriptors);
+    EXPECT_EQ(SiftMemoryInUse().reserved, 0u);
+    EXPECT_LE(SiftMemoryInUse().pooled, need);
+  }
+  {
+    SiftMemoryLimitFor limit(need - (size_t{2} << 20));
+    try {
+      ExtractSiftColmap(image);
+      ADD_FAILURE() << "extraction over the limit was not refused";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find(fmt::format("needs {} MB", need >> 20)),
+                std::string::npos)
+          << e.what();
+      EXPECT_NE(std::string(e.what()).find("memory limit"), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(SiftMemoryInUse().reserved, 0u);
+  }
+  EXPECT_EQ(SiftScaleSpaceBytes(7000, 7000), SiftScaleSpaceBytes(3200, 3200));
+  EXPECT_LT(SiftScaleSpaceBytes(3200, 3200), size_t{3700} << 20);
+}
+
+// Under a limit that holds one extraction, four threads extracting at once
+// take turns (each waits for room) and all get the unlimited features; a
+// waiter whose deadline passes gets DeadlinePassed, not a wait for ever.
+TEST(SiftMemory, ExtractionsWaitForRoomUntilTheirDeadline) {
+  const GreyImage image = TestGrey(480, 360, 5);
+  const SiftFeatures expected = ExtractSiftColmap(image);
+  const size_t need = SiftScaleSpaceBytes(image.width, image.height);
+  SiftMemoryLimitFor limit(need + need / 2);
+  std::vector<SiftFeatures> got(4);
+  std::vector<std::thread> threads;
+  for (size_t i = 0; i < got.size(); ++i) {
+    threads.emplace_back([&, i] { got[i] = ExtractSiftColmap(image); });
+  }
+  for (std::thread& t : threads) t.join();
+  for (const SiftFeatures& f : got) EXPECT_EQ(f.descriptors, expected.descriptors);
+  EXPECT_EQ(SiftMemoryInUse().reserved, 0u);
+  EXPECT_LE(SiftMemoryInUse().pooled, need + need / 2);
+
+  // A live filter holds the room; a second extraction waits 200 ms, then stops.
+  SiftFilter holder(image.width, image.height, 4, 3, -1, false);
+  SiftOptions late;
+  late.deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(200);
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_THROW(ExtractSiftColmap(image, late), DeadlinePassed);
+  const double waited =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_GE(waited, 0.19);
+  EXPECT_LT(waited, 5.0);  // a hang guard, not a timing claim
+}
+
+// A deadline already passed stops the extraction at its first octave.
+TEST(SiftMemory, APassedDeadlineStopsTheExtraction) {
+  SiftOptions o;
+  o.deadline = std::chrono::steady_clock::now();
+  EXPECT_THROW(ExtractSiftColmap(TestGrey(320, 240, 7), o), DeadlinePassed);
+  EXPECT_EQ(SiftMemoryInUse().reserved, 0u);
 }
 
 }  // namespace

@@ -199,6 +199,7 @@ ImageQuery Localizer::MatchPhoto(const QueryPhoto& photo, const LocalizeRequest&
   o.progress = request.progress;
   if (request.threads < 0) Fail("{}: threads must not be negative", photo.name);
   if (request.threads > 0) o.threads = request.threads;
+  o.sift.deadline = request.deadline;
   ImageQuery q;
   if (photo.features) {
     CheckFeatures(*photo.features, photo.camera, photo.name);
@@ -220,6 +221,10 @@ ImageQuery Localizer::MatchPhoto(const QueryPhoto& photo, const LocalizeRequest&
     if (request.keep_images && photo.image) q.image = *photo.image;
     if (!request.keep_images) q.image.pixels = {};  // its size and orientation stay
   }
+  if (request.deadline && Clock::now() >= *request.deadline) {
+    throw DeadlinePassed(
+        fmt::format("the request's deadline passed before matching {}", photo.name));
+  }
   MatchImageQuery(q, photo.camera, *state_->descriptors, o, state_->index.get());
   return q;
 }
@@ -238,9 +243,14 @@ LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
   std::vector<Rigid3d> rig;
   for (const QueryPhoto& photo : photos) {
     if (request.deadline && Clock::now() >= *request.deadline) {
-      return PastDeadline(method, std::move(result), "reading " + photo.name, start);
+      return PastDeadline(method, std::move(result),
+                          "the request's deadline passed before reading " + photo.name, start);
     }
-    result.photos.push_back(MatchPhoto(photo, request));
+    try {
+      result.photos.push_back(MatchPhoto(photo, request));
+    } catch (const DeadlinePassed& e) {
+      return PastDeadline(method, std::move(result), e.what(), start);
+    }
     rig.push_back(photo.cam_from_rig);
     const ImageQueryTimes& t = result.photos.back().times;
     result.times.decode_ms += t.decode_ms;
@@ -277,10 +287,10 @@ LocalizerResult Localizer::LocalizeFeatures(const SiftFeatures& features, const 
 }
 
 LocalizerResult Localizer::PastDeadline(const MethodInfo& method, LocalizerResult result,
-                                        const std::string& stage, Clock::time_point start) const {
+                                        const std::string& reason, Clock::time_point start) const {
   result.method = method.name;
   result.status = LocalizerStatus::kNoPose;
-  result.reason = fmt::format("the request's deadline passed before {}", stage);
+  result.reason = reason;
   result.pose.failure = result.reason;
   result.times.total_ms = MsSince(start);
   return result;
@@ -306,7 +316,9 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
   if (request.max_seconds) options.ransac.max_seconds = *request.max_seconds;
   if (request.deadline) {
     const double left = std::chrono::duration<double>(*request.deadline - Clock::now()).count();
-    if (left <= 0) return PastDeadline(method, std::move(result), "RANSAC", start);
+    if (left <= 0)
+      return PastDeadline(method, std::move(result), "the request's deadline passed before RANSAC",
+                          start);
     if (options.ransac.max_seconds <= 0 || options.ransac.max_seconds > left) {
       options.ransac.max_seconds = left;
     }

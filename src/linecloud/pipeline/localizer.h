@@ -73,9 +73,10 @@ struct LocalizeRequest {
   std::optional<double> threshold_px;
   std::optional<double> max_seconds;  // RANSAC's time budget
   // When the caller stops waiting (a service's request deadline): a stage
-  // not started by then is skipped, and RANSAC's budget ends there. The
-  // result is then "no pose", its reason naming the stage. (A stage already
-  // running, e.g. SIFT on one photo, finishes first.)
+  // not started by then is skipped, RANSAC's budget ends there and the
+  // colmap extractor stops between its octaves and levels (decoding and
+  // matching one photo run to their end). The result is then "no pose", its
+  // reason naming the stage.
   std::optional<std::chrono::steady_clock::time_point> deadline;
   std::optional<bool> refine_focal;
   std::optional<uint64_t> seed;
@@ -170,9 +171,9 @@ class Localizer {
   LocalizerResult Finish(const MethodInfo& method, LocalizerResult result,
                          const LocalizeRequest& request, std::string_view source,
                          std::chrono::steady_clock::time_point start) const;
-  // "No pose": the request's deadline passed before `stage`.
+  // "No pose": the request's deadline passed (`reason` names the stage).
   LocalizerResult PastDeadline(const MethodInfo& method, LocalizerResult result,
-                               const std::string& stage,
+                               const std::string& reason,
                                std::chrono::steady_clock::time_point start) const;
 };
 

@@ -9,8 +9,12 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <FreeImage.h>
+
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -67,7 +71,7 @@ LineCloud SmallCloud() {
   return cloud;
 }
 
-// `linecloud serve` on the test's maps and tokens, one worker, a random port.
+// `linecloud serve` on the test's maps and tokens, one worker (unless `extra` says), a random port.
 class Served : public ServedBinary {
  public:
   explicit Served(const TempDir& tmp, std::vector<std::string> extra = {})
@@ -76,8 +80,11 @@ class Served : public ServedBinary {
  private:
   static std::vector<std::string> Args(const TempDir& tmp, std::vector<std::string> extra) {
     std::vector<std::string> args = {
-        "serve",    "--maps",      tmp.Path("maps"), "--tokens", tmp.Path("tokens.json"),
-        "--listen", "127.0.0.1:0", "--threads",      "1"};
+        "serve",    "--maps",     tmp.Path("maps"), "--tokens", tmp.Path("tokens.json"),
+        "--listen", "127.0.0.1:0"};
+    if (std::find(extra.begin(), extra.end(), "--threads") == extra.end()) {
+      args.insert(args.end(), {"--threads", "1"});
+    }
     args.insert(args.end(), extra.begin(), extra.end());
     return args;
   }
@@ -515,6 +522,108 @@ TEST(Hostile, CraftedAndTruncatedJpegsAreRefused) {
                              multipart(bomb, "PINHOLE 7000 7000 5000 5000 3500 3500")));
   EXPECT_EQ(a.status, 400);
   EXPECT_NE(ErrorOf(a).find("image: the image is truncated"), std::string::npos) << ErrorOf(a);
+  EXPECT_TRUE(s.Alive());
+}
+
+// A PNG of `width` x `height` zero grey pixels: a few hundred bytes per
+// million pixels, a valid photo to decode.
+std::string ZeroPng(int width, int height) {
+  FIBITMAP* bitmap = FreeImage_Allocate(width, height, 8);
+  EXPECT_NE(bitmap, nullptr);
+  for (int y = 0; y < height; ++y) std::memset(FreeImage_GetScanLine(bitmap, y), 0, width);
+  FIMEMORY* memory = FreeImage_OpenMemory();
+  FreeImage_SaveToMemory(FIF_PNG, bitmap, memory, PNG_Z_BEST_COMPRESSION);
+  BYTE* data = nullptr;
+  DWORD size = 0;
+  FreeImage_AcquireMemory(memory, &data, &size);
+  std::string png(reinterpret_cast<const char*>(data), size);
+  FreeImage_CloseMemory(memory);
+  FreeImage_Unload(bitmap);
+  return png;
+}
+
+// A field of /proc/PID/status in bytes (VmRSS, VmHWM).
+size_t ProcessBytes(pid_t pid, const std::string& field) {
+  std::ifstream in(fmt::format("/proc/{}/status", pid));
+  for (std::string line; std::getline(in, line);) {
+    if (line.rfind(field + ":", 0) == 0) return std::stoull(line.substr(field.size() + 1)) << 10;
+  }
+  return 0;
+}
+
+std::string PhotoRequest(const std::string& image, const std::string& camera) {
+  const std::string boundary = "XyZ";
+  return Request(
+      "POST", "/v1/maps/synth/localize",
+      {kRoot, "Content-Type: multipart/form-data; boundary=" + boundary},
+      fmt::format("--{0}\r\nContent-Disposition: form-data; name=\"image\"; filename=\"a.png\"\r\n"
+                  "Content-Type: image/png\r\n\r\n{1}\r\n--{0}\r\nContent-Disposition: "
+                  "form-data; name=\"camera\"\r\n\r\n{2}\r\n--{0}--\r\n",
+                  boundary, image, camera));
+}
+
+// The photo door's memory: a 48 KB PNG of 7000 x 7000 zeros, within
+// --max-pixels, took the server to 3.6 GB and left 2.0 GB mapped. SIFT's
+// scale space now comes out of --memory-budget-mb: a photo that alone needs
+// more is refused (413) before it is decoded; photos that fit take turns, and
+// the process's peak stays within the budget plus decoding — two workers on
+// four real photos at once, a budget that holds one: the peak would be two
+// photos' scale space (2 x 570 MB) without it.
+TEST(Hostile, APhotosMemoryComesOutOfTheBudget) {
+  LINECLOUD_REQUIRE_DATA("strecha/fountain-P11/images/0000.jpg");
+  Maps m;
+  Served s(m.tmp, {"--threads", "2", "--memory-budget-mb", "700", "--request-seconds", "120"});
+  ASSERT_GT(s.port(), 0) << s.err();
+  const std::string bomb = ZeroPng(7000, 7000);
+  EXPECT_LT(bomb.size(), size_t{200'000});
+  const Answer big = Send(s.port(), PhotoRequest(bomb, "PINHOLE 7000 7000 5000 5000 3500 3500"));
+  EXPECT_EQ(big.status, 413) << big.body;
+  EXPECT_NE(ErrorOf(big).find("over the server's memory budget of 700 MB (--memory-budget-mb)"),
+            std::string::npos)
+      << ErrorOf(big);
+
+  const size_t start = ProcessBytes(s.pid(), "VmRSS");
+  const std::string photo = ReadFileToString(DataPath("strecha/fountain-P11/images/0000.jpg"));
+  const std::string request =
+      PhotoRequest(photo, "PINHOLE 1536 1024 1379.74 1382.08 760.095 503.155");
+  std::vector<std::thread> clients;
+  std::vector<Answer> answers(4);
+  for (size_t i = 0; i < answers.size(); ++i) {
+    clients.emplace_back([&, i] { answers[i] = Send(s.port(), request); });
+  }
+  for (std::thread& t : clients) t.join();
+  for (const Answer& a : answers) EXPECT_EQ(a.status, 200) << a.body;
+  const size_t peak = ProcessBytes(s.pid(), "VmHWM");
+  // The budget, then per worker the decoded photo (1.6 MP: a few MB) and matching.
+  EXPECT_LT(peak, start + (size_t{700} << 20) + (size_t{150} << 20))
+      << "start " << (start >> 20) << " MB, peak " << (peak >> 20) << " MB";
+  const Answer metrics = Send(s.port(), Request("GET", "/metrics", {kRoot}));
+  EXPECT_NE(metrics.body.find(
+                fmt::format("linecloud_sift_memory_bytes{{kind=\"limit\"}} {}", size_t{700} << 20)),
+            std::string::npos);
+  EXPECT_NE(metrics.body.find("linecloud_sift_memory_bytes{kind=\"reserved\"} 0"),
+            std::string::npos);
+  EXPECT_TRUE(s.Alive());
+}
+
+// Work is cancellable inside SIFT: a 3200 x 3200 photo's extraction (seconds
+// on one worker) stops at the request's deadline, and the worker takes the
+// next request at once instead of finishing a photo nobody waits for.
+TEST(Hostile, SiftStopsAtTheDeadline) {
+  Maps m;
+  Served s(m.tmp, {"--request-seconds", "1", "--queue", "4"});
+  ASSERT_GT(s.port(), 0) << s.err();
+  const Answer late =
+      Send(s.port(), PhotoRequest(ZeroPng(3200, 3200), "PINHOLE 3200 3200 2500 2500 1600 1600"));
+  EXPECT_EQ(late.status, 504) << late.body;
+  const auto after = std::chrono::steady_clock::now();
+  const Answer next =
+      Send(s.port(), Request("POST", "/v1/maps/synth/localize",
+                             {kRoot, "Content-Type: application/json"}, FeaturesBody(20, false)));
+  EXPECT_EQ(next.status, 200) << next.body;
+  const double waited =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - after).count();
+  EXPECT_LT(waited, 0.5) << "the worker finished the abandoned photo first";
   EXPECT_TRUE(s.Alive());
 }
 

@@ -29,6 +29,8 @@
 #include <nlohmann/json.hpp>
 
 #include "linecloud/features/image.h"
+#include "linecloud/features/sift.h"
+#include "linecloud/features/sift_scale_space.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/geometry/plucker.h"
 #include "linecloud/io/ply.h"
@@ -256,6 +258,15 @@ class Metrics {
         "# TYPE linecloud_map_load_errors_total counter\nlinecloud_map_load_errors_total {}\n"
         "# TYPE linecloud_resident_bytes gauge\nlinecloud_resident_bytes {}\n",
         in_flight, queued, maps, map_load_errors_, ResidentBytes());
+    const SiftMemoryUse sift = SiftMemoryInUse();
+    out += fmt::format(
+        "# HELP linecloud_sift_memory_bytes SIFT's scale space: reserved by running "
+        "extractions, pooled for the next, the limit (--memory-budget-mb).\n"
+        "# TYPE linecloud_sift_memory_bytes gauge\n"
+        "linecloud_sift_memory_bytes{{kind=\"reserved\"}} {}\n"
+        "linecloud_sift_memory_bytes{{kind=\"pooled\"}} {}\n"
+        "linecloud_sift_memory_bytes{{kind=\"limit\"}} {}\n",
+        sift.reserved, sift.pooled, sift.limit);
     return out;
   }
 
@@ -411,6 +422,9 @@ void ServeOptions::Check() const {
     Fail("serve: --max-body-mb must be in (0, 1024], got {}", max_body_mb);
   }
   if (max_pixels < 1) Fail("serve: --max-pixels must be positive");
+  if (!(memory_budget_mb >= 64 && memory_budget_mb <= 1e7)) {
+    Fail("serve: --memory-budget-mb must be in [64, 1e7], got {}", memory_budget_mb);
+  }
   if (!(request_seconds > 0 && request_seconds <= 3600)) {
     Fail("serve: --request-seconds must be in (0, 3600], got {}", request_seconds);
   }
@@ -640,7 +654,21 @@ struct Server::Impl {
       Throw(400, fmt::format("{}: the photo is {}x{} pixels but the camera is {}x{}", name,
                              header.width, header.height, camera.width, camera.height));
     }
+    CheckPhotoMemory(header.width, header.height, name);
   }
+
+  // 413 when SIFT's scale space for a photo this size (after downscaling
+  // to max_image_size) alone exceeds the budget; others wait for room.
+  void CheckPhotoMemory(uint64_t width, uint64_t height, const std::string& name) const {
+    const size_t need = SiftScaleSpaceBytes(static_cast<int>(width), static_cast<int>(height));
+    if (need > BudgetBytes()) {
+      Throw(413, fmt::format("{}: SIFT on a {}x{} photo needs {} MB, over the server's memory "
+                             "budget of {} MB (--memory-budget-mb): send a smaller photo",
+                             name, width, height, need >> 20, BudgetBytes() >> 20));
+    }
+  }
+
+  size_t BudgetBytes() const { return static_cast<size_t>(options.memory_budget_mb * 1024 * 1024); }
 
   void RecordStages(const LocalizerResult& r) {
     metrics.Stage("decode", r.times.decode_ms);
@@ -907,6 +935,7 @@ struct Server::Impl {
                                      : "";
       const uint64_t n = camera.width * camera.height;
       if (n > options.max_pixels) Throw(413, "imageBytes: the image exceeds the pixel cap");
+      CheckPhotoMemory(camera.width, camera.height, "imageBytes");
       const int channels = format == "GRAY8" ? 1 : format == "RGBA32" ? 4 : 0;
       if (channels == 0) Throw(400, "imageBytes: neither JPEG / PNG nor GRAY8 / RGBA32 pixels");
       if (bytes->size() != n * channels) {
@@ -1145,6 +1174,7 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   std::tie(impl_->host, impl_->port) = ParseListen(o.listen, "--listen");
   impl_->LoadMaps();
   impl_->pool = std::make_unique<WorkPool>(o.threads, o.queue);
+  SetSiftMemoryLimit(impl_->BudgetBytes());  // process-wide: the extractions of every map
   httplib::Server& h = impl_->http;
   h.set_payload_max_length(static_cast<size_t>(o.max_body_mb * 1024 * 1024));
   const auto seconds = [](double s) {

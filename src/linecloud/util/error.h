@@ -26,6 +26,13 @@ class FileError : public Error {
   int error_number_ = 0;
 };
 
+// A caller's deadline passed while work was under way (a service's request):
+// the pipeline answers "no pose" naming the stage, not an error.
+class DeadlinePassed : public Error {
+ public:
+  using Error::Error;
+};
+
 template <typename... Args>
 [[noreturn]] void Fail(fmt::format_string<Args...> format, Args&&... args) {
   throw Error(fmt::format(format, std::forward<Args>(args)...));
