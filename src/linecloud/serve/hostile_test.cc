@@ -12,6 +12,7 @@
 #include <FreeImage.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -625,6 +626,62 @@ TEST(Hostile, SiftStopsAtTheDeadline) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - after).count();
   EXPECT_LT(waited, 0.5) << "the worker finished the abandoned photo first";
   EXPECT_TRUE(s.Alive());
+}
+
+// Row 4: 200 sockets dribbling their request's header lines (a byte string
+// every second, never the blank line) held every connection thread of the
+// library's fixed pool: no other client was answered for as long as they
+// went on. Connection threads are now made as connections come (up to
+// --connections, 1024): other clients are answered at once, and SIGTERM
+// still ends the process (the drain does not wait for them for ever).
+TEST(Hostile, DribblingClientsDoNotStarveOthers) {
+  Maps m;
+  Served s(m.tmp, {"--request-seconds", "2"});
+  ASSERT_GT(s.port(), 0) << s.err();
+  std::vector<int> dribblers;
+  for (int i = 0; i < 200; ++i) {
+    const int fd = Connect(s.port());
+    ASSERT_GE(fd, 0);
+    const std::string start = "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n";
+    ASSERT_EQ(::send(fd, start.data(), start.size(), MSG_NOSIGNAL),
+              static_cast<ssize_t>(start.size()));
+    dribblers.push_back(fd);
+  }
+  std::atomic<bool> stop{false};
+  std::thread dribble([&] {
+    for (int round = 0; !stop; ++round) {
+      const std::string line = fmt::format("X-Slow-{}: y\r\n", round);
+      for (const int fd : dribblers) ::send(fd, line.data(), line.size(), MSG_NOSIGNAL);
+      for (int i = 0; i < 10 && !stop; ++i)
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  });
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+  for (int i = 0; i < 5; ++i) {
+    const Answer a = Send(s.port(), Request("GET", "/healthz"));
+    EXPECT_EQ(a.status, 200) << "request " << i << " while 200 clients dribble";
+    EXPECT_LT(a.seconds, 2.0);
+  }
+  const Answer pose =
+      Send(s.port(), Request("POST", "/v1/maps/synth/localize",
+                             {kRoot, "Content-Type: application/json"}, FeaturesBody(20, false)));
+  EXPECT_EQ(pose.status, 200) << pose.body;
+  EXPECT_LT(pose.seconds, 2.0);
+  // SIGTERM while they still dribble: the process ends within its drain
+  // (request 2 s + read 5 s + write 5 s), exit 0.
+  const auto term = std::chrono::steady_clock::now();
+  ::kill(s.pid(), SIGTERM);
+  for (int i = 0; i < 300 && s.Alive(); ++i)
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  ASSERT_FALSE(s.Alive()) << "SIGTERM did not end the server within 30 s";
+  const int status = s.Wait();
+  const double waited =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - term).count();
+  stop = true;
+  dribble.join();
+  for (const int fd : dribblers) ::close(fd);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << status << "\n" << s.err();
+  EXPECT_LT(waited, 20.0);
 }
 
 namespace contract {

@@ -39,6 +39,7 @@
 #include "linecloud/localize/query_json.h"
 #include "linecloud/pipeline/localizer.h"
 #include "linecloud/serve/geo.h"
+#include "linecloud/serve/pools.h"
 #include "linecloud/serve/tokens.h"
 #include "linecloud/serve/wire.h"
 #include "linecloud/util/base64.h"
@@ -150,64 +151,6 @@ struct HttpError {
 [[noreturn]] void Throw(int status, std::string message, double retry_after = 0) {
   throw HttpError{status, std::move(message), retry_after};
 }
-
-// A fixed pool of localization workers behind a bounded queue.
-class WorkPool {
- public:
-  WorkPool(int threads, int capacity) : capacity_(capacity) {
-    for (int i = 0; i < threads; ++i) workers_.emplace_back([this] { Loop(); });
-  }
-  ~WorkPool() {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      stopping_ = true;
-    }
-    cv_.notify_all();
-    for (std::thread& t : workers_) t.join();
-  }
-  // False when every idle worker has a job and `capacity` more wait.
-  bool TrySubmit(std::function<void()> job) {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (static_cast<int>(jobs_.size()) >= capacity_ + idle_) return false;
-      jobs_.push_back(std::move(job));
-    }
-    cv_.notify_one();
-    return true;
-  }
-  int queued() const {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return std::max(0, static_cast<int>(jobs_.size()) - idle_);
-  }
-  int running() const { return running_.load(); }
-
- private:
-  void Loop() {
-    for (;;) {
-      std::function<void()> job;
-      {
-        std::unique_lock<std::mutex> lock(mutex_);
-        ++idle_;
-        cv_.wait(lock, [&] { return stopping_ || !jobs_.empty(); });
-        --idle_;
-        if (jobs_.empty()) return;  // stopping, and every job done
-        job = std::move(jobs_.front());
-        jobs_.pop_front();
-      }
-      ++running_;
-      job();
-      --running_;
-    }
-  }
-  const int capacity_;
-  mutable std::mutex mutex_;
-  std::condition_variable cv_;
-  std::deque<std::function<void()>> jobs_;
-  std::vector<std::thread> workers_;
-  std::atomic<int> running_{0};
-  int idle_ = 0;  // workers waiting for a job
-  bool stopping_ = false;
-};
 
 // Prometheus counters and histograms (text exposition format 0.0.4).
 class Metrics {
@@ -1187,7 +1130,7 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   // Connection threads: at least the workers, the queue and a few for cheap
   // routes. A connection without a thread is not read at all: at 32 keep-alive
   // clients and 22 threads, 2 of 40 clients timed out writing their 2.7 MB
-  // bodies (docs/serve.md), hence --connections (64).
+  // bodies (docs/serve.md), hence --connections (1024, made as needed).
   const int http_threads = std::max(o.connections, o.threads + o.queue + 4);
   // Debian's cpp-httplib (a compiled library) listens with a backlog of 5:
   // 32 clients connecting at once overflowed it, and a connection the kernel
@@ -1205,7 +1148,14 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
       [impl = impl_.get()](const httplib::Request& req, httplib::Response& res) {
         return impl->Screen(req, res);
       });
-  h.new_task_queue = [http_threads] { return new httplib::ThreadPool(http_threads); };
+  // Made on demand (a dribbling client holds its thread; 200 of them held
+  // the library's fixed 64); a SIGTERM drain waits for open connections
+  // no longer than a request may take to be read, worked and written.
+  const auto drain = std::chrono::milliseconds(
+      static_cast<int64_t>(1000 * (o.request_seconds + o.read_timeout_s + o.write_timeout_s)));
+  h.new_task_queue = [http_threads, drain] {
+    return new ConnectionPool(http_threads, std::chrono::seconds(30), drain);
+  };
   impl_->Routes();
   const std::string web = o.web_dir.empty() ? DefaultWebDir() : o.web_dir;
   if (!web.empty() && fs::is_regular_file(fs::path(web) / "index.html")) {

@@ -26,9 +26,10 @@ struct ServeOptions {
   std::string tokens_path;                // empty: every request allowed (loopback only)
   int threads = 2;                        // localization workers
   int queue = 16;                         // requests waiting for a worker, at most
-  // Connections served at once (a thread each, blocked on its socket; the
-  // workers bound the CPU). More clients wait unread: nginx in front when more.
-  int connections = 64;
+  // Connections served at once (a thread each, made when needed, blocked on
+  // its socket; the workers bound the CPU). More clients wait unread: nginx
+  // in front (per-address limits) when one address may open more.
+  int connections = 1024;
   double max_body_mb = 16;
   uint64_t max_pixels = 50'000'000;
   // SIFT's scale space of all requests together, live and pooled (~320 bytes

@@ -1,0 +1,119 @@
+#include "linecloud/serve/pools.h"
+
+#include <algorithm>
+#include <utility>
+
+namespace linecloud {
+
+WorkPool::WorkPool(int threads, int capacity) : capacity_(capacity) {
+  for (int i = 0; i < threads; ++i) workers_.emplace_back([this] { Loop(); });
+}
+
+WorkPool::~WorkPool() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stopping_ = true;
+  }
+  cv_.notify_all();
+  for (std::thread& t : workers_) t.join();
+}
+
+bool WorkPool::TrySubmit(std::function<void()> job) {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (static_cast<int>(jobs_.size()) >= capacity_ + idle_) return false;
+    jobs_.push_back(std::move(job));
+  }
+  cv_.notify_one();
+  return true;
+}
+
+int WorkPool::queued() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return std::max(0, static_cast<int>(jobs_.size()) - idle_);
+}
+
+void WorkPool::Loop() {
+  for (;;) {
+    std::function<void()> job;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      ++idle_;
+      cv_.wait(lock, [&] { return stopping_ || !jobs_.empty(); });
+      --idle_;
+      if (jobs_.empty()) return;  // stopping, and every job done
+      job = std::move(jobs_.front());
+      jobs_.pop_front();
+    }
+    ++running_;
+    job();
+    --running_;
+  }
+}
+
+struct ConnectionPool::State {
+  State(int max, std::chrono::milliseconds idle) : max_threads(max), idle_exit(idle) {}
+  const int max_threads;
+  const std::chrono::milliseconds idle_exit;
+  std::mutex mutex;
+  std::condition_variable work, done;
+  std::deque<std::function<void()>> jobs;
+  int threads = 0, idle = 0;
+  bool shutdown = false;
+};
+
+ConnectionPool::ConnectionPool(int max_threads, std::chrono::milliseconds idle_exit,
+                               std::chrono::milliseconds drain)
+    : state_(std::make_shared<State>(max_threads, idle_exit)),
+      drain_(drain) {}
+
+void ConnectionPool::enqueue(std::function<void()> fn) {
+  bool spawn = false;
+  {
+    std::lock_guard<std::mutex> lock(state_->mutex);
+    state_->jobs.push_back(std::move(fn));
+    if (static_cast<int>(state_->jobs.size()) > state_->idle &&
+        state_->threads < state_->max_threads) {
+      ++state_->threads;
+      spawn = true;
+    }
+  }
+  if (spawn) std::thread(Loop, state_).detach();
+  state_->work.notify_one();
+}
+
+void ConnectionPool::shutdown() {
+  std::unique_lock<std::mutex> lock(state_->mutex);
+  state_->shutdown = true;
+  state_->work.notify_all();
+  state_->done.wait_for(lock, drain_, [&] { return state_->threads == 0; });
+}
+
+int ConnectionPool::threads() const {
+  std::lock_guard<std::mutex> lock(state_->mutex);
+  return state_->threads;
+}
+
+void ConnectionPool::Loop(std::shared_ptr<State> s) {
+  for (;;) {
+    std::function<void()> job;
+    {
+      std::unique_lock<std::mutex> lock(s->mutex);
+      ++s->idle;
+      const bool woken =
+          s->work.wait_for(lock, s->idle_exit, [&] { return s->shutdown || !s->jobs.empty(); });
+      --s->idle;
+      if (s->jobs.empty()) {
+        if (woken && !s->shutdown) continue;
+        --s->threads;  // idle too long, or shutting down with nothing left
+        s->done.notify_all();
+        return;
+      }
+      job = std::move(s->jobs.front());
+      s->jobs.pop_front();
+    }
+    job();
+  }
+}
+
+}  // namespace linecloud
