@@ -107,6 +107,15 @@ void RegisterServeCommand(CLI::App& app) {
       ->add_option("--leak-requests", load->leak_requests,
                    "Then this many more feature requests, memory before / after")
       ->capture_default_str();
+  bench
+      ->add_option("--attack-seconds", load->attack_seconds,
+                   "Then one client alone and under attack (hostile requests, dribbling "
+                   "sockets), this long each: p50 / p99 of both")
+      ->capture_default_str();
+  bench->add_option("--attackers", load->attackers, "Threads sending hostile requests")
+      ->capture_default_str();
+  bench->add_option("--dribblers", load->dribblers, "Sockets dribbling header lines")
+      ->capture_default_str();
   bench->add_flag("--json", *load_json, "Print JSON");
   bench->callback([load, load_json] {
     const nlohmann::json r = RunLoad(*load);

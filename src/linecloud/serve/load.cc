@@ -5,6 +5,8 @@
 #include <atomic>
 #include <chrono>
 #include <map>
+#include <sys/socket.h>
+#include <unistd.h>
 #include <mutex>
 #include <thread>
 
@@ -18,6 +20,7 @@
 #include "linecloud/util/file.h"
 #include "linecloud/util/memory.h"
 #include "linecloud/util/statistics.h"
+#include "linecloud/serve/raw_http.h"
 
 #include <httplib.h>
 #undef _res
@@ -75,6 +78,154 @@ json LevelJson(const std::string& kind, int clients, const Level& l) {
           {"statuses", statuses}};
 }
 
+// Requests an attacker would send without a proxy in front, each with a
+// kind for the report (docs/serve.md's rows).
+std::vector<std::pair<std::string, std::string>> HostileRequests(const std::string& path) {
+  const auto raw = [](const std::string& head, const std::string& body = "") {
+    return head + "\r\n" + body;
+  };
+  const std::string host = "Host: 127.0.0.1\r\nConnection: close\r\n";
+  std::string nested(100000, '[');
+  nested += std::string(100000, ']');
+  std::string many_headers = "GET /healthz HTTP/1.1\r\n" + host;
+  for (int i = 0; i < 500; ++i) many_headers += fmt::format("X-{}: {}\r\n", i, i);
+  std::string ranges = "bytes=0-0";
+  for (int i = 0; i < 500; ++i) ranges += ",0-";
+  // A JPEG header declaring 7000 x 7000 pixels in a few hundred bytes.
+  std::string bomb(
+      "\xFF\xD8\xFF\xC0\x00\x11\x08\x1B\x58\x1B\x58\x03\x01\x22\x00\x02\x11"
+      "\x01\x03\x11\x01\xFF\xDA\x00\x0C\x03\x01\x00\x02\x11\x03\x11\x00\x3F\x00",
+      38);
+  bomb += std::string(300, '\x55') + "\xFF\xD9";
+  const std::string form =
+      "--B\r\nContent-Disposition: form-data; name=\"image\"; filename=\"a.jpg\"\r\n\r\n" + bomb +
+      "\r\n--B\r\nContent-Disposition: form-data; name=\"camera\"\r\n\r\nPINHOLE 7000 7000 "
+      "5000 5000 3500 3500\r\n--B--\r\n";
+  return {
+      {"nested-json", raw(fmt::format("POST {} HTTP/1.1\r\n{}Content-Type: application/json\r\n"
+                                      "Content-Length: {}\r\n",
+                                      path, host, nested.size()),
+                          nested)},
+      {"chunked",
+       raw(fmt::format("POST {} HTTP/1.1\r\n{}Transfer-Encoding: chunked\r\n", path, host),
+           "100000\r\n" + std::string(4096, 'a'))},
+      {"huge-length",
+       raw(fmt::format("POST {} HTTP/1.1\r\n{}Content-Length: 99999999999\r\n", path, host))},
+      {"500-headers", raw(many_headers)},
+      {"500-ranges", raw(fmt::format("GET / HTTP/1.1\r\n{}Range: {}\r\n", host, ranges))},
+      {"nul-path", raw(fmt::format("GET /app.js%00.html HTTP/1.1\r\n{}", host))},
+      {"bad-json", raw(fmt::format("POST {} HTTP/1.1\r\n{}Content-Type: application/json\r\n"
+                                   "Content-Length: 11\r\n",
+                                   path, host),
+                       "{\"camera\": [")},
+      {"jpeg-bomb", raw(fmt::format("POST {} HTTP/1.1\r\n{}Content-Type: multipart/form-data; "
+                                    "boundary=B\r\nContent-Length: {}\r\n",
+                                    path, host, form.size()),
+                        form)},
+      {"garbage", std::string("\x16\x03\x01\x02\x00\x01\x00\x01\xfc\x03\x03 \r\n\r\n", 17)},
+      {"wrong-method", raw(fmt::format("PUT {} HTTP/1.1\r\n{}", path, host))},
+      {"long-uri", raw(fmt::format("GET /{} HTTP/1.1\r\n{}", std::string(100000, 'a'), host))},
+  };
+}
+
+struct Soak {
+  std::map<std::string, std::map<int, int>> statuses;  // kind -> status -> count
+  int requests = 0;
+};
+
+// `dribblers` sockets sending a header line a second, and `attackers`
+// threads cycling through HostileRequests, until `stop`.
+void Attack(int port, const std::string& path, int attackers, int dribblers,
+            const std::atomic<bool>& stop, Soak* soak) {
+  const auto requests = HostileRequests(path);
+  std::mutex mutex;
+  std::vector<std::thread> threads;
+  for (int a = 0; a < attackers; ++a) {
+    threads.emplace_back([&, a] {
+      for (size_t i = static_cast<size_t>(a); !stop; ++i) {
+        const auto& [kind, bytes] = requests[i % requests.size()];
+        const RawAnswer r = RawExchange(port, bytes, 5);
+        std::lock_guard<std::mutex> lock(mutex);
+        ++soak->statuses[kind][r.status];
+        ++soak->requests;
+      }
+    });
+  }
+  threads.emplace_back([&] {
+    std::vector<int> sockets;
+    for (int d = 0; d < dribblers; ++d) {
+      const int fd = ConnectLoopback(port, 5);
+      const std::string start = "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n";
+      if (fd >= 0 && ::send(fd, start.data(), start.size(), MSG_NOSIGNAL) > 0)
+        sockets.push_back(fd);
+    }
+    for (int round = 0; !stop; ++round) {
+      const std::string line = fmt::format("X-Slow-{}: y\r\n", round);
+      for (const int fd : sockets) ::send(fd, line.data(), line.size(), MSG_NOSIGNAL);
+      for (int i = 0; i < 10 && !stop; ++i)
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+    for (const int fd : sockets) ::close(fd);
+  });
+  for (std::thread& t : threads) t.join();
+}
+
+// One keep-alive client's feature requests, one after another, for `seconds`.
+Level Sequential(int port, double seconds, const std::string& path, const std::string& body) {
+  return Drive(port, 1, 1000000, seconds, [&](httplib::Client& client) {
+    return client.Post(path.c_str(), body, "application/json");
+  });
+}
+
+json AttackJson(int port, const LoadOptions& o, const std::string& path,
+                const std::string& features) {
+  const Level alone = Sequential(port, o.attack_seconds, path, features);
+  const size_t before = ResidentBytes();
+  std::atomic<bool> stop = false;
+  Soak soak;
+  std::thread attack([&] { Attack(port, path, o.attackers, o.dribblers, stop, &soak); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // the attack under way
+  const Level attacked = Sequential(port, o.attack_seconds, path, features);
+  stop = true;
+  attack.join();
+  const size_t after = ResidentBytes();
+  json kinds = json::object();
+  for (const auto& [kind, statuses] : soak.statuses) {
+    for (const auto& [status, n] : statuses) kinds[kind][std::to_string(status)] = n;
+  }
+  const double p99_alone = Percentile(alone.ms, 99);
+  return {{"seconds", o.attack_seconds},
+          {"attackers", o.attackers},
+          {"dribblers", o.dribblers},
+          {"alone", LevelJson("features", 1, alone)},
+          {"under_attack", LevelJson("features", 1, attacked)},
+          {"p99_ratio", p99_alone > 0 ? Percentile(attacked.ms, 99) / p99_alone : 0.0},
+          {"hostile_requests", soak.requests},
+          {"hostile_statuses", kinds},
+          {"rss_before_mb", before / 1e6},
+          {"rss_after_mb", after / 1e6}};
+}
+
+std::string AttackMarkdown(const json& a) {
+  std::string md = fmt::format(
+      "\nOne client's feature requests, {:.0f} s alone, then {:.0f} s while {} threads send "
+      "hostile requests ({} sent) and {} sockets dribble headers:\n\n"
+      "| | requests | p50 ms | p99 ms | statuses |\n|---|---|---|---|---|\n",
+      a["seconds"].get<double>(), a["seconds"].get<double>(), a["attackers"].get<int>(),
+      a["hostile_requests"].get<int>(), a["dribblers"].get<int>());
+  for (const char* phase : {"alone", "under_attack"}) {
+    const json& l = a[phase];
+    md += fmt::format("| {} | {} | {:.1f} | {:.1f} | {} |\n", phase, l["requests"].get<size_t>(),
+                      l["p50_ms"].get<double>(), l["p99_ms"].get<double>(), l["statuses"].dump());
+  }
+  md += fmt::format(
+      "\np99 under attack / alone: {:.2f}; resident memory {:.1f} -> {:.1f} MB; hostile "
+      "statuses by kind: {}\n",
+      a["p99_ratio"].get<double>(), a["rss_before_mb"].get<double>(),
+      a["rss_after_mb"].get<double>(), a["hostile_statuses"].dump());
+  return md;
+}
+
 }  // namespace
 
 std::string ClientFeaturesJson(const std::string& photo, const std::string& camera_text,
@@ -103,6 +254,12 @@ void LoadOptions::Check() const {
     Fail("bench serve: --map, --photo and --camera are required");
   }
   if (requests < 1 || requests > 100000) Fail("bench serve: --requests must be 1-100000");
+  if (!(attack_seconds >= 0 && attack_seconds <= 3600)) {
+    Fail("bench serve: --attack-seconds must be in [0, 3600]");
+  }
+  if (attackers < 1 || attackers > 64 || dribblers < 0 || dribblers > 900) {
+    Fail("bench serve: --attackers 1-64 and --dribblers 0-900");
+  }
   for (const int c : concurrency) {
     if (c < 1 || c > 256) Fail("bench serve: concurrency {} out of range [1, 256]", c);
   }
@@ -153,6 +310,7 @@ json RunLoad(const LoadOptions& o) {
                               {"rss_after_mb", after / 1e6},
                               {"statuses", LevelJson("features", 2, l)["statuses"]}};
     }
+    if (o.attack_seconds > 0) report["attack"] = AttackJson(port, o, path, features);
   } catch (...) {
     server.Stop();
     runner.join();
@@ -185,6 +343,7 @@ std::string LoadMarkdown(const json& r) {
         k["requests"].get<size_t>(), k["rss_before_mb"].get<double>(),
         k["rss_after_mb"].get<double>(), k["statuses"].dump());
   }
+  if (r.contains("attack")) md += AttackMarkdown(r["attack"]);
   return md;
 }
 

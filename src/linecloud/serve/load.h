@@ -3,7 +3,8 @@
 // a maps folder, driven at each concurrency by that many keep-alive clients
 // with one request body — a photo (multipart) or its client features (JSON) —
 // reporting throughput, p50 / p99 latency, statuses, and the server's resident
-// memory over the run (a leak shows as growth).
+// memory over the run (a leak shows as growth); optionally the same client
+// alone and under attack (LoadOptions::attack_seconds).
 #pragma once
 
 #include <string>
@@ -27,6 +28,15 @@ struct LoadOptions {
   bool photos = true;        // also the multipart photo (not only client features)
   int leak_requests = 0;     // > 0: that many more feature requests, RSS before / after
   int max_features = 8192;   // the client's feature budget (SIFT's cap)
+  // > 0: one client's feature requests alone for this long, then as long
+  // again while `attackers` threads send hostile requests (raw sockets:
+  // nested JSON, chunked and oversized bodies, 500 headers, ranges, a NUL
+  // in the path, a JPEG bomb, garbage bytes, wrong methods) and `dribblers`
+  // sockets dribble header lines. Reports the client's p50 / p99 alone and
+  // under attack, the attack's statuses by kind, resident memory.
+  double attack_seconds = 0;
+  int attackers = 4;
+  int dribblers = 50;
 
   void Check() const;
 };

@@ -1,5 +1,8 @@
 #include "linecloud/serve/pools.h"
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <utility>
 
@@ -64,8 +67,7 @@ struct ConnectionPool::State {
 
 ConnectionPool::ConnectionPool(int max_threads, std::chrono::milliseconds idle_exit,
                                std::chrono::milliseconds drain)
-    : state_(std::make_shared<State>(max_threads, idle_exit)),
-      drain_(drain) {}
+    : state_(std::make_shared<State>(max_threads, idle_exit)), drain_(drain) {}
 
 void ConnectionPool::enqueue(std::function<void()> fn) {
   bool spawn = false;
@@ -95,6 +97,9 @@ int ConnectionPool::threads() const {
 }
 
 void ConnectionPool::Loop(std::shared_ptr<State> s) {
+  // Below the localization workers: reading, screening and refusing requests
+  // must not take the CPU from poses under a flood of bad requests.
+  ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10);
   for (;;) {
     std::function<void()> job;
     {
