@@ -3,7 +3,7 @@
 # processes: client-feature requests from 4 parallel clients, one server
 # killed with -9 mid-load; every request must still be answered 200 (nginx
 # retries on the other server). Then a short wrk run through nginx (bounded:
-# 10 s, 8 connections). Needs the fountain-P11 work of `eval prepare`
+# 10 s, 8 connections), and the hostile rows through nginx (scripts/nginx_hostile.py). Needs the fountain-P11 work of `eval prepare`
 # (LINECLOUD_FOUNTAIN_WORK, default build/eval/fountain-P11), nginx and wrk.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -97,3 +97,6 @@ wrk.headers["Content-Type"] = "application/json"
 local f = io.open("$tmp/body.json", "rb"); wrk.body = f:read("*a"); f:close()
 LUA
 wrk -t2 -c8 -d10s --latency -s "$tmp/post.lua" "$url" | sed -n '1,20p'
+
+# Issue [shield]'s hostile rows again through nginx (on the survivor).
+/usr/bin/python3 scripts/nginx_hostile.py "$front" fountain "$tmp/body.json"

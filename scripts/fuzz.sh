@@ -8,12 +8,12 @@ SECONDS_PER_TARGET="${1:-30}"
 # The sanitizer build's folder, configured by scripts/sanitize.sh: one clang ASan + UBSan build for both.
 bash scripts/sanitize.sh --configure-only
 cmake --build build-san -j2 --target lcm_fuzzer colmap_binary_fuzzer colmap_text_fuzzer \
-  json_fuzzer colmap_database_fuzzer image_fuzzer index_cache_fuzzer
+  json_fuzzer colmap_database_fuzzer image_fuzzer index_cache_fuzzer http_fuzzer
 # The seed files come from the demo of the Release build (scripts/run.sh), else of this one.
 tool=./build/linecloud
 if [ ! -x "$tool" ]; then cmake --build build-san -j2 --target linecloud; tool=./build-san/linecloud; fi
 corpus=build-san/corpus
-rm -rf "$corpus" && mkdir -p "$corpus"/{lcm,bin,txt,json,db,image,cache}
+rm -rf "$corpus" && mkdir -p "$corpus"/{lcm,bin,txt,json,db,image,cache,http}
 "$tool" demo --out "$corpus/demo" --points 300 --images 4 --queries 1 >/dev/null
 cp "$corpus/demo/map.lcm" "$corpus/lcm/full.lcm"
 cp "$corpus/demo/map_compact.lcm" "$corpus/lcm/compact.lcm"
@@ -68,5 +68,16 @@ run colmap_text_fuzzer "$corpus/txt"
 run json_fuzzer "$corpus/json"
 run colmap_database_fuzzer "$corpus/db"
 run image_fuzzer "$corpus/image"
+# Requests: what clients send (docs/http_api.md), as bytes on a connection.
+printf 'GET /healthz HTTP/1.1\r\nHost: a\r\n\r\n' > "$corpus/http/healthz"
+printf 'GET /v1/maps HTTP/1.1\r\nHost: a\r\nAuthorization: Bearer alice-secret\r\n\r\n' > "$corpus/http/maps"
+printf 'GET /v1/maps/synth/segments?limit=5 HTTP/1.1\r\nHost: a\r\nAuthorization: Bearer root-secret\r\n\r\n' > "$corpus/http/segments"
+body='{"camera": {"model": "PINHOLE", "width": 640, "height": 480, "params": [500, 500, 320, 240]}, "keypoints": [[1, 2], [3, 4]], "descriptors": "'"$(head -c 256 /dev/zero | base64 -w0)"'"}'
+printf 'POST /v1/maps/synth/localize HTTP/1.1\r\nHost: a\r\nAuthorization: Bearer alice-secret\r\nContent-Type: application/json\r\nContent-Length: %d\r\n\r\n%s' "${#body}" "$body" > "$corpus/http/localize"
+geo='{"id": "q", "timestamp": 0, "type": "geopose", "sensors": [{"id": "c", "type": "camera"}], "sensorReadings": {"cameraReadings": [{"sensorId": "c", "imageFormat": "GRAY8", "size": [8, 8], "imageBytes": "'"$(head -c 64 /dev/zero | base64 -w0)"'", "params": {"model": "PINHOLE", "modelParams": [5, 5, 4, 4]}}]}}'
+printf 'POST /geopose?map=synth HTTP/1.1\r\nHost: a\r\nAuthorization: Bearer root-secret\r\nContent-Type: application/json\r\nContent-Length: %d\r\n\r\n%s' "${#geo}" "$geo" > "$corpus/http/geopose"
+form=$'--B\r\nContent-Disposition: form-data; name="camera"\r\n\r\nPINHOLE 8 8 5 5 4 4\r\n--B\r\nContent-Disposition: form-data; name="image"; filename="a.png"\r\n\r\n\x89PNG\r\n\x1a\n\r\n--B--\r\n'
+printf 'POST /v1/maps/synth/localize HTTP/1.1\r\nHost: a\r\nAuthorization: Bearer root-secret\r\nContent-Type: multipart/form-data; boundary=B\r\nContent-Length: %d\r\n\r\n%s' "${#form}" "$form" > "$corpus/http/multipart"
 run index_cache_fuzzer "$corpus/cache"
+run http_fuzzer "$corpus/http"
 echo "fuzzing finished: no crashes"
