@@ -51,15 +51,14 @@ std::string WriteServedFolder() {
     for (int k = 0; k < 128; ++k) cloud.descriptors.push_back(static_cast<uint8_t>(rng() % 60));
   }
   linecloud::WriteLineCloud(cloud, dir + "/maps/synth.lcm");
-  const nlohmann::json tokens = {
-      {"tokens",
-       {{{"id", "alice"},
-         {"sha256", linecloud::TokenSha256Hex("alice-secret")},
-         {"maps", {"synth"}}},
-        {{"id", "root"},
-         {"sha256", linecloud::TokenSha256Hex("root-secret")},
-         {"maps", {"*"}},
-         {"admin", true}}}}};
+  const nlohmann::json tokens = {{"tokens",
+                                  {{{"id", "alice"},
+                                    {"sha256", linecloud::TokenSha256Hex("alice-secret")},
+                                    {"maps", {"synth"}}},
+                                   {{"id", "root"},
+                                    {"sha256", linecloud::TokenSha256Hex("root-secret")},
+                                    {"maps", {"*"}},
+                                    {"admin", true}}}}};
   linecloud::WriteFileAtomically(dir + "/tokens.json",
                                  [&](std::ostream& os) { os << tokens.dump(); });
   return dir;
