@@ -86,7 +86,7 @@ stop = threading.Event()
 
 def dribble():
     start = time.monotonic()
-    while not stop.is_set() and time.monotonic() - start < 25:
+    while not stop.is_set() and dribblers and time.monotonic() - start < 25:
         for s in list(dribblers):
             try:
                 s.sendall(b"X-Slow: y\r\n")

@@ -202,7 +202,7 @@ TEST(Hostile, RequestsRefusedBeforeTheirBody) {
   // The API's JSON is never cut: a range there is ignored (RFC 9110 allows it).
   a = Send(s.port(), Request("GET", "/v1/maps", {kRoot, "Range: bytes=0-5"}));
   EXPECT_EQ(a.status, 200);
-  EXPECT_NO_THROW(json::parse(a.body)) << a.body;
+  EXPECT_NO_THROW(static_cast<void>(json::parse(a.body))) << a.body;
 
   // Chunked, no token: refused at once, nothing buffered.
   const std::string chunked =
@@ -563,7 +563,9 @@ TEST(Hostile, SiftStopsAtTheDeadline) {
   EXPECT_EQ(next.status, 200) << next.body;
   const double waited =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - after).count();
-  EXPECT_LT(waited, 0.5) << "the worker finished the abandoned photo first";
+  // Finishing the photo takes ~6 s more on a cold server; stopping, at most one
+  // level's smoothing or one octave's detection (~0.1-0.5 s; 2 s under load).
+  EXPECT_LT(waited, 2.0) << "the worker finished the abandoned photo first";
   EXPECT_TRUE(s.Alive());
 }
 
