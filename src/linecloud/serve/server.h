@@ -35,8 +35,8 @@ struct ServeOptions {
   // SIFT's scale space of all requests together, live and pooled (~320 bytes
   // per photo pixel after downscaling to 3 200 px: 550 MB for 1536 x 1024,
   // 3.6 GB at most). A photo needing more alone is refused (413); the others
-  // wait for room until their deadline. Decoding comes on top (at most ~8
-  // bytes per pixel of --max-pixels per worker).
+  // wait for room until their deadline. Decoding comes on top (~8 bytes per
+  // pixel; see docs/serve.md for what is not bounded yet).
   double memory_budget_mb = 4096;
   double request_seconds = 10;  // deadline of a localization (queue wait included)
   double read_timeout_s = 5, write_timeout_s = 5;  // a slow client's socket
