@@ -443,6 +443,23 @@ TEST(Hostile, CraftedAndTruncatedJpegsAreRefused) {
   std::string scans = photo;
   for (int i = 0; i < 600; ++i) scans += std::string("\xFF\xDA\x00\x02", 4);
   EXPECT_NE(decode(scans).find("more than 500 JPEG scans"), std::string::npos) << decode(scans);
+  // An outsider's file: 35 000 x 1 400 declared, 491 scans of empty bands —
+  // FreeImage's header read ran libjpeg over every scan (55 s). Refused from
+  // its markers, before FreeImage reads anything.
+  std::string wide = photo;
+  for (size_t i = 0; i + 8 < wide.size(); ++i) {
+    const uint8_t marker = static_cast<uint8_t>(wide[i + 1]);
+    if (static_cast<uint8_t>(wide[i]) == 0xFF && (marker == 0xC0 || marker == 0xC2)) {
+      wide[i + 5] = static_cast<char>(1400 >> 8);
+      wide[i + 6] = static_cast<char>(1400 & 0xFF);
+      wide[i + 7] = static_cast<char>(35000 >> 8);
+      wide[i + 8] = static_cast<char>(35000 & 0xFF);
+    }
+  }
+  for (int i = 0; i < 490; ++i) wide += std::string("\xFF\xDA\x00\x02", 4);
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_NE(decode(wide).find("over 765625 blocks would take"), std::string::npos) << decode(wide);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 5.0);
 
   // Through the server: 400 naming the part, and the server alive.
   Maps m;
