@@ -14,53 +14,25 @@
 #include <cstdlib>
 #include <filesystem>
 #include <memory>
-#include <random>
 #include <string>
 #include <thread>
 
-#include <nlohmann/json.hpp>
-
-#include "linecloud/geometry/plucker.h"
-#include "linecloud/io/lcm_format.h"
 #include "linecloud/serve/raw_http.h"
+#include "linecloud/serve/serve_fixtures.h"
 #include "linecloud/serve/server.h"
-#include "linecloud/serve/tokens.h"
-#include "linecloud/util/file.h"
 
 namespace {
 
 int g_port = 0;
 
-// maps/synth.lcm (200 lines with descriptors) and tokens.json (an admin
-// "root-secret", a reader "alice-secret" of synth) in a fresh folder.
+// maps/synth.lcm and tokens.json (serve_fixtures.h: an admin "root-secret",
+// a reader "alice-secret" of synth) in a fresh folder.
 std::string WriteServedFolder() {
-  namespace fs = std::filesystem;
   char pattern[] = "/tmp/linecloud-http-fuzzer-XXXXXX";
   const std::string dir = ::mkdtemp(pattern);
-  fs::create_directories(dir + "/maps");
-  linecloud::LineCloud cloud;
-  std::mt19937_64 rng(5);
-  std::uniform_real_distribution<double> u(-1, 1);
-  cloud.descriptor_dim = 128;
-  cloud.descriptor_type = "colmap-sift-uint8";
-  cloud.descriptor_aggregation = "medoid";
-  for (int i = 0; i < 200; ++i) {
-    cloud.ids.push_back(10 + i);
-    cloud.lines.push_back(linecloud::PluckerLine::FromPointAndDirection(
-        Eigen::Vector3d(u(rng), u(rng), 5 + u(rng)), Eigen::Vector3d(u(rng), u(rng), u(rng))));
-    for (int k = 0; k < 128; ++k) cloud.descriptors.push_back(static_cast<uint8_t>(rng() % 60));
-  }
-  linecloud::WriteLineCloud(cloud, dir + "/maps/synth.lcm");
-  const nlohmann::json tokens = {{"tokens",
-                                  {{{"id", "alice"},
-                                    {"sha256", linecloud::TokenSha256Hex("alice-secret")},
-                                    {"maps", {"synth"}}},
-                                   {{"id", "root"},
-                                    {"sha256", linecloud::TokenSha256Hex("root-secret")},
-                                    {"maps", {"*"}},
-                                    {"admin", true}}}}};
-  linecloud::WriteFileAtomically(dir + "/tokens.json",
-                                 [&](std::ostream& os) { os << tokens.dump(); });
+  std::filesystem::create_directories(dir + "/maps");
+  linecloud::WriteLineCloud(linecloud::SmallCloud(), dir + "/maps/synth.lcm");
+  linecloud::WriteTestTokens(dir + "/tokens.json");
   return dir;
 }
 

@@ -16,6 +16,18 @@ HOST = "Host: 127.0.0.1\r\nConnection: close\r\n"
 failures = []
 
 
+def read_until_close(s):
+    """What the server sends until it closes (or the socket's timeout); closes the socket."""
+    raw = b""
+    try:
+        while chunk := s.recv(65536):
+            raw += chunk
+    except OSError:
+        pass
+    s.close()
+    return raw
+
+
 def exchange(data, timeout=15):
     """Sends bytes, reads the answer until the server closes; (status, head, body, seconds)."""
     start = time.monotonic()
@@ -24,17 +36,7 @@ def exchange(data, timeout=15):
         s.sendall(data)
     except OSError:
         pass  # answered and closed before reading everything
-    chunks = []
-    try:
-        while True:
-            b = s.recv(65536)
-            if not b:
-                break
-            chunks.append(b)
-    except OSError:
-        pass
-    s.close()
-    raw = b"".join(chunks)
+    raw = read_until_close(s)
     head, _, body = raw.partition(b"\r\n\r\n")
     try:
         status = int(head.split(b" ")[1])
@@ -127,14 +129,7 @@ if BODY:
         held.append(s)
     statuses = []
     for s in held:
-        raw = b""
-        try:
-            while chunk := s.recv(65536):
-                raw += chunk
-        except OSError:
-            pass
-        s.close()
-        head, _, body = raw.partition(b"\r\n\r\n")
+        head, _, body = read_until_close(s).partition(b"\r\n\r\n")
         status = (head.split(b" ")[1:2] or [b"0"])[0].decode()
         statuses.append(status + (" nginx" if b"<center>nginx" in body else ""))
     refused = statuses.count("503 nginx")

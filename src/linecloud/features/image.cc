@@ -322,12 +322,17 @@ GreyImage ReadGreyImage(const std::string& path, const ImageLimits& limits) {
                          path, limits);
 }
 
+std::pair<int, int> DownscaledSize(int width, int height, int max_size) {
+  if (std::max(width, height) <= max_size) return {width, height};
+  const double scale = static_cast<double>(max_size) / std::max(width, height);
+  return {std::max(1, static_cast<int>(width * scale)),
+          std::max(1, static_cast<int>(height * scale))};
+}
+
 GreyImage DownscaleToMaxSize(const GreyImage& image, int max_size) {
   if (std::max(image.width, image.height) <= max_size) return image;
   EnsureFreeImage();
-  const double scale = static_cast<double>(max_size) / std::max(image.width, image.height);
-  const int width = std::max(1, static_cast<int>(image.width * scale));
-  const int height = std::max(1, static_cast<int>(image.height * scale));
+  const auto [width, height] = DownscaledSize(image.width, image.height, max_size);
   BitmapPtr source(FreeImage_Allocate(image.width, image.height, 8), FreeImage_Unload);
   if (!source) Fail("out of memory for a {}x{} image", image.width, image.height);
   for (int y = 0; y < image.height; ++y) {

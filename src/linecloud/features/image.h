@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace linecloud {
@@ -75,5 +76,7 @@ GreyImage GreyImageFromPixels(std::span<const uint8_t> pixels, int width, int he
 // Bilinear downscaling as COLMAP does before extraction when the larger side
 // exceeds `max_size` (FreeImage_Rescale); returns the image unchanged otherwise.
 GreyImage DownscaleToMaxSize(const GreyImage& image, int max_size);
+// The width and height DownscaleToMaxSize gives an image of this size.
+std::pair<int, int> DownscaledSize(int width, int height, int max_size);
 
 }  // namespace linecloud

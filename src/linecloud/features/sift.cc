@@ -157,18 +157,6 @@ void SiftOptions::Check() const {
   if (threads < 1) Fail("SIFT threads must be at least 1, got {}", threads);
 }
 
-namespace {
-
-// The size DownscaleToMaxSize gives.
-std::pair<int, int> DownscaledSize(int width, int height, int max_size) {
-  if (std::max(width, height) <= max_size) return {width, height};
-  const double scale = static_cast<double>(max_size) / std::max(width, height);
-  return {std::max(1, static_cast<int>(width * scale)),
-          std::max(1, static_cast<int>(height * scale))};
-}
-
-}  // namespace
-
 size_t SiftScaleSpaceBytes(int width, int height, const SiftOptions& options) {
   options.Check();
   const auto [w, h] = DownscaledSize(width, height, options.max_image_size);

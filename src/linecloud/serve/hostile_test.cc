@@ -49,32 +49,6 @@ using testing::DataPath;
 using testing::TempDir;
 namespace fs = std::filesystem;
 
-// A small line cloud with descriptors (what the routes need to run).
-LineCloud SmallCloud() {
-  LineCloud cloud;
-  std::mt19937_64 rng(5);
-  std::uniform_real_distribution<double> u(-1, 1);
-  cloud.descriptor_dim = 128;
-  cloud.descriptor_type = "colmap-sift-uint8";
-  cloud.descriptor_aggregation = "medoid";
-  for (int i = 0; i < 200; ++i) {
-    cloud.ids.push_back(10 + i);
-    cloud.lines.push_back(PluckerLine::FromPointAndDirection(
-        Eigen::Vector3d(u(rng), u(rng), 5 + u(rng)), Eigen::Vector3d(u(rng), u(rng), u(rng))));
-    // SIFT-like: on the sphere of radius 512 (COLMAP's normalisation).
-    std::vector<double> v(128);
-    double norm = 0;
-    for (double& x : v) {
-      x = static_cast<double>(rng() % 1000);
-      norm += x * x;
-    }
-    for (const double x : v) {
-      cloud.descriptors.push_back(static_cast<uint8_t>(std::lround(512 * x / std::sqrt(norm))));
-    }
-  }
-  return cloud;
-}
-
 // `linecloud serve` on the test's maps and tokens, one worker (unless `extra` says), a random port.
 class Served : public ServedBinary {
  public:

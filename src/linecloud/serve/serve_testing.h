@@ -1,5 +1,5 @@
-// What the service's tests share: their tokens, and `linecloud serve` run
-// as a child process.
+// What the service's tests share: their fixtures (serve_fixtures.h), and
+// `linecloud serve` run as a child process.
 #pragma once
 
 #include <fcntl.h>
@@ -15,28 +15,10 @@
 
 #include <nlohmann/json.hpp>
 
-#include "linecloud/serve/tokens.h"
+#include "linecloud/serve/serve_fixtures.h"
 #include "linecloud/util/file.h"
 
 namespace linecloud {
-
-// alice reads map "synth", bob "other", slow may use every map once a
-// minute, root is an admin.
-inline void WriteTestTokens(const std::string& path) {
-  const nlohmann::json tokens = {
-      {"tokens",
-       {{{"id", "alice"}, {"sha256", TokenSha256Hex("alice-secret")}, {"maps", {"synth"}}},
-        {{"id", "bob"}, {"sha256", TokenSha256Hex("bob-secret")}, {"maps", {"other"}}},
-        {{"id", "slow"},
-         {"sha256", TokenSha256Hex("slow-secret")},
-         {"maps", {"*"}},
-         {"requests_per_minute", 1}},
-        {{"id", "root"},
-         {"sha256", TokenSha256Hex("root-secret")},
-         {"maps", {"*"}},
-         {"admin", true}}}}};
-  WriteFileAtomically(path, [&](std::ostream& os) { os << tokens.dump(); });
-}
 
 // The real binary (LINECLOUD_BINARY) run with `args` (after its name), its
 // standard error in `err_path`; port() once it listens (0 if it never did).
