@@ -4,8 +4,9 @@
 // the client closes its sending side and reads until the server closes. Any
 // input must be answered or dropped — never crash the server (libFuzzer sees
 // the crash), corrupt its memory (ASan) or trip undefined behaviour (UBSan).
-// cpp-httplib is Debian's compiled library: uninstrumented, so coverage
-// guides through linecloud's screening, routes and parsers behind it.
+// libmicrohttpd is Debian's compiled library: uninstrumented, so coverage
+// guides through linecloud's HTTP layer (serve/http), screening, routes and
+// parsers behind it.
 #include <sys/socket.h>
 #include <unistd.h>
 

@@ -16,7 +16,8 @@ packages=(
   libfaiss-dev libhnswlib-dev  # features: the matching index (FAISS), a peer (hnswlib)
   libopenblas0-openmp  # BLAS for FAISS's k-means and coarse search (Debian's default is slower)
   colmap         # eval: structure from motion (its command line)
-  libcpp-httplib-dev  # serve: HTTP/1.1
+  libmicrohttpd-dev  # serve: HTTP/1.1 (the server)
+  libcpp-httplib-dev  # serve: HTTP clients (load generator, tests)
   nginx-light wrk     # serve: the deployment example's fault test and load test
   # python: `import linecloud` (pybind11), its tests (pytest, OpenCV's SIFT as another
   # extractor) and an offline `pip install` into a virtual environment

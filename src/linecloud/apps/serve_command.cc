@@ -63,7 +63,10 @@ void RegisterServeCommand(CLI::App& app) {
                   "The console's files (default: web/ beside the executable, or the installed "
                   "share/linecloud/web)");
   cmd->add_option("--connections", o->connections,
-                  "Connections served at once (a thread each; more wait unread)")
+                  "Connections open at once (more are closed when accepted)")
+      ->capture_default_str();
+  cmd->add_option("--connections-per-address", o->connections_per_address,
+                  "Connections open at once from one address, loopback not counted (0: no limit)")
       ->capture_default_str();
   cmd->add_option("--queue", o->queue, "Requests waiting for a worker, at most (then 503)")
       ->capture_default_str();

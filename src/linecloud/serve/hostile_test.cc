@@ -167,16 +167,21 @@ TEST(Hostile, RequestsRefusedBeforeTheirBody) {
                          "\r\nContent-Length: 999999999\r\n\r\n");
   EXPECT_EQ(a.status, 413);
   EXPECT_LT(a.seconds, 2.0);
+  // Not HTTP: closed without an answer; a malformed head: the library's 400.
+  // Both logged with the client's address.
   a = Send(s.port(), "GARBAGE\r\n\r\n");
-  EXPECT_EQ(a.status, 400);
+  EXPECT_EQ(a.status, 0) << a.body;
+  a = Send(s.port(), "GET /healthz HTTP/1.1\r\nHost: x\r\nno colon here\r\n\r\n");
+  EXPECT_EQ(a.status, 400) << a.body;
   std::this_thread::sleep_for(std::chrono::milliseconds(100));
   EXPECT_NE(s.err().find("\"status\":413"), std::string::npos) << s.err();
   EXPECT_NE(s.err().find("\"route\":\"other\""), std::string::npos) << s.err();
+  EXPECT_NE(s.err().find("HTTP response code is 400"), std::string::npos) << s.err();
   EXPECT_NE(s.err().find("\"client\":\"127.0.0.1\""), std::string::npos) << s.err();
   // The API's JSON is never cut: a range there is ignored (RFC 9110 allows it).
   a = Send(s.port(), Request("GET", "/v1/maps", {kRoot, "Range: bytes=0-5"}));
   EXPECT_EQ(a.status, 200);
-  EXPECT_NO_THROW(static_cast<void>(json::parse(a.body))) << a.body;
+  EXPECT_TRUE(json::accept(a.body)) << a.body;
 
   // Chunked, no token: refused at once, nothing buffered.
   const std::string chunked =
@@ -222,8 +227,9 @@ TEST(Hostile, RequestsRefusedBeforeTheirBody) {
   EXPECT_TRUE(s.Alive());
 }
 
-// Row 16: only RFC 6750 token characters authenticate (the library
-// percent-decodes header values: "%00junk" arrived as a NUL and junk).
+// Row 16: only RFC 6750 token characters authenticate (cpp-httplib
+// percent-decoded header values: "%00junk" arrived as a NUL and junk,
+// "Bearer%20TOKEN" authenticated).
 TEST(Hostile, ATokenWithJunkDoesNotAuthenticate) {
   Maps m;
   Served s(m.tmp);
@@ -231,7 +237,7 @@ TEST(Hostile, ATokenWithJunkDoesNotAuthenticate) {
   EXPECT_EQ(Send(s.port(), Request("GET", "/v1/maps", {kRoot})).status, 200);
   for (const char* h :
        {"Authorization: Bearer root-secret%00junk", "Authorization: Bearer root-secret junk",
-        "Authorization: Bearer  root-secret"}) {
+        "Authorization: Bearer  root-secret", "Authorization: Bearer%20root-secret"}) {
     const Answer a = Send(s.port(), Request("GET", "/v1/maps", {h}));
     EXPECT_EQ(a.status, 401) << h;
     EXPECT_EQ(a.Header("WWW-Authenticate"), "Bearer realm=\"linecloud\"") << h;

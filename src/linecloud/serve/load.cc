@@ -92,10 +92,10 @@ std::vector<std::pair<std::string, std::string>> HostileRequests(const std::stri
   std::string ranges = "bytes=0-0";
   for (int i = 0; i < 500; ++i) ranges += ",0-";
   // A JPEG header declaring 7000 x 7000 pixels in a few hundred bytes.
-  std::string bomb(
+  static constexpr char kBombHead[] =
       "\xFF\xD8\xFF\xC0\x00\x11\x08\x1B\x58\x1B\x58\x03\x01\x22\x00\x02\x11"
-      "\x01\x03\x11\x01\xFF\xDA\x00\x0C\x03\x01\x00\x02\x11\x03\x11\x00\x3F\x00",
-      38);
+      "\x01\x03\x11\x01\xFF\xDA\x00\x0C\x03\x01\x00\x02\x11\x03\x11\x00\x3F\x00";
+  std::string bomb(kBombHead, sizeof(kBombHead) - 1);  // 36 bytes (was read as 38: ASan)
   bomb += std::string(300, '\x55') + "\xFF\xD9";
   const std::string form =
       "--B\r\nContent-Disposition: form-data; name=\"image\"; filename=\"a.jpg\"\r\n\r\n" + bomb +

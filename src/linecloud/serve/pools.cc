@@ -54,26 +54,33 @@ void WorkPool::Loop() {
   }
 }
 
-struct ConnectionPool::State {
+struct RequestPool::State {
   State(int max, std::chrono::milliseconds idle) : max_threads(max), idle_exit(idle) {}
   const int max_threads;
   const std::chrono::milliseconds idle_exit;
-  std::mutex mutex;
-  std::condition_variable work, done;
+  mutable std::mutex mutex;
+  mutable std::condition_variable work, done;
   std::deque<std::function<void()>> jobs;
-  int threads = 0, idle = 0;
+  int threads = 0, idle = 0, running = 0;
   bool shutdown = false;
 };
 
-ConnectionPool::ConnectionPool(int max_threads, std::chrono::milliseconds idle_exit,
-                               std::chrono::milliseconds drain)
-    : state_(std::make_shared<State>(max_threads, idle_exit)), drain_(drain) {}
+RequestPool::RequestPool(int max_threads, std::chrono::milliseconds idle_exit)
+    : state_(std::make_shared<State>(max_threads, idle_exit)) {}
 
-void ConnectionPool::enqueue(std::function<void()> fn) {
+RequestPool::~RequestPool() {
+  WaitIdle();
+  std::unique_lock<std::mutex> lock(state_->mutex);
+  state_->shutdown = true;
+  state_->work.notify_all();
+  state_->done.wait(lock, [&] { return state_->threads == 0; });
+}
+
+void RequestPool::Submit(std::function<void()> job) {
   bool spawn = false;
   {
     std::lock_guard<std::mutex> lock(state_->mutex);
-    state_->jobs.push_back(std::move(fn));
+    state_->jobs.push_back(std::move(job));
     if (static_cast<int>(state_->jobs.size()) > state_->idle &&
         state_->threads < state_->max_threads) {
       ++state_->threads;
@@ -84,21 +91,22 @@ void ConnectionPool::enqueue(std::function<void()> fn) {
   state_->work.notify_one();
 }
 
-void ConnectionPool::shutdown() {
-  std::unique_lock<std::mutex> lock(state_->mutex);
-  state_->shutdown = true;
-  state_->work.notify_all();
-  state_->done.wait_for(lock, drain_, [&] { return state_->threads == 0; });
+int RequestPool::busy() const {
+  std::lock_guard<std::mutex> lock(state_->mutex);
+  return static_cast<int>(state_->jobs.size()) + state_->running;
 }
 
-int ConnectionPool::threads() const {
+int RequestPool::threads() const {
   std::lock_guard<std::mutex> lock(state_->mutex);
   return state_->threads;
 }
 
-void ConnectionPool::Loop(std::shared_ptr<State> s) {
-  // Below the localization workers: reading, screening and refusing requests
-  // must not take the CPU from poses under a flood of bad requests.
+void RequestPool::WaitIdle() const {
+  std::unique_lock<std::mutex> lock(state_->mutex);
+  state_->done.wait(lock, [&] { return state_->jobs.empty() && state_->running == 0; });
+}
+
+void RequestPool::Loop(std::shared_ptr<State> s) {
   ::setpriority(PRIO_PROCESS, static_cast<id_t>(::gettid()), 10);
   for (;;) {
     std::function<void()> job;
@@ -116,8 +124,12 @@ void ConnectionPool::Loop(std::shared_ptr<State> s) {
       }
       job = std::move(s->jobs.front());
       s->jobs.pop_front();
+      ++s->running;
     }
     job();
+    std::lock_guard<std::mutex> lock(s->mutex);
+    --s->running;
+    s->done.notify_all();
   }
 }
 

@@ -1,6 +1,6 @@
 // The service's two kinds of threads: localization workers (a fixed pool
-// behind a bounded queue) and connection threads for cpp-httplib (made on
-// demand up to a bound, leaving when idle).
+// behind a bounded queue) and request handlers (made on demand up to a
+// bound, leaving when idle).
 #pragma once
 
 #include <atomic>
@@ -12,8 +12,6 @@
 #include <mutex>
 #include <thread>
 #include <vector>
-
-#include <httplib.h>
 
 namespace linecloud {
 
@@ -41,27 +39,29 @@ class WorkPool {
   bool stopping_ = false;
 };
 
-// cpp-httplib's task queue: each accepted connection is read on a thread of
-// its own for as long as it lasts — a client that dribbles its request holds
-// one. The library's ThreadPool makes a fixed number at start, so 64 such
-// clients left no thread for anyone else; here a connection that finds no
-// idle thread gets a new one, up to `max_threads` (then it waits for one),
-// and a thread idle for `idle_exit` leaves. shutdown() answers what was
-// accepted, but waits at most `drain` for connections still open (a client
-// that never finishes its request would hold it for ever).
-class ConnectionPool : public httplib::TaskQueue {
+// The threads requests are handled on (serve/http): made as requests come,
+// up to `max_threads` (then they wait in line), leaving when idle for
+// `idle_exit`; at nice 10, below the localization workers (refusing a flood
+// of bad requests must not take the CPU from poses). A handler may block
+// until its request's deadline (waiting for a worker), never longer.
+class RequestPool {
  public:
-  ConnectionPool(int max_threads, std::chrono::milliseconds idle_exit,
-                 std::chrono::milliseconds drain);
-  void enqueue(std::function<void()> fn) override;
-  void shutdown() override;
+  RequestPool(int max_threads, std::chrono::milliseconds idle_exit);
+  // Waits for every job submitted (each bounded by its request's deadline).
+  ~RequestPool();
+  RequestPool(const RequestPool&) = delete;
+  RequestPool& operator=(const RequestPool&) = delete;
+  void Submit(std::function<void()> job);
+  // Jobs waiting or running.
+  int busy() const;
   int threads() const;
+  // Until no job waits or runs (every job submitted so far has returned).
+  void WaitIdle() const;
 
  private:
   struct State;
   static void Loop(std::shared_ptr<State> state);
-  std::shared_ptr<State> state_;  // shared with the threads: they may outlive a drain
-  const std::chrono::milliseconds drain_;
+  std::shared_ptr<State> state_;  // shared with the threads, which leave on their own
 };
 
 }  // namespace linecloud

@@ -39,6 +39,7 @@
 #include "linecloud/localize/query_json.h"
 #include "linecloud/pipeline/localizer.h"
 #include "linecloud/serve/geo.h"
+#include "linecloud/serve/http.h"
 #include "linecloud/serve/pools.h"
 #include "linecloud/serve/tokens.h"
 #include "linecloud/serve/wire.h"
@@ -46,11 +47,6 @@
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 #include "linecloud/util/memory.h"
-
-// After every Eigen header: cpp-httplib pulls in <resolv.h>, whose `_res`
-// macro would rewrite Eigen's parameters of that name.
-#include <httplib.h>
-#undef _res
 
 namespace linecloud {
 namespace {
@@ -66,8 +62,8 @@ bool IsMapId(const std::string& id) {
                      [](unsigned char c) { return std::isalnum(c) != 0 || c == '_' || c == '-'; });
 }
 
-// Header fields a request may carry (cpp-httplib 0.11.4 has no limit of its
-// own: 500 000 headers cost 125 MB before a route saw them).
+// Header fields a request may carry (their bytes are bounded by
+// HttpServerOptions::head_bytes before this count is taken).
 constexpr size_t kMaxHeaders = 100;
 
 // The API's routes by path: their method ("GET" / "POST"), "" for any other
@@ -88,13 +84,9 @@ std::string AllowedMethods(const std::string& path) {
   return "";
 }
 
-// The Authorization header whole: cpp-httplib's get_header_value goes
-// through a C string, so "Bearer TOKEN%00junk" (percent-decoded by the
-// library) read as "Bearer TOKEN" and authenticated.
-std::string Authorization(const httplib::Request& req) {
-  const auto it = req.headers.find("Authorization");
-  return it == req.headers.end() ? "" : it->second;
-}
+// The Authorization header whole, as sent (never percent-decoded: with
+// cpp-httplib "Bearer%20TOKEN" and "Bearer TOKEN%00junk" authenticated).
+std::string Authorization(const HttpRequest& req) { return req.Header("Authorization"); }
 
 // The console's Content-Security-Policy: its own files, and its inline
 // import map by hash (Chromium reads import maps inline only), nothing else;
@@ -125,8 +117,8 @@ std::string ConsolePolicy(const std::string& index_html) {
 
 // The announced Content-Length (0 when absent; UINT64_MAX when it is not a
 // number below 10^15: no body that large is read).
-uint64_t BodyLength(const httplib::Request& req) {
-  const std::string v = req.get_header_value("Content-Length");
+uint64_t BodyLength(const HttpRequest& req) {
+  const std::string v = req.Header("Content-Length");
   if (v.empty()) return 0;
   if (v.size() > 15 || !std::all_of(v.begin(), v.end(), ::isdigit)) return UINT64_MAX;
   return std::stoull(v);
@@ -146,6 +138,7 @@ struct HttpError {
   int status;
   std::string message;
   double retry_after = 0;  // seconds, for 429 / 503
+  HttpFields headers = {};
 };
 
 [[noreturn]] void Throw(int status, std::string message, double retry_after = 0) {
@@ -358,8 +351,12 @@ void ServeOptions::Check() const {
   if (maps_dir.empty()) Fail("serve: --maps DIR is required");
   if (threads < 1 || threads > 256) Fail("serve: --threads must be 1-256, got {}", threads);
   if (queue < 0 || queue > 100000) Fail("serve: --queue must be 0-100000, got {}", queue);
-  if (connections < 1 || connections > 4096) {
-    Fail("serve: --connections must be 1-4096, got {}", connections);
+  if (connections < 1 || connections > 65536) {
+    Fail("serve: --connections must be 1-65536, got {}", connections);
+  }
+  if (connections_per_address < 0 || connections_per_address > connections) {
+    Fail("serve: --connections-per-address must be 0-{} (--connections), got {}", connections,
+         connections_per_address);
   }
   if (!(max_body_mb > 0 && max_body_mb <= 1024)) {
     Fail("serve: --max-body-mb must be in (0, 1024], got {}", max_body_mb);
@@ -382,10 +379,9 @@ struct Server::Impl {
   TokenStore tokens;
   Metrics metrics;
   std::unique_ptr<WorkPool> pool;
-  httplib::Server http;
   std::string host;
   int port = -1;
-  socket_t listen_socket = INVALID_SOCKET;  // seen when the server creates it
+  std::string web_dir;  // the console's files ("": none)
   std::atomic<int> in_flight{0};
   mutable std::mutex maps_mutex;
   std::shared_ptr<const MapSet> maps = std::make_shared<MapSet>();
@@ -505,7 +501,7 @@ struct Server::Impl {
 
   // The caller's token entry (nullopt: no tokens file, everything allowed);
   // 401 without a known token.
-  std::optional<TokenEntry> Authorize(const httplib::Request& req) const {
+  std::optional<TokenEntry> Authorize(const HttpRequest& req) const {
     if (tokens.open()) return std::nullopt;
     auto e = tokens.Authenticate(Authorization(req));
     if (!e) Throw(401, "a valid 'Authorization: Bearer TOKEN' header is required");
@@ -623,40 +619,42 @@ struct Server::Impl {
   }
 
   // POST /v1/maps/{id}/localize
-  json Localize(const httplib::Request& req, json* log) {
+  json Localize(const HttpRequest& req, const std::string& id, json* log) {
     const auto token = Authorize(req);
     if (token) (*log)["token"] = token->id;
-    const std::string id = req.matches[1];
     const auto map = FindMap(id, token);
     (*log)["map"] = id;
     Throttle(token);
     const Clock::time_point deadline = Deadline();
     std::function<LocalizerResult()> job;
-    const std::string type = req.get_header_value("Content-Type");
-    if (req.is_multipart_form_data()) {
-      if (!req.has_file("image")) Throw(400, "multipart: the 'image' part is missing");
-      if (!req.has_file("camera")) Throw(400, "multipart: the 'camera' part is missing");
+    const std::string type = req.Header("Content-Type");
+    if (req.multipart) {
+      const auto part = [&](const std::string& name) {
+        const auto it = req.parts.find(name);
+        return it == req.parts.end() ? std::optional<std::string>() : it->second;
+      };
+      if (!part("image")) Throw(400, "multipart: the 'image' part is missing");
+      if (!part("camera")) Throw(400, "multipart: the 'camera' part is missing");
       Camera camera;
       try {
-        camera = ParseCameraString(req.get_file_value("camera").content);
+        camera = ParseCameraString(*part("camera"));
       } catch (const Error& e) {
         Throw(400, std::string("camera: ") + e.what());
       }
-      auto bytes = std::make_shared<std::string>(req.get_file_value("image").content);
+      auto bytes = std::make_shared<std::string>(*part("image"));
       CheckPhotoHeader(*bytes, camera, "image");
       std::optional<double> max_seconds;
-      if (req.has_file("max_seconds")) {
+      if (part("max_seconds")) {
         try {
-          max_seconds = std::stod(req.get_file_value("max_seconds").content);
+          max_seconds = std::stod(*part("max_seconds"));
         } catch (const std::exception&) {
           Throw(400, "max_seconds: not a number");
         }
       }
       LocalizeRequest r;
       try {
-        r = RequestOptions(req.has_file("method") ? req.get_file_value("method").content : "",
-                           req.has_file("gravity") ? req.get_file_value("gravity").content : "",
-                           max_seconds, deadline);
+        r = RequestOptions(part("method").value_or(""), part("gravity").value_or(""), max_seconds,
+                           deadline);
       } catch (const Error& e) {
         Throw(400, e.what());
       }
@@ -736,10 +734,10 @@ struct Server::Impl {
 
   // A map route's caller and map (401 / 404 as Authorize and FindMap), logged.
   std::pair<std::optional<TokenEntry>, std::shared_ptr<const LoadedMap>> RequestMap(
-      const httplib::Request& req, json* log) const {
+      const HttpRequest& req, const std::string& id, json* log) const {
     const auto token = Authorize(req);
     if (token) (*log)["token"] = token->id;
-    auto map = FindMap(req.matches[1], token);
+    auto map = FindMap(id, token);
     (*log)["map"] = map->id;
     return {token, std::move(map)};
   }
@@ -755,31 +753,32 @@ struct Server::Impl {
 
   // GET /v1/maps/{id}/segments?limit=N: float32 segments (MapSegments), the
   // first N of the map's fixed order (default 20 000).
-  std::string Segments(const httplib::Request& req, httplib::Response& res, json* log) {
-    const auto [token, map] = RequestMap(req, log);
+  std::string Segments(const HttpRequest& req, const std::string& id, HttpResponse& res,
+                       json* log) {
+    const auto [token, map] = RequestMap(req, id, log);
     if (token && !token->admin && !map->publish_lines) {
       Throw(403, "the map's lines are for admin tokens: its owner has not published them");
     }
     Throttle(token);
     const size_t total = map->segments.size() / 6;
     size_t limit = std::min<size_t>(total, 20000);
-    if (req.has_param("limit")) {
-      const std::string v = req.get_param_value("limit");
+    if (const auto limit_param = req.Query("limit")) {
+      const std::string& v = *limit_param;
       if (v.empty() || v.size() > 9 || !std::all_of(v.begin(), v.end(), ::isdigit)) {
         Throw(400, "limit: expected a number of segments");
       }
       limit = std::min<size_t>(total, std::stoul(v));
     }
-    res.set_header("X-Linecloud-Lines", std::to_string(total));
-    res.set_header("X-Linecloud-Segments", std::to_string(limit));
+    res.headers.emplace_back("X-Linecloud-Lines", std::to_string(total));
+    res.headers.emplace_back("X-Linecloud-Segments", std::to_string(limit));
     return std::string(reinterpret_cast<const char*>(map->segments.data()),
                        limit * 6 * sizeof(float));
   }
 
   // GET /v1/maps/{id}/audit: the owner's audit report (DIR/ID.audit.json,
   // `linecloud audit --out` writes it as report.json); admin tokens only.
-  json Audit(const httplib::Request& req, json* log) {
-    const auto [token, map] = RequestMap(req, log);
+  json Audit(const HttpRequest& req, const std::string& id, json* log) {
+    const auto [token, map] = RequestMap(req, id, log);
     const std::string path = OwnerFile(token, *map, ".audit.json");
     try {
       return json::parse(ReadFilePrefix(path, 1 << 22));
@@ -791,8 +790,9 @@ struct Server::Impl {
   // GET /v1/maps/{id}/audit/points: the points the audit's attack recovered
   // (DIR/ID.audit.ply, the recovered.ply of `linecloud audit --out`), coloured
   // by error; admin tokens only. N x 3 float32 then N x 3 uint8.
-  std::string AuditPoints(const httplib::Request& req, httplib::Response& res, json* log) {
-    const auto [token, map] = RequestMap(req, log);
+  std::string AuditPoints(const HttpRequest& req, const std::string& id, HttpResponse& res,
+                          json* log) {
+    const auto [token, map] = RequestMap(req, id, log);
     const std::string path = OwnerFile(token, *map, ".audit.ply");
     std::vector<float> xyz;
     std::vector<uint8_t> rgb;
@@ -802,19 +802,19 @@ struct Server::Impl {
       Throw(500, fmt::format("{}.audit.ply: {}", map->id,
                              e.what()));  // the server's file, not the request
     }
-    res.set_header("X-Linecloud-Points", std::to_string(xyz.size() / 3));
+    res.headers.emplace_back("X-Linecloud-Points", std::to_string(xyz.size() / 3));
     std::string body(reinterpret_cast<const char*>(xyz.data()), xyz.size() * sizeof(float));
     body.append(reinterpret_cast<const char*>(rgb.data()), rgb.size());
     return body;
   }
 
   // POST /geopose (OSCP GeoPose Protocol v2)
-  json GeoPoseRoute(const httplib::Request& req, json* log) {
+  json GeoPoseRoute(const HttpRequest& req, json* log) {
     // Who, which map and how often before the body is read: a stranger's or
     // a throttled client's body costs no parsing.
     const auto token = Authorize(req);
     if (token) (*log)["token"] = token->id;
-    std::string id = req.get_param_value("map");
+    std::string id = req.Query("map").value_or("");
     if (id.empty()) {  // the token's only geo-anchored map
       std::vector<std::string> anchored;
       for (const auto& [mid, m] : *Maps()) {
@@ -923,189 +923,253 @@ struct Server::Impl {
   }
 
   // Every route: status from HttpError, library errors 400, one access-log line.
-  void Handle(const std::string& route, const httplib::Request& req, httplib::Response& res,
-              const std::function<json(json*)>& body) {
+  // `answer` returns JSON, or fills the response itself and returns null.
+  HttpResponse Handle(const std::string& route, const HttpRequest& req,
+                      const std::function<json(json*, HttpResponse*)>& answer) {
     const auto start = Clock::now();
     json log = {{"time", std::chrono::duration_cast<std::chrono::milliseconds>(
                              std::chrono::system_clock::now().time_since_epoch())
                              .count()},
                 {"route", route},
                 {"method", req.method},
-                {"client", req.remote_addr}};
-    int status = 200;
+                {"client", req.client}};
+    HttpResponse res;
+    const auto refuse = [&](int status, const std::string& message) {
+      res = ErrorResponse(status, message);
+    };
     try {
-      res.set_content(DumpJson(body(&log)), "application/json");
+      json j = answer(&log, &res);
+      if (!j.is_null()) res.body = DumpJson(j);
     } catch (const HttpError& e) {
-      status = e.status;
-      res.set_content(DumpJson(json{{"error", e.message}}), "application/json");
-      if (status == 401) res.set_header("WWW-Authenticate", "Bearer realm=\"linecloud\"");
-      if (status == 405) res.set_header("Allow", AllowedMethods(req.path));
+      refuse(e.status, e.message);
+      res.headers = e.headers;
+      if (e.status == 401)
+        res.headers.emplace_back("WWW-Authenticate", "Bearer realm=\"linecloud\"");
+      if (e.status == 405) res.headers.emplace_back("Allow", AllowedMethods(req.path));
       if (e.retry_after > 0) {
-        res.set_header("Retry-After", std::to_string(static_cast<int>(std::ceil(e.retry_after))));
+        res.headers.emplace_back("Retry-After",
+                                 std::to_string(static_cast<int>(std::ceil(e.retry_after))));
       }
     } catch (const Error& e) {
-      status = 400;
-      res.set_content(DumpJson(json{{"error", e.what()}}), "application/json");
+      refuse(400, e.what());
     } catch (const std::exception& e) {
-      status = 500;
-      res.set_content(DumpJson(json{{"error", "internal error"}}), "application/json");
+      refuse(500, "internal error");
       log["exception"] = e.what();
     }
-    res.status = status;
-    metrics.Request(route, status);
-    log["status"] = status;
+    metrics.Request(route, res.status);
+    log["status"] = res.status;
     log["ms"] = std::chrono::duration<double, std::milli>(Clock::now() - start).count();
     Log(DumpJson(log));
+    return res;
   }
 
-  // A GET route answering bytes (application/octet-stream), errors as JSON.
-  using BytesRoute = std::string (Impl::*)(const httplib::Request&, httplib::Response&, json*);
-  void GetBytes(const std::string& pattern, const std::string& route, BytesRoute answer) {
-    http.Get(pattern, [this, route, answer](const httplib::Request& req, httplib::Response& res) {
-      std::string bytes;
-      Handle(route, req, res, [&](json* log) {
-        bytes = (this->*answer)(req, res, log);
-        return json();
-      });
-      if (res.status == 200) res.set_content(bytes, "application/octet-stream");
+  // A route answering bytes (application/octet-stream), errors as JSON.
+  using BytesRoute = std::string (Impl::*)(const HttpRequest&, const std::string&, HttpResponse&,
+                                           json*);
+  HttpResponse Bytes(const std::string& route, const HttpRequest& req, const std::string& id,
+                     BytesRoute bytes) {
+    return Handle(route, req, [&](json* log, HttpResponse* res) {
+      res->body = (this->*bytes)(req, id, *res, log);
+      res->content_type = "application/octet-stream";
+      return json();
     });
   }
 
-  // Before a request's body is read (cpp-httplib reads it after this
-  // handler): what no route answers with a body, refused at once. Answered
-  // through Handle (logged, counted).
-  httplib::Server::HandlerResponse Screen(const httplib::Request& req, httplib::Response& res) {
+  // Before a request's body is read: what no route answers with a body,
+  // refused at once (the connection then closes). Answered through Handle
+  // (logged, counted).
+  std::optional<HttpResponse> Screen(const HttpRequest& req) {
     std::optional<HttpError> refusal;
     const std::string allowed = AllowedMethods(req.path);
-    const std::string length = req.get_header_value("Content-Length");
+    const std::string length = req.Header("Content-Length");
+    const std::string range = req.Header("Range");
     if (req.headers.size() > kMaxHeaders) {
       refusal = HttpError{431, fmt::format("more than {} header fields", kMaxHeaders)};
     } else if (req.path.find('\0') != std::string::npos) {
       // A decoded %00 cut a console file's name short (app.js%00.html was
       // served as HTML).
       refusal = HttpError{400, "the path holds a NUL byte"};
-    } else if (req.get_header_value_count("Content-Length") > 1 ||
+    } else if (req.HeaderCount("Content-Length") > 1 ||
                (!length.empty() && !std::all_of(length.begin(), length.end(), ::isdigit))) {
       refusal = HttpError{400, "Content-Length: one decimal number expected"};
     } else if (!allowed.empty() && allowed.find(req.method) == std::string::npos &&
                !(req.method == "HEAD" && allowed == "GET")) {
       refusal = HttpError{405, fmt::format("{} is not allowed here ({})", req.method, allowed)};
     } else if (BodyLength(req) > static_cast<uint64_t>(4 * options.max_body_mb * 1024 * 1024)) {
-      // Far over the cap: answered at once and the connection closed (the
-      // library would read and drop the whole announced body first). A body
-      // just over the cap is still drained, so its client reads the 413.
+      // Far over the cap: answered at once and the connection closed. A body
+      // just over the cap is still read (and dropped), so its client reads
+      // the 413 (HttpServer).
       refusal = HttpError{413, "the body exceeds --max-body-mb"};
-    } else if (req.has_header("Transfer-Encoding")) {
-      // Debian's cpp-httplib 0.11.4 buffers a chunked body whole, without
-      // --max-body-mb (300 MB from a stranger before the 401), and closes
-      // on other codings without an answer.
+    } else if (req.HeaderCount("Transfer-Encoding") > 0) {
       refusal =
           HttpError{411, "send the body with a Content-Length (Transfer-Encoding is refused)"};
-    } else if (req.ranges.size() > 1) {
-      // 500 ranges of one file answered 808 MB.
+    } else if (range.find(',') != std::string::npos || req.HeaderCount("Range") > 1) {
+      // 500 ranges of one file answered 808 MB (cpp-httplib).
       refusal = HttpError{416, "one range per request"};
     } else if (req.method == "POST" && !tokens.open() && !tokens.Authenticate(Authorization(req))) {
       refusal = HttpError{401, "a valid 'Authorization: Bearer TOKEN' header is required"};
     }
-    // cpp-httplib cuts any answer to the request's ranges, errors and the
-    // API's JSON too: a range is for the console's files only. The request
-    // is the library's own (non-const) object; this handler is its only
-    // hook before the answer is written.
-    if (refusal || !allowed.empty()) const_cast<httplib::Request&>(req).ranges.clear();
-    if (!refusal) return httplib::Server::HandlerResponse::Unhandled;
+    if (!refusal) return std::nullopt;
     const std::string route = allowed.empty() ? "static" : RouteName(req.path);
-    Handle(route, req, res, [&](json*) -> json { throw *refusal; });
-    if (refusal->status == 411 || refusal->status == 413 || refusal->status == 431) {
-      res.set_header("Connection", "close");  // the body is never read
-    }
-    return httplib::Server::HandlerResponse::Handled;
+    return Handle(route, req, [&](json*, HttpResponse*) -> json { throw *refusal; });
   }
 
   // Content-Security-Policy of every answer (ConsolePolicy).
   std::string security_policy = ConsolePolicy("");
 
-  void Routes() {
-    http.Get("/healthz", [this](const httplib::Request& req, httplib::Response& res) {
-      Handle("/healthz", req, res, [](json*) { return json{{"status", "ok"}}; });
-    });
-    http.Get("/readyz", [this](const httplib::Request& req, httplib::Response& res) {
-      Handle("/readyz", req, res, [this](json*) {
+  // The API's routes by path (their methods were checked by Screen), else
+  // the console's files.
+  HttpResponse Dispatch(const HttpRequest& req) {
+    const std::string& path = req.path;
+    if (path == "/healthz") {
+      return Handle(path, req, [](json*, HttpResponse*) { return json{{"status", "ok"}}; });
+    }
+    if (path == "/readyz") {
+      return Handle(path, req, [this](json*, HttpResponse*) {
         if (Maps()->empty()) Throw(503, "no map is loaded");
         return json{{"status", "ready"}, {"maps", Maps()->size()}};
       });
-    });
-    http.Get("/metrics", [this](const httplib::Request& req, httplib::Response& res) {
-      std::string text;
-      Handle("/metrics", req, res, [&](json* log) {
-        const auto token = Authorize(req);
-        if (token && !token->admin) Throw(404, "no such route for this token");
-        if (token) (*log)["token"] = token->id;
-        text = metrics.Text(in_flight.load(), pool->queued(), Maps()->size());
-        return json();
-      });
-      if (res.status == 200) res.set_content(text, "text/plain; version=0.0.4");
-    });
-    http.Get("/v1/maps", [this](const httplib::Request& req, httplib::Response& res) {
-      Handle("/v1/maps", req, res, [&](json* log) {
-        const auto token = Authorize(req);
-        if (token) (*log)["token"] = token->id;
-        json list = json::array();
-        for (const auto& [id, m] : *Maps()) {
-          if (!token || token->MayUse(id)) list.push_back(m->info);
-        }
-        return json{{"maps", list}};
-      });
-    });
-    http.Get(R"(/v1/maps/([^/]+))", [this](const httplib::Request& req, httplib::Response& res) {
-      Handle("/v1/maps/{id}", req, res, [&](json* log) {
-        const auto [token, map] = RequestMap(req, log);
-        if (!token || token->admin) return map->details;
-        json details = map->details;  // readers: no map geometry
-        details.erase("anchor_bbox");
-        return details;
-      });
-    });
-    GetBytes(R"(/v1/maps/([^/]+)/segments)", "/v1/maps/{id}/segments", &Impl::Segments);
-    GetBytes(R"(/v1/maps/([^/]+)/audit/points)", "/v1/maps/{id}/audit/points", &Impl::AuditPoints);
-    http.Get(R"(/v1/maps/([^/]+)/audit)",
-             [this](const httplib::Request& req, httplib::Response& res) {
-               Handle("/v1/maps/{id}/audit", req, res, [&](json* log) { return Audit(req, log); });
-             });
-    http.Post(R"(/v1/maps/([^/]+)/localize)", [this](const httplib::Request& req,
-                                                     httplib::Response& res) {
-      Handle("/v1/maps/{id}/localize", req, res, [&](json* log) { return Localize(req, log); });
-    });
-    http.Post("/geopose", [this](const httplib::Request& req, httplib::Response& res) {
-      Handle("/geopose", req, res, [&](json* log) { return GeoPoseRoute(req, log); });
-    });
-    // Unknown routes and methods: JSON errors too.
-    // The library's own answers (a request it could not parse, a body over
-    // --max-body-mb, a path no route or file has) are JSON and logged too.
-    http.set_error_handler([this](const httplib::Request& req, httplib::Response& res) {
-      if (res.body.empty()) {
-        const std::string message = res.status == 413   ? "the body exceeds --max-body-mb"
-                                    : res.status == 404 ? "no such route"
-                                                        : "bad request";
-        res.set_content(DumpJson(json{{"error", message}}), "application/json");
-        metrics.Request("other", res.status);
-        Log(DumpJson(json{{"time", std::chrono::duration_cast<std::chrono::milliseconds>(
-                                       std::chrono::system_clock::now().time_since_epoch())
-                                       .count()},
-                          {"route", "other"},
-                          {"method", req.method},
-                          {"client", req.remote_addr},
-                          {"status", res.status}}));
-      }
-    });
-    // Every answer: no sniffing, no framing, no referrer; the console's page
-    // may run its own files and its import map only (security_policy).
-    http.set_post_routing_handler([this](const httplib::Request&, httplib::Response& res) {
-      res.set_header("X-Content-Type-Options", "nosniff");
-      res.set_header("X-Frame-Options", "DENY");
-      res.set_header("Referrer-Policy", "no-referrer");
-      res.set_header("Content-Security-Policy", security_policy);
+    }
+    if (path == "/metrics")
+      return Handle(path, req,
+                    [&](json* log, HttpResponse* res) { return MetricsRoute(req, log, res); });
+    if (path == "/v1/maps")
+      return Handle(path, req, [&](json* log, HttpResponse*) { return MapsRoute(req, log); });
+    if (path == "/geopose")
+      return Handle(path, req, [&](json* log, HttpResponse*) { return GeoPoseRoute(req, log); });
+    constexpr std::string_view kMaps = "/v1/maps/";
+    if (path.rfind(kMaps, 0) == 0 && !AllowedMethods(path).empty()) {
+      const std::string rest = path.substr(kMaps.size());
+      const size_t slash = rest.find('/');
+      const std::string id = rest.substr(0, slash);
+      const std::string tail = slash == std::string::npos ? "" : rest.substr(slash);
+      const std::string route = RouteName(path);
+      if (tail.empty())
+        return Handle(route, req,
+                      [&](json* log, HttpResponse*) { return DetailsRoute(req, id, log); });
+      if (tail == "/segments") return Bytes(route, req, id, &Impl::Segments);
+      if (tail == "/audit/points") return Bytes(route, req, id, &Impl::AuditPoints);
+      if (tail == "/audit")
+        return Handle(route, req, [&](json* log, HttpResponse*) { return Audit(req, id, log); });
+      return Handle(route, req, [&](json* log, HttpResponse*) { return Localize(req, id, log); });
+    }
+    return Handle("static", req, [&](json*, HttpResponse* res) {
+      StaticFile(req, res);
+      return json();
     });
   }
+
+  // GET /metrics (admin tokens; 404 for readers)
+  json MetricsRoute(const HttpRequest& req, json* log, HttpResponse* res) {
+    const auto token = Authorize(req);
+    if (token && !token->admin) Throw(404, "no such route for this token");
+    if (token) (*log)["token"] = token->id;
+    res->body = metrics.Text(in_flight.load(), pool->queued(), Maps()->size());
+    res->content_type = "text/plain; version=0.0.4";
+    return json();
+  }
+
+  // GET /v1/maps: the maps this token may use.
+  json MapsRoute(const HttpRequest& req, json* log) {
+    const auto token = Authorize(req);
+    if (token) (*log)["token"] = token->id;
+    json list = json::array();
+    for (const auto& [id, m] : *Maps()) {
+      if (!token || token->MayUse(id)) list.push_back(m->info);
+    }
+    return json{{"maps", list}};
+  }
+
+  // GET /v1/maps/{id}: what `linecloud info` says; readers get no geometry.
+  json DetailsRoute(const HttpRequest& req, const std::string& id, json* log) {
+    const auto [token, map] = RequestMap(req, id, log);
+    if (!token || token->admin) return map->details;
+    json details = map->details;
+    details.erase("anchor_bbox");
+    return details;
+  }
+
+  // The console's files (GET / HEAD under web_dir), one byte range at most.
+  void StaticFile(const HttpRequest& req, HttpResponse* res) const {
+    if (web_dir.empty() || (req.method != "GET" && req.method != "HEAD")) {
+      Throw(404, "no such route");
+    }
+    const std::string relative = req.path == "/" ? "index.html" : req.path.substr(1);
+    for (size_t begin = 0; begin <= relative.size();) {
+      const size_t end = std::min(relative.find('/', begin), relative.size());
+      const std::string_view segment(relative.data() + begin, end - begin);
+      if (segment == ".." || segment == "." || segment.find('\\') != std::string_view::npos) {
+        Throw(404, "no such route");
+      }
+      begin = end + 1;
+    }
+    fs::path file = fs::path(web_dir) / relative;
+    std::error_code ec;
+    if (fs::is_directory(file, ec)) file /= "index.html";
+    if (!fs::is_regular_file(file, ec)) Throw(404, "no such route");
+    const uint64_t size = fs::file_size(file, ec);
+    if (ec) Throw(404, "no such route");
+    res->file = file.string();
+    res->file_length = size;
+    res->content_type = MediaType(file.extension().string());
+    res->headers = {{"Accept-Ranges", "bytes"}, {"Cache-Control", "no-cache"}};
+    const std::string range = req.Header("Range");
+    if (range.empty()) return;
+    // bytes=A-B, bytes=A-, bytes=-N (RFC 9110 14.1.2); other forms ignored.
+    if (range.rfind("bytes=", 0) != 0) return;
+    const std::string spec = range.substr(6);
+    const size_t dash = spec.find('-');
+    const auto number = [](const std::string& v, uint64_t* out) {
+      if (v.empty() || v.size() > 18 || !std::all_of(v.begin(), v.end(), ::isdigit)) return false;
+      *out = std::stoull(v);
+      return true;
+    };
+    uint64_t first = 0, last = size ? size - 1 : 0, n = 0;
+    if (dash == std::string::npos) return;
+    const std::string a = spec.substr(0, dash), b = spec.substr(dash + 1);
+    if (a.empty()) {
+      if (!number(b, &n)) return;
+      if (n == 0 || size == 0) Throw416(size);
+      first = size - std::min(n, size);
+    } else {
+      if (!number(a, &first) || (!b.empty() && !number(b, &last))) return;
+      if (!b.empty() && last < first) return;
+      if (first >= size) Throw416(size);
+      last = std::min(last, size - 1);
+    }
+    res->status = 206;
+    res->file_offset = first;
+    res->file_length = last - first + 1;
+    res->headers.emplace_back("Content-Range", fmt::format("bytes {}-{}/{}", first, last, size));
+  }
+
+  [[noreturn]] static void Throw416(uint64_t size) {
+    throw HttpError{416,
+                    fmt::format("the range is outside the file ({} bytes)", size),
+                    0,
+                    {{"Content-Range", fmt::format("bytes */{}", size)}}};
+  }
+
+  static std::string MediaType(const std::string& extension) {
+    static const std::map<std::string, std::string> kTypes = {
+        {".html", "text/html; charset=utf-8"},
+        {".js", "text/javascript; charset=utf-8"},
+        {".mjs", "text/javascript; charset=utf-8"},
+        {".css", "text/css; charset=utf-8"},
+        {".json", "application/json"},
+        {".png", "image/png"},
+        {".jpg", "image/jpeg"},
+        {".svg", "image/svg+xml"},
+        {".ico", "image/x-icon"},
+        {".wasm", "application/wasm"},
+        {".txt", "text/plain; charset=utf-8"},
+        {".map", "application/json"}};
+    const auto it = kTypes.find(extension);
+    return it == kTypes.end() ? "application/octet-stream" : it->second;
+  }
+
+  // Last: destroyed first, its handlers done before anything they use goes.
+  std::unique_ptr<HttpServer> http;
 };
 
 Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
@@ -1118,79 +1182,55 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   impl_->LoadMaps();
   impl_->pool = std::make_unique<WorkPool>(o.threads, o.queue);
   SetSiftMemoryLimit(impl_->BudgetBytes());  // process-wide: the extractions of every map
-  httplib::Server& h = impl_->http;
-  h.set_payload_max_length(static_cast<size_t>(o.max_body_mb * 1024 * 1024));
-  const auto seconds = [](double s) {
-    return std::make_pair(static_cast<time_t>(s), static_cast<time_t>((s - std::floor(s)) * 1e6));
-  };
-  h.set_read_timeout(seconds(o.read_timeout_s).first, seconds(o.read_timeout_s).second);
-  h.set_write_timeout(seconds(o.write_timeout_s).first, seconds(o.write_timeout_s).second);
-  h.set_keep_alive_max_count(100);
-  h.set_keep_alive_timeout(5);
-  // Connection threads: at least the workers, the queue and a few for cheap
-  // routes. A connection without a thread is not read at all: at 32 keep-alive
-  // clients and 22 threads, 2 of 40 clients timed out writing their 2.7 MB
-  // bodies (docs/serve.md), hence --connections (1024, made as needed).
-  const int http_threads = std::max(o.connections, o.threads + o.queue + 4);
-  // Debian's cpp-httplib (a compiled library) listens with a backlog of 5:
-  // 32 clients connecting at once overflowed it, and a connection the kernel
-  // dropped failed its client's first write after ~1 s. The socket is kept
-  // here and its backlog raised after binding (Bind).
-  h.set_socket_options([impl = impl_.get()](socket_t sock) {
-    httplib::default_socket_options(sock);
-    // Accepted sockets inherit it (Linux): without it every keep-alive
-    // answer waited ~40 ms for the client's delayed ACK (Nagle).
-    const int one = 1;
-    ::setsockopt(sock, IPPROTO_TCP, TCP_NODELAY, &one, sizeof(one));
-    impl->listen_socket = sock;
-  });
-  h.set_pre_routing_handler(
-      [impl = impl_.get()](const httplib::Request& req, httplib::Response& res) {
-        return impl->Screen(req, res);
-      });
-  // Made on demand (a dribbling client holds its thread; 200 of them held
-  // the library's fixed 64); a SIGTERM drain waits for open connections
-  // no longer than a request may take to be read, worked and written.
-  const auto drain = std::chrono::milliseconds(
-      static_cast<int64_t>(1000 * (o.request_seconds + o.read_timeout_s + o.write_timeout_s)));
-  h.new_task_queue = [http_threads, drain] {
-    return new ConnectionPool(http_threads, std::chrono::seconds(30), drain);
-  };
-  impl_->Routes();
   const std::string web = o.web_dir.empty() ? DefaultWebDir() : o.web_dir;
   if (!web.empty() && fs::is_regular_file(fs::path(web) / "index.html")) {
-    h.set_mount_point("/", web);
+    impl_->web_dir = web;
     impl_->security_policy =
         ConsolePolicy(ReadFilePrefix((fs::path(web) / "index.html").string(), 1 << 20));
-    // Debian's cpp-httplib compresses every text/* and application/javascript
-    // answer for a browser with brotli at its slowest quality: three.js took
-    // 4.8 s to arrive. Another of the HTML standard's JavaScript MIME types,
-    // which the library leaves uncompressed: the page loads in ~0.1 s.
-    h.set_file_extension_and_mimetype_mapping("js", "application/x-javascript");
     impl_->Log(DumpJson(json{{"notice", "console at /"}, {"web", web}}));
   } else if (!o.web_dir.empty()) {
     Fail("serve: --web {}: no index.html there (build it: bash scripts/build_web.sh)", o.web_dir);
   }
+  Impl* impl = impl_.get();
+  HttpServerOptions h;
+  h.host = impl->host;
+  h.port = impl->port;
+  h.connections = o.connections;
+  h.connections_per_address = o.connections_per_address;
+  h.max_body_bytes = static_cast<uint64_t>(o.max_body_mb * 1024 * 1024);
+  h.idle_seconds = static_cast<unsigned>(std::max(1.0, std::ceil(o.read_timeout_s)));
+  // Handlers wait for a worker (or their deadline): the workers, the queue and
+  // a few for cheap routes; more requests wait in line, read and suspended.
+  h.handler_threads = o.threads + o.queue + 16;
+  h.drain = std::chrono::milliseconds(
+      static_cast<int64_t>(1000 * (o.request_seconds + o.read_timeout_s + o.write_timeout_s)));
+  // Every answer: no sniffing, no framing, no referrer; the console's page
+  // may run its own files and its import map only (security_policy).
+  h.headers = {{"X-Content-Type-Options", "nosniff"},
+               {"X-Frame-Options", "DENY"},
+               {"Referrer-Policy", "no-referrer"},
+               {"Content-Security-Policy", impl->security_policy}};
+  h.screen = [impl](const HttpRequest& req) { return impl->Screen(req); };
+  h.handle = [impl](HttpRequest& req) { return impl->Dispatch(req); };
+  h.notice = [impl](const std::string& text) { impl->Log(DumpJson(json{{"notice", text}})); };
+  h.closed = [impl](const std::string& client) {
+    impl->Log(DumpJson(json{{"time", std::chrono::duration_cast<std::chrono::milliseconds>(
+                                         std::chrono::system_clock::now().time_since_epoch())
+                                         .count()},
+                            {"route", "other"},
+                            {"client", client},
+                            {"closed", "before a request reached a route"}}));
+  };
+  impl_->http = std::make_unique<HttpServer>(std::move(h));
 }
 
 Server::~Server() { Stop(); }
 
-int Server::Bind() {
-  if (impl_->port == 0) {
-    impl_->port = impl_->http.bind_to_any_port(impl_->host);
-    if (impl_->port < 0) Fail("serve: cannot listen on {}", impl_->host);
-  } else if (!impl_->http.bind_to_port(impl_->host, impl_->port)) {
-    Fail("serve: cannot listen on {}:{}", impl_->host, impl_->port);
-  }
-  if (impl_->listen_socket != INVALID_SOCKET && ::listen(impl_->listen_socket, SOMAXCONN) != 0) {
-    Fail("serve: cannot raise the listen backlog ({})", std::strerror(errno));
-  }
-  return impl_->port;
-}
+int Server::Bind() { return impl_->port = impl_->http->Bind(); }
 
-void Server::Run() { impl_->http.listen_after_bind(); }
+void Server::Run() { impl_->http->Run(); }
 
-void Server::Stop() { impl_->http.stop(); }
+void Server::Stop() { impl_->http->Stop(); }
 
 void Server::Reload() { impl_->Reload(); }
 

@@ -1,6 +1,7 @@
 // `linecloud serve`: the localization service of docs/http_api.md — the
 // paper's first scenario (Speciale et al., CVPR 2019: a cloud service that
-// holds only line clouds) over HTTP/1.1 (cpp-httplib, Debian's 0.11).
+// holds only line clouds) over HTTP/1.1 (serve/http: libmicrohttpd, Debian's
+// 0.9.75).
 //
 // Maps are DIR/ID.lcm (+ optional ID.json geo-anchor), each loaded once into a
 // Localizer; Reload() (SIGHUP) swaps in a new set while requests in flight
@@ -26,10 +27,13 @@ struct ServeOptions {
   std::string tokens_path;                // empty: every request allowed (loopback only)
   int threads = 2;                        // localization workers
   int queue = 16;                         // requests waiting for a worker, at most
-  // Connections served at once (a thread each, made when needed, blocked on
-  // its socket; the workers bound the CPU). More clients wait unread: nginx
-  // in front (per-address limits) when one address may open more.
-  int connections = 1024;
+  // Connections open at once (one poll thread reads them all: a slow client
+  // costs a socket and at most 32 KB of request head; the process's open-file
+  // limit is raised to fit); more are closed when accepted. From one address
+  // at most `connections_per_address` (0: no limit); loopback addresses are
+  // not limited (behind a local proxy every client is 127.0.0.1).
+  int connections = 10000;
+  int connections_per_address = 32;
   double max_body_mb = 16;
   uint64_t max_pixels = 50'000'000;
   // SIFT's scale space of all requests together, live and pooled (~320 bytes
