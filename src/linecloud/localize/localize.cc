@@ -164,8 +164,6 @@ std::vector<int> MatchRanking(const std::vector<QueryObservation>& observations)
   return ranking;
 }
 
-namespace {
-
 void CheckMethodAndMap(const MethodInfo& method, const LocalizationMap& map) {
   if (!method.implemented) Fail("method {} has no minimal solver in this build yet", method.name);
   const bool line_map = std::holds_alternative<LineMap>(map);
@@ -175,6 +173,8 @@ void CheckMethodAndMap(const MethodInfo& method, const LocalizationMap& map) {
          line_map ? "line cloud" : "point model");
   }
 }
+
+namespace {
 
 // PrepareQuery for a query CheckQuery has passed (Localize checks once, then
 // prepares the undistortable subset). Errors name observation

@@ -188,6 +188,11 @@ std::vector<int> MatchRanking(const std::vector<QueryObservation>& observations)
 PreparedQuery PrepareQuery(const MethodInfo& method, const Query& query, const LocalizationMap& map,
                            std::string_view source = "query");
 
+// Throws Error unless `method` has a solver and suits the map's kind (lines
+// or points): what Localize checks first, for callers that check before
+// their own work (matching a photo).
+void CheckMethodAndMap(const MethodInfo& method, const LocalizationMap& map);
+
 // Throws Error (naming `source`) for input the method cannot use: wrong map
 // kind, too few observations, unknown ids, bad camera indices, non-finite
 // values, missing local points or gravity. Observations whose pixel the camera

@@ -239,6 +239,7 @@ LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
     Fail("{} photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not {}",
          photos.size(), method.name);
   }
+  CheckMethodAndMap(method, state_->map);  // before decoding and matching (seconds for nothing)
   LocalizerResult result;
   std::vector<Rigid3d> rig;
   for (const QueryPhoto& photo : photos) {

@@ -362,6 +362,44 @@ TEST(Hostile, WorkStopsAtTheDeadline) {
   EXPECT_TRUE(s.Alive());
 }
 
+// An outsider's requests: focal 1e308 kept RANSAC busy until the 504, a width
+// of 2^63 was taken, a point method on a line map was refused after matching.
+// Refused before any work, naming what is wrong.
+TEST(Hostile, ImplausibleRequestsAreRefusedBeforeWork) {
+  Maps m;
+  Served s(m.tmp);
+  ASSERT_GT(s.port(), 0) << s.err();
+  const auto with_camera = [](json camera) {
+    json body = json::parse(FeaturesBody(20, false));
+    body["camera"] = std::move(camera);
+    return body.dump();
+  };
+  const json cases[] = {
+      {{"model", "PINHOLE"}, {"width", 640}, {"height", 480}, {"params", {1e308, 1e308, 320, 240}}},
+      {{"model", "PINHOLE"}, {"width", 640}, {"height", 480}, {"params", {1, 1, 320, 240}}},
+      {{"model", "PINHOLE"},
+       {"width", uint64_t{1} << 63},
+       {"height", 480},
+       {"params", {500, 500, 320, 240}}}};
+  const char* named[] = {"focal length", "focal length", "a side"};
+  for (size_t i = 0; i < std::size(cases); ++i) {
+    const Answer a =
+        Send(s.port(), Request("POST", "/v1/maps/synth/localize",
+                               {kRoot, "Content-Type: application/json"}, with_camera(cases[i])));
+    EXPECT_EQ(a.status, 400) << a.body;
+    EXPECT_NE(ErrorOf(a).find(named[i]), std::string::npos) << a.body;
+    EXPECT_LT(a.seconds, 1.0);
+  }
+  json point_method = json::parse(FeaturesBody(200, true));
+  point_method["method"] = "p3P";
+  const Answer a =
+      Send(s.port(), Request("POST", "/v1/maps/synth/localize",
+                             {kRoot, "Content-Type: application/json"}, point_method.dump()));
+  EXPECT_EQ(a.status, 400) << a.body;
+  EXPECT_NE(ErrorOf(a).find("needs a point model"), std::string::npos) << a.body;
+  EXPECT_TRUE(s.Alive());
+}
+
 // Row 18: the loopback check compares addresses, not spellings.
 TEST(Hostile, OnlyLoopbackAddressesListenWithoutTokens) {
   ServeOptions o;

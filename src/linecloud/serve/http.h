@@ -5,9 +5,9 @@
 // are written back by the same thread. poll(), not epoll: with 0.9.75's
 // edge-triggered epoll a client that sent part of a head and closed its side
 // was noticed only at the idle timeout (5 of 12 tries held it 5 s); poll()
-// notices at once, for 0.15 instead of 0.10 cores under 2 000 dribblers. Knows nothing of linecloud's
-// routes: `screen` sees each request's head (refuse before the body), `handle`
-// the whole request. Why this library: docs/serve.md ("The server library").
+// notices at once, for 0.15 instead of 0.10 cores under 2 000 dribblers. Knows nothing of
+// linecloud's routes: `screen` sees each request's head (refuse before the body), `handle` the
+// whole request. Why this library: docs/serve.md ("The server library").
 #pragma once
 
 #include <chrono>
@@ -62,7 +62,7 @@ struct HttpServerOptions {
   // Open at once from one address (0: no limit). Loopback addresses are not
   // limited: behind a proxy on the same machine every client is 127.0.0.1.
   int connections_per_address = 32;
-  bool limit_loopback = false;  // count loopback addresses too (tests)
+  bool limit_loopback = false;    // count loopback addresses too (tests)
   size_t head_bytes = 32 * 1024;  // a connection's request line + header fields (then 431 / 414)
   uint64_t max_body_bytes = 16 << 20;  // then 413, the connection closed
   unsigned idle_seconds = 5;           // a connection silent this long is closed

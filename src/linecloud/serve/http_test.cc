@@ -41,10 +41,10 @@ HttpServerOptions TestOptions() {
     if (req.path == "/slow") std::this_thread::sleep_for(1s);
     HttpResponse r;
     r.content_type = "text/plain";
-    r.body = fmt::format("{} path={} bytes={} q={} parts={} client={}", req.method,
-                         std::string(req.path.size(), '?') == req.path ? "" : req.path,
-                         req.body.size(), req.Query("q").value_or("-"), req.parts.size(),
-                         req.client);
+    r.body =
+        fmt::format("{} path={} bytes={} q={} parts={} client={}", req.method,
+                    std::string(req.path.size(), '?') == req.path ? "" : req.path, req.body.size(),
+                    req.Query("q").value_or("-"), req.parts.size(), req.client);
     if (req.path.find('\0') != std::string::npos) r.body += " NUL";
     for (const auto& [name, value] : req.parts) r.body += " " + name + "=" + value;
     return r;
@@ -53,8 +53,8 @@ HttpServerOptions TestOptions() {
 }
 
 RawAnswer Get(int port, const std::string& path, const std::string& extra = "") {
-  return RawExchange(port, "GET " + path + " HTTP/1.1\r\nHost: x\r\n" + extra +
-                               "Connection: close\r\n\r\n");
+  return RawExchange(
+      port, "GET " + path + " HTTP/1.1\r\nHost: x\r\n" + extra + "Connection: close\r\n\r\n");
 }
 
 TEST(Http, AnswersHeadsQueriesBodiesAndMultipart) {
@@ -73,19 +73,21 @@ TEST(Http, AnswersHeadsQueriesBodiesAndMultipart) {
       "--XyZ\r\nContent-Disposition: form-data; name=\"camera\"\r\n\r\nPINHOLE 2 2 1 1 1 1\r\n"
       "--XyZ\r\nContent-Disposition: form-data; name=\"image\"; filename=\"a.jpg\"\r\n"
       "Content-Type: image/jpeg\r\n\r\n\xff\xd8 bytes\r\n--XyZ--\r\n";
-  a = RawExchange(port, fmt::format("POST /p HTTP/1.1\r\nHost: x\r\nContent-Type: "
-                                    "multipart/form-data; boundary=XyZ\r\nContent-Length: {}\r\n\r\n",
-                                    form.size()) +
-                            form);
+  a = RawExchange(port,
+                  fmt::format("POST /p HTTP/1.1\r\nHost: x\r\nContent-Type: "
+                              "multipart/form-data; boundary=XyZ\r\nContent-Length: {}\r\n\r\n",
+                              form.size()) +
+                      form);
   EXPECT_NE(a.body.find("parts=2"), std::string::npos) << a.body;
   EXPECT_NE(a.body.find("camera=PINHOLE 2 2 1 1 1 1"), std::string::npos) << a.body;
   EXPECT_NE(a.body.find("image=\xff\xd8 bytes"), std::string::npos) << a.body;
   // A multipart body cut before its closing boundary, one without a boundary.
   const std::string cut = form.substr(0, form.size() - 12);
-  a = RawExchange(port, fmt::format("POST /p HTTP/1.1\r\nHost: x\r\nContent-Type: "
-                                    "multipart/form-data; boundary=XyZ\r\nContent-Length: {}\r\n\r\n",
-                                    cut.size()) +
-                            cut);
+  a = RawExchange(port,
+                  fmt::format("POST /p HTTP/1.1\r\nHost: x\r\nContent-Type: "
+                              "multipart/form-data; boundary=XyZ\r\nContent-Length: {}\r\n\r\n",
+                              cut.size()) +
+                      cut);
   EXPECT_EQ(a.status, 400) << a.body;
   EXPECT_NE(a.body.find("closing boundary"), std::string::npos) << a.body;
   a = RawExchange(port,
@@ -104,8 +106,8 @@ TEST(Http, ABodyOverTheCapIsReadThen413AndFarOverAtOnce) {
   const int port = server.Bind();
   const std::string over(1 << 20 | 1, 'a');
   RawAnswer a = RawExchange(
-      port, fmt::format("POST /p HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\n\r\n", over.size()) +
-                over);
+      port,
+      fmt::format("POST /p HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\n\r\n", over.size()) + over);
   EXPECT_EQ(a.status, 413) << a.head;  // read whole: the client sees the answer
   a = RawExchange(port, "POST /p HTTP/1.1\r\nHost: x\r\nContent-Length: 99999999999\r\n\r\nabc");
   EXPECT_EQ(a.status, 413) << a.head;
@@ -154,7 +156,8 @@ TEST(Http, PipelinedRequestsAreAnsweredInOrder) {
   const int fd = ConnectLoopback(port, 3);
   ASSERT_GE(fd, 0);
   const std::string two =
-      "GET /one HTTP/1.1\r\nHost: x\r\n\r\nGET /two HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+      "GET /one HTTP/1.1\r\nHost: x\r\n\r\nGET /two HTTP/1.1\r\nHost: x\r\nConnection: "
+      "close\r\n\r\n";
   ASSERT_EQ(::send(fd, two.data(), two.size(), MSG_NOSIGNAL), static_cast<ssize_t>(two.size()));
   std::string in;
   char buffer[4096];

@@ -329,6 +329,24 @@ bool IsLoopback(const std::string& host) {
   return false;
 }
 
+// A request's camera within what any real camera is (Camera::Check has made
+// sure it is well-formed): at most 1 000 000 pixels a side (2^63 was taken),
+// focal lengths 0.01-1000 times the larger side (a 0.06-176 degree field of
+// view; focal 1e308 kept RANSAC busy until the deadline).
+void CheckServedCamera(const Camera& camera, const std::string& where) {
+  constexpr uint64_t kMaxSide = 1'000'000;
+  if (camera.width > kMaxSide || camera.height > kMaxSide) {
+    Fail("{}: {}x{} pixels: at most {} a side", where, camera.width, camera.height, kMaxSide);
+  }
+  const double side = static_cast<double>(std::max(camera.width, camera.height));
+  for (const double f : {camera.FocalLengthX(), camera.FocalLengthY()}) {
+    if (!(f >= 0.01 * side && f <= 1000 * side)) {
+      Fail("{}: focal length {} is not 0.01-1000 times the image's larger side ({} px)", where, f,
+           side);
+    }
+  }
+}
+
 }  // namespace
 
 std::pair<std::string, int> ParseListen(const std::string& listen, const std::string& option) {
@@ -638,6 +656,7 @@ struct Server::Impl {
       Camera camera;
       try {
         camera = ParseCameraString(*part("camera"));
+        CheckServedCamera(camera, "camera");
       } catch (const Error& e) {
         Throw(400, std::string("camera: ") + e.what());
       }
@@ -692,6 +711,7 @@ struct Server::Impl {
     LocalizeRequest r;
     try {
       camera = CameraFromJson(j["camera"], "camera");
+      CheckServedCamera(camera, "camera");
       if (!j["keypoints"].is_array()) Fail("keypoints: expected [[x, y], ...]");
       for (size_t i = 0; i < j["keypoints"].size(); ++i) {
         const json& k = j["keypoints"][i];
@@ -862,6 +882,7 @@ struct Server::Impl {
                                {"height", c["size"][1]},
                                {"params", p["modelParams"]}},
                               "cameraReadings[0]");
+      CheckServedCamera(camera, "cameraReadings[0]");
     } catch (const Error& e) {
       Throw(400, std::string("GeoPoseReq: ") + e.what());
     }
