@@ -220,6 +220,13 @@ ImageHeader ReadImageHeader(std::span<const uint8_t> data, const std::string& so
     Fail("{}: {} images cannot be checked before decoding; convert it to PNG or JPEG", source,
          FreeImage_GetFormatFromFIF(format));
   }
+  if (FreeImage_GetImageType(header.get()) != FIT_BITMAP) {
+    // A 16-bit PNG: decoding it whole (8 bytes a pixel and more) only to refuse it.
+    Fail(
+        "{}: unsupported pixel type (only 8-bit grey and colour images; 16-bit PNG: save it "
+        "with 8 bits a channel)",
+        source);
+  }
   ImageHeader h{FreeImage_GetFormatFromFIF(format), FreeImage_GetWidth(header.get()),
                 FreeImage_GetHeight(header.get())};
   h.exif_orientation = ExifOrientation(header.get());

@@ -500,12 +500,15 @@ TEST(Hostile, CraftedAndTruncatedJpegsAreRefused) {
   EXPECT_TRUE(s.Alive());
 }
 
-// A PNG of `width` x `height` zero grey pixels: a few hundred bytes per
-// million pixels, a valid photo to decode.
-std::string ZeroPng(int width, int height) {
-  FIBITMAP* bitmap = FreeImage_Allocate(width, height, 8);
+// A PNG of `width` x `height` zero grey pixels (8 or 16 bits each): a few
+// hundred bytes per million pixels, a valid photo to decode.
+std::string ZeroPng(int width, int height, int bits = 8) {
+  FIBITMAP* bitmap = bits == 16 ? FreeImage_AllocateT(FIT_UINT16, width, height, 16)
+                                : FreeImage_Allocate(width, height, 8);
   EXPECT_NE(bitmap, nullptr);
-  for (int y = 0; y < height; ++y) std::memset(FreeImage_GetScanLine(bitmap, y), 0, width);
+  for (int y = 0; y < height; ++y) {
+    std::memset(FreeImage_GetScanLine(bitmap, y), 0, static_cast<size_t>(width) * bits / 8);
+  }
   FIMEMORY* memory = FreeImage_OpenMemory();
   FreeImage_SaveToMemory(FIF_PNG, bitmap, memory, PNG_Z_BEST_COMPRESSION);
   BYTE* data = nullptr;
@@ -579,6 +582,20 @@ TEST(Hostile, APhotosMemoryComesOutOfTheBudget) {
   EXPECT_NE(metrics.body.find("linecloud_sift_memory_bytes{kind=\"reserved\"} 0"),
             std::string::npos);
   EXPECT_TRUE(s.Alive());
+}
+
+// An outsider's 16-bit PNG was refused only after decoding (+500 MB for
+// 7000 x 7000): now from its header.
+TEST(Hostile, SixteenBitPngIsRefusedFromItsHeader) {
+  Maps m;
+  Served s(m.tmp);
+  ASSERT_GT(s.port(), 0) << s.err();
+  const size_t before = ProcessBytes(s.pid(), "VmHWM");
+  const Answer a = Send(
+      s.port(), PhotoRequest(ZeroPng(5000, 5000, 16), "PINHOLE 5000 5000 4000 4000 2500 2500"));
+  EXPECT_EQ(a.status, 400) << a.body;
+  EXPECT_NE(ErrorOf(a).find("16-bit"), std::string::npos) << a.body;
+  EXPECT_LT(ProcessBytes(s.pid(), "VmHWM"), before + (64 << 20));  // decoding: +200 MB
 }
 
 // Work is cancellable inside SIFT: a 3200 x 3200 photo's extraction (seconds
