@@ -72,6 +72,9 @@ void RegisterServeCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--max-body-mb", o->max_body_mb, "Largest request body (then 413)")
       ->capture_default_str();
+  cmd->add_option("--body-budget-mb", o->body_budget_mb,
+                  "Bodies of all requests being read or handled at once (then 503)")
+      ->capture_default_str();
   cmd->add_option("--max-pixels", o->max_pixels,
                   "Largest photo, from its header before decoding (then 413)")
       ->capture_default_str();

@@ -71,10 +71,12 @@ bool IsLoopbackAddress(const sockaddr* addr) {
 struct RequestState {
   HttpRequest request;
   MHD_PostProcessor* post = nullptr;
-  std::string post_error;  // what the multipart body broke
-  uint64_t received = 0;   // body bytes
-  bool refused = false;    // answered before its body was read
-  bool too_large = false;  // over max_body_bytes: read and dropped, then 413
+  std::string post_error;               // what the multipart body broke
+  uint64_t received = 0;                // body bytes
+  bool refused = false;                 // answered before its body was read
+  bool too_large = false;               // over max_body_bytes: read and dropped, then 413
+  std::optional<HttpResponse> pending;  // a refusal found in the body, sent at its end
+  uint64_t reserved = 0;                // of body_budget_bytes
   bool dispatched = false;
   std::optional<HttpResponse> answer;  // set by the handler before it resumes the connection
 };
@@ -89,12 +91,16 @@ MHD_Result CollectField(void* cls, MHD_ValueKind, const char* key, size_t key_si
 
 // multipart/form-data fields, by name (at most 64 of them).
 MHD_Result CollectPart(void* cls, MHD_ValueKind, const char* key, const char*, const char*,
-                       const char*, const char* data, uint64_t, size_t size) {
+                       const char*, const char* data, uint64_t offset, size_t size) {
   auto* state = static_cast<RequestState*>(cls);
   auto& parts = state->request.parts;
   const std::string name = key ? key : "";
   if (!parts.count(name) && parts.size() >= 64) {
     state->post_error = "multipart: more than 64 parts";
+    return MHD_NO;
+  }
+  if (offset == 0 && parts.count(name)) {  // a part's first bytes, and the name was taken
+    state->post_error = fmt::format("multipart: part '{}' is given twice", name);
     return MHD_NO;
   }
   parts[name].append(data ? data : "", data ? size : 0);
@@ -171,11 +177,24 @@ struct HttpServer::Impl {
   std::mutex mutex;  // stopping, stopped, in_flight, per_address
   std::condition_variable changed;
   bool stop_called = false, stopping = false, stopped = false;
-  int in_flight = 0;  // requests between their head and their completion
+  int in_flight = 0;        // requests between their head and their completion
+  int dispatched = 0;       // of which handed to a handler
+  uint64_t body_bytes = 0;  // reserved by requests in flight (ReserveBody)
   std::unordered_map<std::string, int> per_address;
 
   explicit Impl(HttpServerOptions o)
       : options(std::move(o)), pool(options.handler_threads, std::chrono::seconds(30)) {}
+
+  // Body bytes of all requests being read, at most body_budget_bytes: a
+  // request's announced length from its head, more if it sends more.
+  bool ReserveBody(RequestState* state, uint64_t bytes) {
+    if (bytes <= state->reserved) return true;
+    std::lock_guard<std::mutex> lock(mutex);
+    if (body_bytes + (bytes - state->reserved) > options.body_budget_bytes) return false;
+    body_bytes += bytes - state->reserved;
+    state->reserved = bytes;
+    return true;
+  }
 
   void Notice(const std::string& text) const {
     if (options.notice) options.notice(text);
@@ -270,6 +289,13 @@ struct HttpServer::Impl {
         state->refused = true;  // far over: not worth reading to answer politely
         return Queue(connection, ErrorResponse(413, "the body exceeds --max-body-mb", true));
       }
+      if (!state->too_large && !ReserveBody(state, announced)) {
+        state->refused = true;
+        HttpResponse r = ErrorResponse(
+            503, "the server is busy: request bodies being read fill --body-budget-mb", true);
+        r.headers = {{"Retry-After", "1"}};
+        return Queue(connection, std::move(r));
+      }
       const std::string type = state->request.Header("Content-Type");
       if (!state->too_large && type.rfind("multipart/form-data", 0) != 0) {
         state->request.body.reserve(announced);
@@ -287,26 +313,29 @@ struct HttpServer::Impl {
       return MHD_YES;
     }
     if (*upload_size > 0) {
+      // libmicrohttpd takes no answer while a body is being read: a refusal
+      // found here waits for its end (bounded: Content-Length <= 4 x the cap).
       const size_t n = *upload_size;
       *upload_size = 0;
-      if (state->refused) return MHD_YES;
+      if (state->refused || state->pending) return MHD_YES;
       state->received += n;
       if (state->received > options.max_body_bytes) state->too_large = true;
-      if (state->too_large) {
-        // Read and dropped, so its client reads the 413 (a connection closed
-        // on unread bytes resets, and the answer is lost); far over: now.
-        if (state->received / 4 <= options.max_body_bytes) return MHD_YES;
-        state->refused = true;
-        return Queue(connection, ErrorResponse(413, "the body exceeds --max-body-mb", true));
+      if (state->too_large || !ReserveBody(state, state->received)) {
+        state->pending = state->too_large
+                             ? ErrorResponse(413, "the body exceeds --max-body-mb", true)
+                             : ErrorResponse(503,
+                                             "the server is busy: request bodies being read "
+                                             "fill --body-budget-mb",
+                                             true);
+        return MHD_YES;
       }
       if (state->post != nullptr) {
         if (MHD_post_process(state->post, upload, n) != MHD_YES) {
-          state->refused = true;
           const std::string why = state->post_error.empty()
                                       ? "multipart: the body is not multipart/form-data with the "
                                         "boundary its Content-Type names"
                                       : state->post_error;
-          return Queue(connection, ErrorResponse(400, why, true));
+          state->pending = ErrorResponse(400, why, true);
         }
       } else {
         state->request.body.append(upload, n);
@@ -315,19 +344,20 @@ struct HttpServer::Impl {
     }
     if (state->answer) return Queue(connection, std::move(*state->answer));  // resumed
     if (state->dispatched || state->refused) return MHD_YES;
-    if (state->too_large) {
-      state->refused = true;
-      return Queue(connection, ErrorResponse(413, "the body exceeds --max-body-mb", true));
+    if (state->too_large && !state->pending) {
+      state->pending = ErrorResponse(413, "the body exceeds --max-body-mb", true);
     }
-    if (state->post != nullptr) {
+    if (state->post != nullptr && !state->pending) {
       const MHD_Result complete = MHD_destroy_post_processor(state->post);
       state->post = nullptr;
       if (complete != MHD_YES) {
-        state->refused = true;
-        return Queue(
-            connection,
-            ErrorResponse(400, "multipart: the body ends before its closing boundary", true));
+        state->pending =
+            ErrorResponse(400, "multipart: the body ends before its closing boundary", true);
       }
+    }
+    if (state->pending) {
+      state->refused = true;
+      return Queue(connection, std::move(*state->pending));
     }
     std::lock_guard<std::mutex> lock(mutex);
     if (stopping) {
@@ -337,6 +367,7 @@ struct HttpServer::Impl {
       return Queue(connection, std::move(r));
     }
     state->dispatched = true;
+    ++dispatched;
     MHD_suspend_connection(connection);
     pool.Submit([this, connection, state] {
       HttpResponse r;
@@ -357,9 +388,11 @@ struct HttpServer::Impl {
     if (state == nullptr) return;
     *con_cls = nullptr;
     if (state->post != nullptr) MHD_destroy_post_processor(state->post);
-    delete state;
     auto* impl = static_cast<Impl*>(cls);
     std::lock_guard<std::mutex> lock(impl->mutex);
+    impl->body_bytes -= state->reserved;
+    impl->dispatched -= state->dispatched;
+    delete state;
     --impl->in_flight;
     impl->changed.notify_all();
   }
@@ -518,8 +551,13 @@ void HttpServer::Stop() {
     const int fd = MHD_quiesce_daemon(s.daemon);  // no new connections
     if (fd >= 0) ::close(fd);
     {
+      // Requests handed to a handler are answered (within `drain`); one still
+      // sending its head or body gets `grace` (a client dripping a body
+      // held the exit 21 s).
       std::unique_lock<std::mutex> lock(s.mutex);
-      s.changed.wait_for(lock, s.options.drain, [&] { return s.in_flight == 0; });
+      const auto start = std::chrono::steady_clock::now();
+      s.changed.wait_for(lock, s.options.grace, [&] { return s.in_flight == 0; });
+      s.changed.wait_until(lock, start + s.options.drain, [&] { return s.dispatched == 0; });
       s.stopping = true;  // from here requests completing their body are refused (503)
     }
     s.pool.WaitIdle();  // every suspended connection resumed (MHD requires it before stopping)

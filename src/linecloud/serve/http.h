@@ -65,11 +65,16 @@ struct HttpServerOptions {
   bool limit_loopback = false;    // count loopback addresses too (tests)
   size_t head_bytes = 32 * 1024;  // a connection's request line + header fields (then 431 / 414)
   uint64_t max_body_bytes = 16 << 20;  // then 413, the connection closed
-  unsigned idle_seconds = 5;           // a connection silent this long is closed
-  int handler_threads = 64;            // at most; made as requests come
+  // Bodies of all requests being read or handled at once (then 503): a
+  // slow client holds its announced length from its head on.
+  uint64_t body_budget_bytes = uint64_t{256} << 20;
+  unsigned idle_seconds = 5;  // a connection silent this long is closed
+  int handler_threads = 64;   // at most; made as requests come
   // Stop(): how long requests in flight may take to finish (their handlers
   // always finish: each is bounded by its request's deadline).
   std::chrono::milliseconds drain{15000};
+  // Stop(): how long a request still being sent (head or body) may take.
+  std::chrono::milliseconds grace{5000};
   HttpFields headers;  // added to every answer (security headers)
   // On each request's head (path, query, header fields; no body yet): an
   // answer refuses the request before its body is read.

@@ -22,6 +22,7 @@
 #include <map>
 #include <mutex>
 #include <random>
+#include <semaphore>
 #include <numeric>
 #include <thread>
 
@@ -379,6 +380,9 @@ void ServeOptions::Check() const {
   if (!(max_body_mb > 0 && max_body_mb <= 1024)) {
     Fail("serve: --max-body-mb must be in (0, 1024], got {}", max_body_mb);
   }
+  if (!(body_budget_mb >= max_body_mb && body_budget_mb <= 1e6)) {
+    Fail("serve: --body-budget-mb must be in [--max-body-mb, 1e6], got {}", body_budget_mb);
+  }
   if (max_pixels < 1) Fail("serve: --max-pixels must be positive");
   if (!(memory_budget_mb >= 64 && memory_budget_mb <= 1e7)) {
     Fail("serve: --memory-budget-mb must be in [64, 1e7], got {}", memory_budget_mb);
@@ -397,6 +401,7 @@ struct Server::Impl {
   TokenStore tokens;
   Metrics metrics;
   std::unique_ptr<WorkPool> pool;
+  std::unique_ptr<std::counting_semaphore<>> parse_slots;  // ParseBody
   std::string host;
   int port = -1;
   std::string web_dir;  // the console's files ("": none)
@@ -540,6 +545,20 @@ struct Server::Impl {
     const auto it = IsMapId(id) ? set->find(id) : set->end();
     if (it == set->end() || (token && !token->MayUse(id))) Throw(404, "no such map");
     return it->second;
+  }
+
+  // A request body's JSON, parsed by at most workers + 2 requests at once (a
+  // parse costs up to ~50 MB: kMaxRequestJsonValues); 503 when no slot frees
+  // before the deadline.
+  json ParseBody(std::string_view body, std::string_view what, Clock::time_point deadline) {
+    if (!parse_slots->try_acquire_until(deadline)) {
+      Throw(503, "the server is busy: every JSON parsing slot is taken", 1);
+    }
+    struct Release {
+      std::counting_semaphore<>& slots;
+      ~Release() { slots.release(); }
+    } release{*parse_slots};
+    return ParseRequestJson(body, what);
   }
 
   // When a request that arrives now must be answered (--request-seconds).
@@ -701,7 +720,7 @@ struct Server::Impl {
   std::function<LocalizerResult()> FeaturesJob(const std::string& body,
                                                std::shared_ptr<const LoadedMap> map,
                                                Clock::time_point deadline) {
-    const json j = ParseRequestJson(body, "body");
+    const json j = ParseBody(body, "body", deadline);
     if (!j.is_object()) Throw(400, "body: expected a JSON object");
     for (const char* key : {"camera", "keypoints", "descriptors"}) {
       if (!j.contains(key)) Throw(400, fmt::format("body: field '{}' is missing", key));
@@ -851,7 +870,7 @@ struct Server::Impl {
     if (!map->anchor) Throw(404, "the map has no geo-anchor");
     Throttle(token);
     const Clock::time_point deadline = Deadline();
-    json j = ParseRequestJson(req.body, "GeoPoseReq");
+    json j = ParseBody(req.body, "GeoPoseReq", deadline);
     const json* reading = nullptr;
     if (j.is_object() && j.contains("sensorReadings") && j["sensorReadings"].is_object() &&
         j["sensorReadings"].contains("cameraReadings") &&
@@ -1074,7 +1093,8 @@ struct Server::Impl {
         return Handle(route, req, [&](json* log, HttpResponse*) { return Audit(req, id, log); });
       return Handle(route, req, [&](json* log, HttpResponse*) { return Localize(req, id, log); });
     }
-    return Handle("static", req, [&](json*, HttpResponse* res) {
+    return Handle("static", req, [&](json* log, HttpResponse* res) {
+      (*log)["path"] = req.path;
       StaticFile(req, res);
       return json();
     });
@@ -1115,16 +1135,25 @@ struct Server::Impl {
     if (web_dir.empty() || (req.method != "GET" && req.method != "HEAD")) {
       Throw(404, "no such route");
     }
+    // Only names under web_dir: every segment a plain name (no empty one, so
+    // no absolute path: "//etc/shadow" joined to the folder was /etc/shadow,
+    // an outsider's find), and the file found inside the folder.
+    if (req.path.empty() || req.path.front() != '/') Throw(404, "no such route");
     const std::string relative = req.path == "/" ? "index.html" : req.path.substr(1);
     for (size_t begin = 0; begin <= relative.size();) {
       const size_t end = std::min(relative.find('/', begin), relative.size());
       const std::string_view segment(relative.data() + begin, end - begin);
-      if (segment == ".." || segment == "." || segment.find('\\') != std::string_view::npos) {
+      if (segment.empty() || segment == ".." || segment == "." ||
+          segment.find('\\') != std::string_view::npos) {
         Throw(404, "no such route");
       }
       begin = end + 1;
     }
-    fs::path file = fs::path(web_dir) / relative;
+    fs::path file = fs::path(web_dir) / fs::path(relative).relative_path();
+    std::error_code inside;
+    const fs::path real = fs::weakly_canonical(file, inside);
+    const std::string root = fs::weakly_canonical(web_dir, inside).string() + "/";
+    if (inside || real.string().rfind(root, 0) != 0) Throw(404, "no such route");
     std::error_code ec;
     if (fs::is_directory(file, ec)) file /= "index.html";
     if (!fs::is_regular_file(file, ec)) Throw(404, "no such route");
@@ -1202,6 +1231,7 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   std::tie(impl_->host, impl_->port) = ParseListen(o.listen, "--listen");
   impl_->LoadMaps();
   impl_->pool = std::make_unique<WorkPool>(o.threads, o.queue);
+  impl_->parse_slots = std::make_unique<std::counting_semaphore<>>(o.threads + 2);
   SetSiftMemoryLimit(impl_->BudgetBytes());  // process-wide: the extractions of every map
   const std::string web = o.web_dir.empty() ? DefaultWebDir() : o.web_dir;
   if (!web.empty() && fs::is_regular_file(fs::path(web) / "index.html")) {
@@ -1219,12 +1249,14 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   h.connections = o.connections;
   h.connections_per_address = o.connections_per_address;
   h.max_body_bytes = static_cast<uint64_t>(o.max_body_mb * 1024 * 1024);
+  h.body_budget_bytes = static_cast<uint64_t>(o.body_budget_mb * 1024 * 1024);
   h.idle_seconds = static_cast<unsigned>(std::max(1.0, std::ceil(o.read_timeout_s)));
   // Handlers wait for a worker (or their deadline): the workers, the queue and
   // a few for cheap routes; more requests wait in line, read and suspended.
   h.handler_threads = o.threads + o.queue + 16;
   h.drain = std::chrono::milliseconds(
       static_cast<int64_t>(1000 * (o.request_seconds + o.read_timeout_s + o.write_timeout_s)));
+  h.grace = std::chrono::milliseconds(static_cast<int64_t>(1000 * o.read_timeout_s));
   // Every answer: no sniffing, no framing, no referrer; the console's page
   // may run its own files and its import map only (security_policy).
   h.headers = {{"X-Content-Type-Options", "nosniff"},

@@ -35,6 +35,9 @@ struct ServeOptions {
   int connections = 10000;
   int connections_per_address = 32;
   double max_body_mb = 16;
+  // Bodies of all requests being read or handled at once (then 503 +
+  // Retry-After): a slow client holds its announced length from its head on.
+  double body_budget_mb = 256;
   uint64_t max_pixels = 50'000'000;
   // SIFT's scale space of all requests together, live and pooled (~320 bytes
   // per photo pixel after downscaling to 3 200 px: 550 MB for 1536 x 1024,

@@ -30,9 +30,36 @@ int JsonNestingDepth(std::string_view text, int limit) {
   return deepest;
 }
 
+size_t JsonValueBound(std::string_view text) {
+  size_t values = 1;
+  bool in_string = false, escaped = false;
+  for (const char c : text) {
+    if (in_string) {
+      if (escaped) {
+        escaped = false;
+      } else if (c == '\\') {
+        escaped = true;
+      } else if (c == '"') {
+        in_string = false;
+      }
+      continue;
+    }
+    if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{' || c == ',') {
+      ++values;
+    }
+  }
+  return values;
+}
+
 nlohmann::json ParseRequestJson(std::string_view body, std::string_view what) {
   if (JsonNestingDepth(body, kMaxRequestJsonDepth) > kMaxRequestJsonDepth) {
     Fail("{}: JSON nested deeper than {} levels", what, kMaxRequestJsonDepth);
+  }
+  if (JsonValueBound(body) > kMaxRequestJsonValues) {
+    Fail("{}: more than {} JSON values (arrays, numbers, strings, ...)", what,
+         kMaxRequestJsonValues);
   }
   try {
     return nlohmann::json::parse(body);

@@ -14,12 +14,23 @@ namespace linecloud {
 // overflowed the stack (a SIGSEGV, found by an outsider's review).
 constexpr int kMaxRequestJsonDepth = 64;
 
+// Values (numbers, strings, arrays, ...) a request body may hold: a parsed
+// value costs ~50-100 bytes, so 16 MB of `[[],[],...]` (5.5 M values) took
+// 400 MB to parse (an outsider's find); a features body of 100 000 keypoints
+// holds ~300 000.
+constexpr size_t kMaxRequestJsonValues = 400'000;
+
 // The deepest nesting of `[` / `{` in `text`, brackets inside strings left
 // out; stops counting once `limit` is exceeded (returns limit + 1).
 int JsonNestingDepth(std::string_view text, int limit);
 
-// Parses a request body; throws Error naming `what` when it is not JSON or is
-// nested deeper than kMaxRequestJsonDepth.
+// An upper bound on the values in `text` (brackets and commas outside
+// strings, plus one).
+size_t JsonValueBound(std::string_view text);
+
+// Parses a request body; throws Error naming `what` when it is not JSON, is
+// nested deeper than kMaxRequestJsonDepth or holds more than
+// kMaxRequestJsonValues values.
 nlohmann::json ParseRequestJson(std::string_view body, std::string_view what);
 
 // JSON text with every invalid UTF-8 sequence replaced (U+FFFD): errors echo
