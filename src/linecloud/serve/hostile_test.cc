@@ -130,7 +130,9 @@ TEST(Hostile, DeeplyNestedJsonIsRefusedAndTheServerLives) {
   EXPECT_TRUE(s.Alive());
   EXPECT_EQ(Send(s.port(), Request("GET", "/healthz")).status, 200);
   // Brackets inside strings are text, not nesting.
-  EXPECT_EQ(JsonNestingDepth(R"({"a": "[[[[[[", "b": [1, {"c": "\"]]]"}]})", 100), 3);
+  const JsonShape shape = ScanJsonShape(R"({"a": "[[[[[[", "b": [1, {"c": "\"],,]]"}]})");
+  EXPECT_EQ(shape.depth, 3);
+  EXPECT_EQ(shape.values, 6u);  // 1 + {, [, { and two commas: the 6 values exactly
 }
 
 // Rows 2, 3, 5, 15: what no route answers with a body is refused before the

@@ -1,11 +1,14 @@
 #include "linecloud/serve/wire.h"
 
+#include <algorithm>
+
 #include "linecloud/util/error.h"
 
 namespace linecloud {
 
-int JsonNestingDepth(std::string_view text, int limit) {
-  int depth = 0, deepest = 0;
+JsonShape ScanJsonShape(std::string_view text) {
+  JsonShape shape;
+  int depth = 0;
   bool in_string = false, escaped = false;
   for (const char c : text) {
     if (in_string) {
@@ -21,43 +24,23 @@ int JsonNestingDepth(std::string_view text, int limit) {
     if (c == '"') {
       in_string = true;
     } else if (c == '[' || c == '{') {
-      if (++depth > deepest) deepest = depth;
-      if (deepest > limit) return limit + 1;
+      shape.depth = std::max(shape.depth, ++depth);
+      ++shape.values;
     } else if (c == ']' || c == '}') {
       --depth;
+    } else if (c == ',') {
+      ++shape.values;
     }
   }
-  return deepest;
-}
-
-size_t JsonValueBound(std::string_view text) {
-  size_t values = 1;
-  bool in_string = false, escaped = false;
-  for (const char c : text) {
-    if (in_string) {
-      if (escaped) {
-        escaped = false;
-      } else if (c == '\\') {
-        escaped = true;
-      } else if (c == '"') {
-        in_string = false;
-      }
-      continue;
-    }
-    if (c == '"') {
-      in_string = true;
-    } else if (c == '[' || c == '{' || c == ',') {
-      ++values;
-    }
-  }
-  return values;
+  return shape;
 }
 
 nlohmann::json ParseRequestJson(std::string_view body, std::string_view what) {
-  if (JsonNestingDepth(body, kMaxRequestJsonDepth) > kMaxRequestJsonDepth) {
+  const JsonShape shape = ScanJsonShape(body);
+  if (shape.depth > kMaxRequestJsonDepth) {
     Fail("{}: JSON nested deeper than {} levels", what, kMaxRequestJsonDepth);
   }
-  if (JsonValueBound(body) > kMaxRequestJsonValues) {
+  if (shape.values > kMaxRequestJsonValues) {
     Fail("{}: more than {} JSON values (arrays, numbers, strings, ...)", what,
          kMaxRequestJsonValues);
   }

@@ -20,13 +20,14 @@ constexpr int kMaxRequestJsonDepth = 64;
 // holds ~300 000.
 constexpr size_t kMaxRequestJsonValues = 400'000;
 
-// The deepest nesting of `[` / `{` in `text`, brackets inside strings left
-// out; stops counting once `limit` is exceeded (returns limit + 1).
-int JsonNestingDepth(std::string_view text, int limit);
-
-// An upper bound on the values in `text` (brackets and commas outside
-// strings, plus one).
-size_t JsonValueBound(std::string_view text);
+// What a request body's text says of its parsed size, brackets and commas
+// inside strings left out: the deepest nesting of `[` / `{`, and an upper
+// bound on its values (brackets and commas, plus one).
+struct JsonShape {
+  int depth = 0;
+  size_t values = 1;
+};
+JsonShape ScanJsonShape(std::string_view text);
 
 // Parses a request body; throws Error naming `what` when it is not JSON, is
 // nested deeper than kMaxRequestJsonDepth or holds more than
