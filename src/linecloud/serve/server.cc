@@ -1,7 +1,6 @@
 #include "linecloud/serve/server.h"
 
 #include <sodium.h>
-#include <sys/stat.h>
 
 #include <algorithm>
 #include <netinet/in.h>
@@ -14,16 +13,12 @@
 #include <cctype>
 #include <chrono>
 #include <cmath>
-#include <condition_variable>
-#include <deque>
 #include <filesystem>
 #include <future>
 #include <iostream>
 #include <map>
 #include <mutex>
-#include <random>
 #include <semaphore>
-#include <numeric>
 #include <thread>
 
 #include <fmt/format.h>
@@ -32,15 +27,14 @@
 #include "linecloud/features/image.h"
 #include "linecloud/features/sift.h"
 #include "linecloud/features/sift_scale_space.h"
-#include "linecloud/io/lcm_format.h"
-#include "linecloud/geometry/plucker.h"
 #include "linecloud/io/ply.h"
-#include "linecloud/io/line_cloud_info.h"
 #include "linecloud/localize/image_query.h"
 #include "linecloud/localize/query_json.h"
 #include "linecloud/pipeline/localizer.h"
 #include "linecloud/serve/geo.h"
 #include "linecloud/serve/http.h"
+#include "linecloud/serve/map_registry.h"
+#include "linecloud/serve/metrics.h"
 #include "linecloud/serve/pools.h"
 #include "linecloud/serve/tokens.h"
 #include "linecloud/serve/wire.h"
@@ -55,13 +49,6 @@ namespace {
 using json = nlohmann::json;
 using Clock = std::chrono::steady_clock;
 namespace fs = std::filesystem;
-
-// Map ids: [A-Za-z0-9_-]{1,64} (no std::regex: its GCC 12 code warns).
-bool IsMapId(const std::string& id) {
-  if (id.empty() || id.size() > 64) return false;
-  return std::all_of(id.begin(), id.end(),
-                     [](unsigned char c) { return std::isalnum(c) != 0 || c == '_' || c == '-'; });
-}
 
 // Header fields a request may carry (their bytes are bounded by
 // HttpServerOptions::head_bytes before this count is taken).
@@ -144,131 +131,6 @@ struct HttpError {
 
 [[noreturn]] void Throw(int status, std::string message, double retry_after = 0) {
   throw HttpError{status, std::move(message), retry_after};
-}
-
-// Prometheus counters and histograms (text exposition format 0.0.4).
-class Metrics {
- public:
-  static constexpr double kBucketsMs[] = {5, 10, 25, 50, 100, 250, 500, 1000, 2500, 5000, 10000};
-  void Request(const std::string& route, int status) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    ++requests_[{route, status}];
-  }
-  void Stage(const std::string& stage, double ms) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    Histogram& h = stages_[stage];
-    for (size_t i = 0; i < std::size(kBucketsMs); ++i) h.buckets[i] += ms <= kBucketsMs[i];
-    ++h.count;
-    h.sum += ms;
-  }
-  void MapLoadError() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    ++map_load_errors_;
-  }
-  std::string Text(int in_flight, int queued, size_t maps) const {
-    std::lock_guard<std::mutex> lock(mutex_);
-    std::string out =
-        "# HELP linecloud_requests_total Requests answered, by route and status.\n"
-        "# TYPE linecloud_requests_total counter\n";
-    for (const auto& [key, n] : requests_) {
-      out += fmt::format("linecloud_requests_total{{route=\"{}\",status=\"{}\"}} {}\n", key.first,
-                         key.second, n);
-    }
-    out +=
-        "# HELP linecloud_stage_ms Localization time per stage, milliseconds.\n"
-        "# TYPE linecloud_stage_ms histogram\n";
-    for (const auto& [stage, h] : stages_) {
-      for (size_t i = 0; i < std::size(kBucketsMs); ++i) {
-        out += fmt::format("linecloud_stage_ms_bucket{{stage=\"{}\",le=\"{}\"}} {}\n", stage,
-                           kBucketsMs[i], h.buckets[i]);
-      }
-      out +=
-          fmt::format("linecloud_stage_ms_bucket{{stage=\"{}\",le=\"+Inf\"}} {}\n", stage, h.count);
-      out += fmt::format("linecloud_stage_ms_sum{{stage=\"{}\"}} {}\n", stage, h.sum);
-      out += fmt::format("linecloud_stage_ms_count{{stage=\"{}\"}} {}\n", stage, h.count);
-    }
-    out += fmt::format(
-        "# TYPE linecloud_in_flight gauge\nlinecloud_in_flight {}\n"
-        "# TYPE linecloud_queue_length gauge\nlinecloud_queue_length {}\n"
-        "# TYPE linecloud_maps gauge\nlinecloud_maps {}\n"
-        "# HELP linecloud_map_load_errors_total Map files (or the folder) that did not load.\n"
-        "# TYPE linecloud_map_load_errors_total counter\nlinecloud_map_load_errors_total {}\n"
-        "# TYPE linecloud_resident_bytes gauge\nlinecloud_resident_bytes {}\n",
-        in_flight, queued, maps, map_load_errors_, ResidentBytes());
-    const SiftMemoryUse sift = SiftMemoryInUse();
-    out += fmt::format(
-        "# HELP linecloud_sift_memory_bytes SIFT's scale space: reserved by running "
-        "extractions, pooled for the next, the limit (--memory-budget-mb).\n"
-        "# TYPE linecloud_sift_memory_bytes gauge\n"
-        "linecloud_sift_memory_bytes{{kind=\"reserved\"}} {}\n"
-        "linecloud_sift_memory_bytes{{kind=\"pooled\"}} {}\n"
-        "linecloud_sift_memory_bytes{{kind=\"limit\"}} {}\n",
-        sift.reserved, sift.pooled, sift.limit);
-    return out;
-  }
-
- private:
-  struct Histogram {
-    uint64_t buckets[std::size(kBucketsMs)] = {};
-    uint64_t count = 0;
-    double sum = 0;
-  };
-  mutable std::mutex mutex_;
-  std::map<std::pair<std::string, int>, uint64_t> requests_;
-  std::map<std::string, Histogram> stages_;
-  uint64_t map_load_errors_ = 0;
-};
-
-struct LoadedMap {
-  std::string id;
-  std::unique_ptr<Localizer> localizer;
-  json info;     // GET /v1/maps
-  json details;  // GET /v1/maps/{id}: what `linecloud info --json` says, and the geo-anchor
-  // GET /v1/maps/{id}/segments: every line clipped to the box of the lines'
-  // anchors, x0 y0 z0 x1 y1 z1 as float32, in a fixed pseudo-random order (a
-  // prefix is a uniform subset). What the .lcm holds, nothing more.
-  std::vector<float> segments;
-  std::optional<GeoAnchor> anchor;
-  // The owner published the lines (DIR/ID.json "publish_lines": true):
-  // reader tokens get /segments too. Never a default: a line cloud
-  // downloaded whole gives back most of its points to the density attack.
-  bool publish_lines = false;
-  // Size and mtime of ID.lcm, ID.json and ID.audit.json: a map whose files
-  // are unchanged is kept on reload.
-  std::vector<std::pair<uintmax_t, int64_t>> stamp;
-};
-using MapSet = std::map<std::string, std::shared_ptr<const LoadedMap>>;
-
-std::pair<uintmax_t, int64_t> FileStamp(const std::string& path) {
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) return {0, 0};
-  return {static_cast<uintmax_t>(st.st_size),
-          static_cast<int64_t>(st.st_mtim.tv_sec) * 1000000000 + st.st_mtim.tv_nsec};
-}
-
-// LoadedMap::stamp of the map file DIR/ID.lcm.
-std::vector<std::pair<uintmax_t, int64_t>> MapStamp(const std::string& lcm_path) {
-  const std::string base = lcm_path.substr(0, lcm_path.size() - 4);  // without ".lcm"
-  return {FileStamp(lcm_path), FileStamp(base + ".json"), FileStamp(base + ".audit.json")};
-}
-
-// The segments of LoadedMap::segments.
-std::vector<float> MapSegments(const LineCloud& cloud) {
-  Eigen::Vector3d min, max;
-  AnchorBoundingBox(cloud, &min, &max);
-  std::vector<size_t> order(cloud.size());
-  std::iota(order.begin(), order.end(), size_t{0});
-  std::shuffle(order.begin(), order.end(), std::mt19937_64(20261125));
-  std::vector<float> out;
-  out.reserve(6 * order.size());
-  for (const size_t i : order) {
-    Eigen::Vector3d a, b;
-    if (!ClipToBox(cloud.lines[i], min, max, &a, &b)) a = b = cloud.lines[i].Anchor();
-    for (const Eigen::Vector3d& p : {a, b}) {
-      for (int k = 0; k < 3; ++k) out.push_back(static_cast<float>(p[k]));
-    }
-  }
-  return out;
 }
 
 // The pose (cam_from_world) and its statistics; `inlier_keypoints` (the
@@ -406,8 +268,9 @@ struct Server::Impl {
   int port = -1;
   std::string web_dir;  // the console's files ("": none)
   std::atomic<int> in_flight{0};
-  mutable std::mutex maps_mutex;
-  std::shared_ptr<const MapSet> maps = std::make_shared<MapSet>();
+  std::unique_ptr<MapRegistry> registry;
+
+  std::shared_ptr<const MapSet> Maps() const { return registry->Maps(); }
 
   void Log(const std::string& line) const {
     if (options.log) {
@@ -415,111 +278,6 @@ struct Server::Impl {
     } else {
       std::cerr << line << "\n";
     }
-  }
-
-  std::shared_ptr<const MapSet> Maps() const {
-    std::lock_guard<std::mutex> lock(maps_mutex);
-    return maps;
-  }
-
-  std::shared_ptr<const LoadedMap> LoadMap(const std::string& id, const std::string& path) const {
-    auto m = std::make_shared<LoadedMap>();
-    m->id = id;
-    m->stamp = MapStamp(path);
-    const LineCloud cloud = ReadLineCloud(path);
-    LocalizerOptions lo;
-    lo.image.max_pixels = options.max_pixels;
-    lo.image.threads = 1;  // concurrency comes from the workers
-    m->localizer = std::make_unique<Localizer>(cloud, lo, id);
-    const std::string anchor_path = JoinPaths(options.maps_dir, id + ".json");
-    json owner_file;
-    if (FileExists(anchor_path)) {
-      owner_file = ParseRequestJson(ReadFilePrefix(anchor_path, 1 << 16), anchor_path);
-      if (!owner_file.is_object()) Fail("{}: expected a JSON object", anchor_path);
-      if (owner_file.contains("geo_anchor")) {
-        m->anchor = GeoAnchorFromJson(owner_file, anchor_path);
-      }
-      if (owner_file.contains("publish_lines")) {
-        if (!owner_file["publish_lines"].is_boolean()) {
-          Fail("{}: publish_lines: expected true or false", anchor_path);
-        }
-        m->publish_lines = owner_file["publish_lines"].get<bool>();
-      }
-    }
-    m->info = {{"id", id},
-               {"lines", cloud.size()},
-               {"descriptors", cloud.has_descriptors() ? cloud.descriptor_type : "none"},
-               {"encoding", std::string(LineEncodingName(cloud.encoding))},
-               {"gravity", cloud.gravity.has_value()},
-               {"geo_anchored", m->anchor.has_value()}};
-    m->details = LineCloudInfo(cloud);
-    m->details["id"] = id;
-    if (m->anchor) m->details["geo_anchor"] = owner_file["geo_anchor"];
-    m->details["publish_lines"] = m->publish_lines;
-    const std::string audit_path = JoinPaths(options.maps_dir, id + ".audit.json");
-    if (m->publish_lines && FileExists(audit_path)) {
-      // What publishing costs, from the owner's audit: the share of points
-      // the density attack recovered within 1 % of the scene diagonal.
-      try {
-        const json audit = ParseRequestJson(ReadFilePrefix(audit_path, 1 << 22), audit_path);
-        const json share = audit.value(
-            json::json_pointer("/density_attack/recovery/within_diagonal_percent/1"), json());
-        if (share.is_number()) m->details["audit_recovered_share"] = share;
-      } catch (const std::exception& e) {
-        Log(DumpJson(json{{"notice", fmt::format("map {}: audit not read: {}", id, e.what())}}));
-      }
-    }
-    m->segments = MapSegments(cloud);
-    return m;
-  }
-
-  // On a reload (SIGHUP) nothing stops the service: a folder that is gone or
-  // unreadable keeps every map, a map file that does not load keeps its last
-  // good version; each is logged and counted (linecloud_map_load_errors_total).
-  void Reload() {
-    try {
-      LoadMaps();
-    } catch (const std::exception& e) {
-      metrics.MapLoadError();
-      Log(DumpJson(
-          json{{"notice", fmt::format("reload failed, the maps are kept: {}", e.what())}}));
-    }
-  }
-
-  void LoadMaps() {
-    if (!fs::is_directory(options.maps_dir)) Fail("serve: {} is not a folder", options.maps_dir);
-    const std::shared_ptr<const MapSet> old = Maps();
-    auto next = std::make_shared<MapSet>();
-    for (const auto& e : fs::directory_iterator(options.maps_dir)) {
-      if (e.path().extension() != ".lcm") continue;
-      const std::string id = e.path().stem().string();
-      if (!IsMapId(id)) {
-        Log(fmt::format("{{\"notice\": \"skipped {}: map ids are [A-Za-z0-9_-]{{1,64}}\"}}",
-                        DumpJson(json(e.path().filename().string()))));
-        continue;
-      }
-      const std::string path = e.path().string();
-      const auto kept = old->find(id);
-      if (kept != old->end() && kept->second->stamp == MapStamp(path)) {
-        (*next)[id] = kept->second;
-        continue;
-      }
-      try {
-        (*next)[id] = LoadMap(id, path);
-      } catch (const std::exception& err) {
-        metrics.MapLoadError();
-        if (kept != old->end()) {
-          (*next)[id] = kept->second;
-          Log(DumpJson(
-              json{{"notice", fmt::format("map {} not reloaded, its last version is kept: {}", id,
-                                          err.what())}}));
-        } else {
-          Log(DumpJson(json{{"notice", fmt::format("map {} not loaded: {}", id, err.what())}}));
-        }
-      }
-    }
-    std::lock_guard<std::mutex> lock(maps_mutex);
-    maps = next;
   }
 
   // The caller's token entry (nullopt: no tokens file, everything allowed);
@@ -1229,7 +987,10 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   const ServeOptions& o = impl_->options;
   if (!o.tokens_path.empty()) impl_->tokens = TokenStore::Read(o.tokens_path);
   std::tie(impl_->host, impl_->port) = ParseListen(o.listen, "--listen");
-  impl_->LoadMaps();
+  impl_->registry = std::make_unique<MapRegistry>(
+      o.maps_dir, o.max_pixels, [impl = impl_.get()](const std::string& line) { impl->Log(line); },
+      &impl_->metrics);
+  impl_->registry->Load();
   impl_->pool = std::make_unique<WorkPool>(o.threads, o.queue);
   impl_->parse_slots = std::make_unique<std::counting_semaphore<>>(o.threads + 2);
   SetSiftMemoryLimit(impl_->BudgetBytes());  // process-wide: the extractions of every map
@@ -1285,7 +1046,7 @@ void Server::Run() { impl_->http->Run(); }
 
 void Server::Stop() { impl_->http->Stop(); }
 
-void Server::Reload() { impl_->Reload(); }
+void Server::Reload() { impl_->registry->Reload(); }
 
 size_t Server::num_maps() const { return impl_->Maps()->size(); }
 
