@@ -72,6 +72,33 @@ row("13 a NUL in the path", f"GET /app.js%00.html HTTP/1.1\r\n{HOST}\r\n".encode
 row("15 PUT on a POST route", f"PUT {path} HTTP/1.1\r\n{HOST}\r\n".encode(), {405})
 row("— a 100 KB URI", f"GET /{'a' * 100000} HTTP/1.1\r\n{HOST}\r\n".encode(), {414})
 row("— TLS bytes", b"\x16\x03\x01\x02\x00\x01\x00\x01\xfc\x03\x03 \r\n\r\n", {400})
+# The console's files are the folder's only: an absolute path (//etc/passwd was
+# served by the server itself) or an encoded one.
+for p in ("//etc/passwd", "/%2Fetc/passwd", "/%2e%2e/%2e%2e/etc/passwd"):
+    row(f"— static path {p}", f"GET {p} HTTP/1.1\r\n{HOST}\r\n".encode(), {404, 400})
+# Row 8: a JPEG header declaring 7000 x 7000 pixels in a few hundred bytes.
+bomb = (b"\xFF\xD8\xFF\xC0\x00\x11\x08\x1B\x58\x1B\x58\x03\x01\x22\x00\x02\x11"
+        b"\x01\x03\x11\x01\xFF\xDA\x00\x0C\x03\x01\x00\x02\x11\x03\x11\x00\x3F\x00"
+        + b"\x55" * 300 + b"\xFF\xD9")
+form = (b"--B\r\nContent-Disposition: form-data; name=\"image\"; filename=\"a.jpg\"\r\n\r\n" + bomb +
+        b"\r\n--B\r\nContent-Disposition: form-data; name=\"camera\"\r\n\r\n"
+        b"PINHOLE 7000 7000 5000 5000 3500 3500\r\n--B--\r\n")
+row("8 a 7000 x 7000 JPEG header in 338 bytes",
+    f"POST {path} HTTP/1.1\r\n{HOST}Content-Type: multipart/form-data; boundary=B\r\n"
+    f"Content-Length: {len(form)}\r\n\r\n".encode() + form, {400})
+# 16 MB of empty arrays (+400 MB to parse before the value count).
+empties = b'{"keypoints":[' + b"[]," * 500000 + b"0]}"
+row("— 500 000 empty JSON arrays",
+    f"POST {path} HTTP/1.1\r\n{HOST}Content-Type: application/json\r\n"
+    f"Content-Length: {len(empties)}\r\n\r\n".encode() + empties, {400})
+# Row 14: two requests in one write (nginx answers both, in order).
+s = socket.create_connection(("127.0.0.1", PORT), timeout=15)
+s.sendall(b"GET /healthz HTTP/1.1\r\nHost: a\r\n\r\nGET /readyz HTTP/1.1\r\nHost: a\r\n"
+          b"Connection: close\r\n\r\n")
+answers = read_until_close(s).count(b"HTTP/1.1 200")
+print(f"{'ok  ' if answers == 2 else 'FAIL'} 14 two pipelined requests: {answers} answered 200")
+if answers != 2:
+    failures.append(f"14 pipelining: {answers} of 2 answered")
 
 # Row 4: 200 sockets dribbling header lines, from 10 addresses (127.0.0.2-11:
 # 20 each, under the per-address limit); others answered meanwhile; nginx

@@ -32,7 +32,6 @@ bool IsMapId(const std::string& id) {
 
 namespace {
 
-
 std::pair<uintmax_t, int64_t> FileStamp(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0) return {0, 0};
@@ -68,7 +67,7 @@ std::vector<float> MapSegments(const LineCloud& cloud) {
 }  // namespace
 
 std::shared_ptr<const LoadedMap> MapRegistry::LoadMap(const std::string& id,
-                                                     const std::string& path) const {
+                                                      const std::string& path) const {
   auto m = std::make_shared<LoadedMap>();
   m->id = id;
   m->stamp = MapStamp(path);
@@ -124,8 +123,7 @@ void MapRegistry::Reload() {
     Load();
   } catch (const std::exception& e) {
     if (metrics_) metrics_->MapLoadError();
-    Log(DumpJson(
-        json{{"notice", fmt::format("reload failed, the maps are kept: {}", e.what())}}));
+    Log(DumpJson(json{{"notice", fmt::format("reload failed, the maps are kept: {}", e.what())}}));
   }
 }
 

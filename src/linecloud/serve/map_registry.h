@@ -27,8 +27,9 @@ bool IsMapId(const std::string& id);
 struct LoadedMap {
   std::string id;
   std::unique_ptr<Localizer> localizer;
-  nlohmann::json info;     // GET /v1/maps
-  nlohmann::json details;  // GET /v1/maps/{id}: what `linecloud info --json` says, and the geo-anchor
+  nlohmann::json info;  // GET /v1/maps
+  nlohmann::json
+      details;  // GET /v1/maps/{id}: what `linecloud info --json` says, and the geo-anchor
   // GET /v1/maps/{id}/segments: every line clipped to the box of the lines'
   // anchors, x0 y0 z0 x1 y1 z1 as float32, in a fixed pseudo-random order (a
   // prefix is a uniform subset). What the .lcm holds, nothing more.
@@ -47,8 +48,8 @@ using MapSet = std::map<std::string, std::shared_ptr<const LoadedMap>>;
 class MapRegistry {
  public:
   // `log` takes notices (JSON lines); load errors are counted in `metrics`.
-  MapRegistry(std::string maps_dir, uint64_t max_pixels, std::function<void(const std::string&)> log,
-              Metrics* metrics)
+  MapRegistry(std::string maps_dir, uint64_t max_pixels,
+              std::function<void(const std::string&)> log, Metrics* metrics)
       : maps_dir_(std::move(maps_dir)),
         max_pixels_(max_pixels),
         log_(std::move(log)),
