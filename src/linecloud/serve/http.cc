@@ -160,6 +160,13 @@ size_t HttpRequest::HeaderCount(std::string_view name) const {
                                            [&](const auto& f) { return SameName(f.first, name); }));
 }
 
+uint64_t HttpRequest::BodyLength() const {
+  const std::string v = Header("Content-Length");
+  if (v.empty()) return 0;
+  if (v.size() > 15 || !std::all_of(v.begin(), v.end(), ::isdigit)) return UINT64_MAX;
+  return std::stoull(v);
+}
+
 std::optional<std::string> HttpRequest::Query(std::string_view name) const {
   for (const auto& [k, v] : query) {
     if (k == name) return v;
@@ -280,12 +287,9 @@ struct HttpServer::Impl {
           return Queue(connection, std::move(*refusal));
         }
       }
-      const std::string length = state->request.Header("Content-Length");
-      const bool digits = !length.empty() && length.size() <= 15 &&
-                          std::all_of(length.begin(), length.end(), ::isdigit);
-      const uint64_t announced = digits ? std::stoull(length) : 0;
-      state->too_large = announced > options.max_body_bytes || length.size() > 15;
-      if (announced / 4 > options.max_body_bytes || length.size() > 15) {
+      const uint64_t announced = state->request.BodyLength();
+      state->too_large = announced > options.max_body_bytes;
+      if (announced / 4 > options.max_body_bytes) {
         state->refused = true;  // far over: not worth reading to answer politely
         return Queue(connection, ErrorResponse(413, "the body exceeds --max-body-mb", true));
       }

@@ -38,6 +38,9 @@ struct HttpRequest {
   std::string Header(std::string_view name) const;
   size_t HeaderCount(std::string_view name) const;
   std::optional<std::string> Query(std::string_view name) const;
+  // The announced Content-Length: 0 when absent, UINT64_MAX when it is not a
+  // number below 10^15 (no body that large is read).
+  uint64_t BodyLength() const;
 };
 
 struct HttpResponse {

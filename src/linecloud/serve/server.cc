@@ -103,15 +103,6 @@ std::string ConsolePolicy(const std::string& index_html) {
          "base-uri 'none'; form-action 'self'; frame-ancestors 'none'";
 }
 
-// The announced Content-Length (0 when absent; UINT64_MAX when it is not a
-// number below 10^15: no body that large is read).
-uint64_t BodyLength(const HttpRequest& req) {
-  const std::string v = req.Header("Content-Length");
-  if (v.empty()) return 0;
-  if (v.size() > 15 || !std::all_of(v.begin(), v.end(), ::isdigit)) return UINT64_MAX;
-  return std::stoull(v);
-}
-
 // The route a path belongs to, as the access log and /metrics name it.
 std::string RouteName(const std::string& path) {
   constexpr std::string_view kMaps = "/v1/maps/";
@@ -793,7 +784,7 @@ struct Server::Impl {
     } else if (!allowed.empty() && allowed.find(req.method) == std::string::npos &&
                !(req.method == "HEAD" && allowed == "GET")) {
       refusal = HttpError{405, fmt::format("{} is not allowed here ({})", req.method, allowed)};
-    } else if (BodyLength(req) > static_cast<uint64_t>(4 * options.max_body_mb * 1024 * 1024)) {
+    } else if (req.BodyLength() > static_cast<uint64_t>(4 * options.max_body_mb * 1024 * 1024)) {
       // Far over the cap: answered at once and the connection closed. A body
       // just over the cap is still read (and dropped), so its client reads
       // the 413 (HttpServer).
