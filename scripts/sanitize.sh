@@ -23,7 +23,10 @@ for a in "$@"; do
 done
 programs=(linecloud_core_tests linecloud_features_tests linecloud_privacy_tests linecloud_serve_tests)
 if [ "$mode" != "--test-only" ]; then
+  # -O2 with line tables (not full debug info): stacks keep their files and lines.
   CC=clang CXX=clang++ cmake -S . -B build-san -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+    -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -gline-tables-only -DNDEBUG" \
+    -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O2 -gline-tables-only -DNDEBUG" \
     -DLINECLOUD_SANITIZE=ON -DLINECLOUD_FUZZ=ON -DLINECLOUD_BUILD_BENCH=OFF >/dev/null
   [ "$mode" = "--configure-only" ] && exit 0
   if [ "$scope" = all ]; then

@@ -31,9 +31,15 @@ double Percentile(std::vector<double> v, double q) {
 
 std::array<double, 3> ErrorColour(double error, double diagonal) {
   const double x = diagonal > 0 ? std::clamp(error / (0.02 * diagonal), 0.0, 1.0) : 1.0;
-  // green → yellow (x = 0.5) → red
-  if (x < 0.5) return {0.10 + 1.7 * x, 0.70 + 0.3 * x, 0.15};
-  return {0.95, 0.85 - 1.6 * (x - 0.5), 0.15 - 0.2 * (x - 0.5)};
+  // Okabe and Ito's colour-blind-safe sky blue (exact) → yellow (x = 0.5) → vermilion: apart
+  // for every kind of colour vision (blue against orange), readable on black and white.
+  const std::array<double, 3> sky = {0.337, 0.706, 0.914}, yellow = {0.941, 0.894, 0.259},
+                              vermilion = {0.835, 0.369, 0.0};
+  const auto mix = [](const std::array<double, 3>& a, const std::array<double, 3>& b, double t) {
+    return std::array<double, 3>{a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]),
+                                 a[2] + t * (b[2] - a[2])};
+  };
+  return x < 0.5 ? mix(sky, yellow, 2 * x) : mix(yellow, vermilion, 2 * x - 1);
 }
 
 void WriteAuditFigure(const std::string& path, std::span<const Eigen::Vector3d> secret,

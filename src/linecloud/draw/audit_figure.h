@@ -17,12 +17,13 @@ struct AuditFigureText {
 };
 
 // The error colour of the figure and of recovered.ply (RGB in [0, 1]):
-// green (error 0) → yellow (1 % of `diagonal`) → red (≥ 2 %).
+// sky blue (error 0) → yellow (1 % of `diagonal`) → vermilion (≥ 2 %), a
+// colour-blind-safe scale (Okabe and Ito).
 std::array<double, 3> ErrorColour(double error, double diagonal);
 
 // Views: along the secret points' least-spread principal axis ("front") and
 // along the middle one ("top"), both drawn in the plane of the two others.
-// Colours: green (error 0) → yellow (1 % of `diagonal`) → red (≥ 2 %).
+// Colours: sky blue (error 0) → yellow (1 % of `diagonal`) → vermilion (≥ 2 %).
 // Throws Error naming `path` when it cannot be written.
 // Written mode 0600 (it shows the secret points).
 void WriteAuditFigure(const std::string& path, std::span<const Eigen::Vector3d> secret,

@@ -6,6 +6,7 @@
 #include <cstring>
 #include <memory>
 
+#include "linecloud/localize/overlay_marks.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
@@ -17,32 +18,11 @@ cairo_status_t AppendPng(void* closure, const unsigned char* data, unsigned int 
   return CAIRO_STATUS_SUCCESS;
 }
 
-// The map line of an observation as drawn: the point of the line closest to
-// the keypoint's viewing ray, and a direction along the line's projection.
-bool ProjectedLineNear(const Camera& camera, const Sim3d& cam_from_world, const PluckerLine& world,
-                       const Eigen::Vector2d& xy, Eigen::Vector2d* centre,
-                       Eigen::Vector2d* direction) {
-  const PluckerLine line = Transform(cam_from_world, world);
-  const PluckerLine ray = PluckerLine::FromPointAndDirection(Eigen::Vector3d::Zero(),
-                                                             camera.CamFromImg(xy).normalized());
-  Eigen::Vector3d on_line, on_ray;
-  if (!ClosestPoints(line, ray, &on_line, &on_ray) || on_line.z() <= 1e-9) return false;
-  const double step = 1e-3 * on_line.z();
-  const Eigen::Vector3d ahead = on_line + step * line.v;
-  if (ahead.z() <= 1e-9) return false;
-  *centre = camera.ImgFromCam(on_line);
-  const Eigen::Vector2d d = camera.ImgFromCam(ahead) - *centre;
-  if (!(d.norm() > 0) || !centre->allFinite()) return false;
-  *direction = d.normalized();
-  return true;
-}
-
 }  // namespace
 
 void WriteLocalizationOverlay(const std::string& path, const GreyImage& photo, const Query& query,
                               const LocalizeResult& result, const LocalizationMap& map) {
   if (query.cameras.size() != 1) Fail("{}: an overlay draws one photo's query", path);
-  const Camera& camera = query.cameras[0];
   std::unique_ptr<cairo_surface_t, void (*)(cairo_surface_t*)> surface(
       cairo_image_surface_create(CAIRO_FORMAT_RGB24, photo.width, photo.height),
       cairo_surface_destroy);
@@ -60,45 +40,22 @@ void WriteLocalizationOverlay(const std::string& path, const GreyImage& photo, c
   cairo_surface_mark_dirty(surface.get());
   std::unique_ptr<cairo_t, void (*)(cairo_t*)> cr(cairo_create(surface.get()), cairo_destroy);
   cairo_set_line_width(cr.get(), std::max(1.0, photo.width / 1000.0));
-  std::vector<char> inlier(query.observations.size(), 0);
-  for (const int i : result.inliers) inlier[i] = 1;
-  const Sim3d& cam_from_world = result.query_from_world;
   const double r = std::max(2.0, photo.width / 500.0);
-  for (size_t i = 0; i < query.observations.size(); ++i) {
-    const QueryObservation& o = query.observations[i];
-    if (inlier[i] && result.has_pose) {
-      cairo_set_source_rgb(cr.get(), 1.0, 0.85, 0.1);  // where the pose puts the map feature
-      if (const LineMap* lines = std::get_if<LineMap>(&map)) {
-        const auto it = lines->lines.find(o.line_id.value_or(o.id));
-        Eigen::Vector2d c, d;
-        if (it != lines->lines.end() &&
-            ProjectedLineNear(camera, cam_from_world, it->second, o.xy, &c, &d)) {
-          const double half = 6 * r;
-          cairo_move_to(cr.get(), c.x() - half * d.x(), c.y() - half * d.y());
-          cairo_line_to(cr.get(), c.x() + half * d.x(), c.y() + half * d.y());
-          cairo_stroke(cr.get());
-        }
-      } else {
-        const auto& points = std::get<PointMap>(map).points;
-        const auto it = points.find(o.id);
-        if (it != points.end()) {
-          const Eigen::Vector3d x = cam_from_world * it->second;
-          if (x.z() > 0) {
-            const Eigen::Vector2d p = camera.ImgFromCam(x);
-            cairo_move_to(cr.get(), o.xy.x(), o.xy.y());
-            cairo_line_to(cr.get(), p.x(), p.y());
-            cairo_stroke(cr.get());
-          }
-        }
-      }
+  for (const OverlayMark& m :
+       OverlayMarks(query, result, map, OverlaySegmentHalfLength(photo.width))) {
+    if (m.feature) {
+      cairo_set_source_rgb(cr.get(), 0.941, 0.894, 0.259);  // yellow: where the pose puts it
+      cairo_move_to(cr.get(), m.feature->first.x(), m.feature->first.y());
+      cairo_line_to(cr.get(), m.feature->second.x(), m.feature->second.y());
+      cairo_stroke(cr.get());
     }
-    if (inlier[i]) {
-      cairo_set_source_rgb(cr.get(), 0.1, 0.9, 0.2);
+    if (m.inlier) {
+      cairo_set_source_rgb(cr.get(), 0.337, 0.706, 0.914);  // sky blue
     } else {
-      cairo_set_source_rgb(cr.get(), 0.95, 0.15, 0.1);
+      cairo_set_source_rgb(cr.get(), 0.835, 0.369, 0.0);  // vermilion
     }
     // The keypoint (COLMAP convention: pixel centres at +0.5, as cairo's).
-    cairo_arc(cr.get(), o.xy.x(), o.xy.y(), r, 0, 2 * 3.141592653589793);
+    cairo_arc(cr.get(), m.keypoint.x(), m.keypoint.y(), r, 0, 2 * 3.141592653589793);
     cairo_stroke(cr.get());
   }
   cairo_surface_flush(surface.get());

@@ -1,6 +1,7 @@
 // The picture that shows a person at a glance whether a photo's pose is
-// right: the photo (grey), every correspondence's keypoint — inliers green,
-// outliers red — and, for the inliers, where the estimated pose puts their
+// right: the photo (grey), every correspondence's keypoint — inliers sky blue,
+// outliers vermilion (Okabe and Ito's colour-blind-safe pair) — and, for the
+// inliers, in yellow, where the estimated pose puts their
 // map features: a short segment of the projected line (line cloud) or the
 // projected point joined to the keypoint (point model).
 #pragma once

@@ -265,7 +265,7 @@ ojson RunAudit(const LineCloud& cloud, const AuditOptions& o) {
       CreateDirectories(o.out_dir);
       WritePointsPly(JoinPaths(o.out_dir, "recovered.ply"), attack.points, ErrorColours(score),
                      "linecloud audit: points recovered by the density attack, coloured by error "
-                     "(green 0, yellow 1 %, red >= 2 % of the scene diagonal)",
+                     "(sky blue 0, yellow 1 %, vermilion >= 2 % of the scene diagonal)",
                      0600);  // the secret the map protects: the owner's only
       WriteAuditFigure(
           JoinPaths(o.out_dir, "audit.png"), secret, attack.points, score.errors, diagonal,

@@ -28,6 +28,12 @@
 namespace linecloud {
 namespace {
 
+// 413's message: the limit in MB, not the operator's flag (clients cannot set it).
+std::string BodyLimitMessage(uint64_t max_body_bytes) {
+  return fmt::format("the body exceeds this server's limit of {:g} MB",
+                     static_cast<double>(max_body_bytes) / (1 << 20));
+}
+
 bool SameName(std::string_view a, std::string_view b) {
   return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
            return std::tolower(static_cast<unsigned char>(x)) ==
@@ -291,12 +297,13 @@ struct HttpServer::Impl {
       state->too_large = announced > options.max_body_bytes;
       if (announced / 4 > options.max_body_bytes) {
         state->refused = true;  // far over: not worth reading to answer politely
-        return Queue(connection, ErrorResponse(413, "the body exceeds --max-body-mb", true));
+        return Queue(connection,
+                     ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true));
       }
       if (!state->too_large && !ReserveBody(state, announced)) {
         state->refused = true;
         HttpResponse r = ErrorResponse(
-            503, "the server is busy: request bodies being read fill --body-budget-mb", true);
+            503, "the server is busy: request bodies being read fill its memory for bodies", true);
         r.headers = {{"Retry-After", "1"}};
         return Queue(connection, std::move(r));
       }
@@ -326,10 +333,10 @@ struct HttpServer::Impl {
       if (state->received > options.max_body_bytes) state->too_large = true;
       if (state->too_large || !ReserveBody(state, state->received)) {
         state->pending = state->too_large
-                             ? ErrorResponse(413, "the body exceeds --max-body-mb", true)
+                             ? ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true)
                              : ErrorResponse(503,
                                              "the server is busy: request bodies being read "
-                                             "fill --body-budget-mb",
+                                             "fill its memory for bodies",
                                              true);
         return MHD_YES;
       }
@@ -349,7 +356,7 @@ struct HttpServer::Impl {
     if (state->answer) return Queue(connection, std::move(*state->answer));  // resumed
     if (state->dispatched || state->refused) return MHD_YES;
     if (state->too_large && !state->pending) {
-      state->pending = ErrorResponse(413, "the body exceeds --max-body-mb", true);
+      state->pending = ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true);
     }
     if (state->post != nullptr && !state->pending) {
       const MHD_Result complete = MHD_destroy_post_processor(state->post);

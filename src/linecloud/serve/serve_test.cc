@@ -23,6 +23,7 @@
 #include "linecloud/features/sift.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/serve/geo.h"
+#include "linecloud/localize/overlay_marks.h"
 #include "linecloud/serve/server.h"
 #include "linecloud/serve/serve_testing.h"
 #include "linecloud/serve/tokens.h"
@@ -141,6 +142,11 @@ class Running {
   std::vector<std::string> log() {
     std::lock_guard<std::mutex> lock(mutex_);
     return log_;
+  }
+  bool LogContains(const std::string& text) {
+    const std::vector<std::string> lines = log();
+    return std::any_of(lines.begin(), lines.end(),
+                       [&](const std::string& l) { return l.find(text) != std::string::npos; });
   }
 
  private:
@@ -322,8 +328,28 @@ TEST(Serve, ConsoleRoutesRevealNothingTheMapDoesNot) {
     for (const auto& kp : f.scene.keypoints) found = found || (kp[0] == k[0] && kp[1] == k[1]);
     EXPECT_TRUE(found) << k;
   }
+  // What the CLI's --overlay draws, for the owner: the outliers, and per inlier the projected
+  // map line, a segment through (near) its keypoint.
+  EXPECT_EQ(owner["outlier_keypoints"].size() + owner["num_inliers"].get<size_t>(),
+            owner["num_matches"].get<size_t>());
+  ASSERT_EQ(owner["inlier_segments"].size(), owner["inlier_keypoints"].size());
+  size_t drawn = 0;
+  for (size_t i = 0; i < owner["inlier_segments"].size(); ++i) {
+    const json& s = owner["inlier_segments"][i];
+    if (s.is_null()) continue;
+    ++drawn;
+    const Eigen::Vector2d a(s[0], s[1]), b(s[2], s[3]);
+    const Eigen::Vector2d k(owner["inlier_keypoints"][i][0], owner["inlier_keypoints"][i][1]);
+    const Eigen::Vector2d d = (b - a).normalized();
+    EXPECT_NEAR((b - a).norm(), 2 * OverlaySegmentHalfLength(640), 1e-6);
+    const Eigen::Vector2d off = k - a - d * d.dot(k - a);
+    EXPECT_LT(off.norm(), 0.01) << "segment " << s << " misses keypoint " << k;
+  }
+  EXPECT_GT(drawn, owner["inlier_segments"].size() * 9 / 10);
   r = c.Post("/v1/maps/synth/localize", Bearer("alice-secret"), body, "application/json");
-  EXPECT_FALSE(json::parse(r->body).contains("inlier_keypoints"));
+  for (const char* key : {"inlier_keypoints", "inlier_segments", "outlier_keypoints"}) {
+    EXPECT_FALSE(json::parse(r->body).contains(key)) << key;
+  }
 }
 
 TEST(Serve, EveryDocumentedErrorStatus) {
@@ -396,7 +422,7 @@ TEST(Serve, EveryDocumentedErrorStatus) {
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, 413);
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 0.1);
-  EXPECT_NE(error_of(r).find("--max-pixels"), std::string::npos);
+  EXPECT_NE(error_of(r).find("exceed this server's limit of"), std::string::npos) << r->body;
   // 429 with Retry-After: one request a minute.
   EXPECT_EQ(post("/v1/maps/synth/localize", "slow-secret", body, "application/json")->status, 200);
   r = post("/v1/maps/synth/localize", "slow-secret", body, "application/json");
@@ -438,6 +464,37 @@ TEST(Serve, OptionsAndTokensAreChecked) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("tokens[0].sha256"), std::string::npos) << e.what();
   }
+}
+
+// SIGHUP (Server::Reload) reads the tokens file again: a removed token stops
+// working at once, a new one works, the rate spent is kept; a broken file
+// keeps the previous tokens.
+TEST(Serve, ReloadReadsTheTokensAgain) {
+  Fixture f;
+  Running server(f.Options());
+  httplib::Client c = server.Client();
+  ASSERT_EQ(c.Get("/v1/maps/synth", Bearer("alice-secret"))->status, 200);
+  const std::string body = FeaturesBody(f.scene).dump();
+  const auto slow = [&] {
+    return c.Post("/v1/maps/synth/localize", Bearer("slow-secret"), body, "application/json")
+        ->status;
+  };
+  ASSERT_EQ(slow(), 200);  // its one request a minute
+  ASSERT_EQ(slow(), 429);
+  nlohmann::json tokens = nlohmann::json::parse(ReadFileToString(f.tmp.Path("tokens.json")));
+  tokens["tokens"].erase(0);  // alice
+  tokens["tokens"].push_back(
+      {{"id", "carol"}, {"sha256", TokenSha256Hex("carol-secret")}, {"maps", {"synth"}}});
+  WriteFileAtomically(f.tmp.Path("tokens.json"), [&](std::ostream& os) { os << tokens.dump(); });
+  EXPECT_EQ(c.Get("/v1/maps/synth", Bearer("alice-secret"))->status, 200);  // not yet reloaded
+  server.server().Reload();
+  EXPECT_EQ(c.Get("/v1/maps/synth", Bearer("alice-secret"))->status, 401);
+  EXPECT_EQ(c.Get("/v1/maps/synth", Bearer("carol-secret"))->status, 200);
+  EXPECT_EQ(slow(), 429) << "the rate survives a reload";
+  WriteFileAtomically(f.tmp.Path("tokens.json"), [](std::ostream& os) { os << "{\"tokens\": 3"; });
+  server.server().Reload();
+  EXPECT_EQ(c.Get("/v1/maps/synth", Bearer("carol-secret"))->status, 200);
+  EXPECT_TRUE(server.LogContains("tokens not reloaded")) << "a broken file is said, not obeyed";
 }
 
 // A worker busy and no queue: 503 with Retry-After; a deadline shorter than

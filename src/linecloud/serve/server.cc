@@ -37,6 +37,7 @@
 #include "linecloud/serve/metrics.h"
 #include "linecloud/serve/pools.h"
 #include "linecloud/serve/tokens.h"
+#include "linecloud/localize/overlay_marks.h"
 #include "linecloud/serve/wire.h"
 #include "linecloud/util/base64.h"
 #include "linecloud/util/error.h"
@@ -124,10 +125,12 @@ struct HttpError {
   throw HttpError{status, std::move(message), retry_after};
 }
 
-// The pose (cam_from_world) and its statistics; `inlier_keypoints` (the
-// inliers' pixels in the photo) only for the map's owner (an admin token):
-// with the pose and the lines they would let anyone pin the map's points.
-json PoseJson(const LocalizerResult& r, bool inlier_keypoints = false) {
+// The pose (cam_from_world) and its statistics. For the map's owner (an admin
+// token, `owner_map` given) also what the CLI's --overlay draws: the inliers'
+// and outliers' pixels in the photo and, per inlier, the segment where the pose
+// puts its map line (null when behind the camera). With the pose and the lines
+// they would let anyone pin the map's points, so never for readers.
+json PoseJson(const LocalizerResult& r, const LocalizationMap* owner_map = nullptr) {
   if (!r.success()) return {{"success", false}, {"reason", r.reason}};
   const Sim3d& p = r.pose.query_from_world;
   const Eigen::Vector3d c = p.Inverse().translation;
@@ -147,15 +150,45 @@ json PoseJson(const LocalizerResult& r, bool inlier_keypoints = false) {
              {{"rotation_deg", r.pose.uncertainty.rotation_deg},
               {"position", r.pose.uncertainty.position}}},
             {"times_ms", times}};
-  if (inlier_keypoints) {
-    json k = json::array();
+  if (owner_map && r.query.cameras.size() == 1) {
+    const std::vector<OverlayMark> marks =
+        OverlayMarks(r.query, r.pose, *owner_map,
+                     OverlaySegmentHalfLength(static_cast<int>(r.query.cameras[0].width)));
+    json inliers = json::array(), segments = json::array(), outliers = json::array();
     for (const int i : r.pose.inliers) {
-      const Eigen::Vector2d& xy = r.query.observations[i].xy;
-      k.push_back({xy.x(), xy.y()});
+      const OverlayMark& m = marks[i];
+      inliers.push_back({m.keypoint.x(), m.keypoint.y()});
+      if (m.feature) {
+        segments.push_back({m.feature->first.x(), m.feature->first.y(), m.feature->second.x(),
+                            m.feature->second.y()});
+      } else {
+        segments.push_back(nullptr);
+      }
     }
-    j["inlier_keypoints"] = std::move(k);
+    for (const OverlayMark& m : marks) {
+      if (!m.inlier) outliers.push_back({m.keypoint.x(), m.keypoint.y()});
+    }
+    j["inlier_keypoints"] = std::move(inliers);
+    j["inlier_segments"] = std::move(segments);
+    j["outlier_keypoints"] = std::move(outliers);
   }
   return j;
+}
+
+// Whether an Accept-Encoding field takes gzip (a "gzip" entry whose q is not 0).
+bool AcceptsGzip(const std::string& accept_encoding) {
+  for (size_t begin = 0; begin < accept_encoding.size();) {
+    const size_t end = std::min(accept_encoding.find(',', begin), accept_encoding.size());
+    std::string entry = accept_encoding.substr(begin, end - begin);
+    begin = end + 1;
+    std::erase(entry, ' ');
+    std::transform(entry.begin(), entry.end(), entry.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (entry.rfind("gzip", 0) != 0 || (entry.size() > 4 && entry[4] != ';')) continue;
+    const size_t q = entry.find(";q=");
+    return q == std::string::npos || std::strtod(entry.c_str() + q + 3, nullptr) > 0;
+  }
+  return false;
 }
 
 // The console's files beside the executable (build tree) or installed with
@@ -251,7 +284,27 @@ void ServeOptions::Check() const {
 
 struct Server::Impl {
   ServeOptions options;
-  TokenStore tokens;
+  // Swapped as a whole on reload (SIGHUP); a request keeps the store it started with.
+  std::shared_ptr<const TokenStore> tokens_ = std::make_shared<const TokenStore>();
+  mutable std::mutex tokens_mutex;
+  std::shared_ptr<const TokenStore> Tokens() const {
+    std::lock_guard<std::mutex> lock(tokens_mutex);
+    return tokens_;
+  }
+  // Reads the tokens file again; a file that does not read keeps the previous tokens.
+  void ReloadTokens() {
+    if (options.tokens_path.empty()) return;
+    try {
+      auto fresh = std::make_shared<TokenStore>(TokenStore::Read(options.tokens_path));
+      std::lock_guard<std::mutex> lock(tokens_mutex);
+      fresh->KeepRatesOf(*tokens_);
+      tokens_ = std::move(fresh);
+    } catch (const std::exception& e) {
+      Log(DumpJson(
+          json{{"notice",
+                fmt::format("tokens not reloaded, the previous ones are kept: {}", e.what())}}));
+    }
+  }
   Metrics metrics;
   std::unique_ptr<WorkPool> pool;
   std::unique_ptr<std::counting_semaphore<>> parse_slots;  // ParseBody
@@ -274,15 +327,16 @@ struct Server::Impl {
   // The caller's token entry (nullopt: no tokens file, everything allowed);
   // 401 without a known token.
   std::optional<TokenEntry> Authorize(const HttpRequest& req) const {
-    if (tokens.open()) return std::nullopt;
-    auto e = tokens.Authenticate(Authorization(req));
+    const auto tokens = Tokens();
+    if (tokens->open()) return std::nullopt;
+    auto e = tokens->Authenticate(Authorization(req));
     if (!e) Throw(401, "a valid 'Authorization: Bearer TOKEN' header is required");
     return e;
   }
 
   void Throttle(const std::optional<TokenEntry>& token) {
     if (!token) return;
-    if (const auto wait = tokens.Throttle(token->id, token->requests_per_minute)) {
+    if (const auto wait = Tokens()->Throttle(token->id, token->requests_per_minute)) {
       Throw(429, "rate limit: too many requests for this token", *wait);
     }
   }
@@ -372,10 +426,21 @@ struct Server::Impl {
       Throw(400, e.what());
     }
     if (header.width * header.height > options.max_pixels) {
-      Throw(413, fmt::format("{}: {}x{} pixels exceed the server's {} (--max-pixels)", name,
+      Throw(413, fmt::format("{}: {}x{} pixels exceed this server's limit of {} pixels", name,
                              header.width, header.height, options.max_pixels));
     }
-    if (header.width != camera.width || header.height != camera.height) {
+    // The camera is the photo's size as stored, or as displayed when its EXIF
+    // orientation turns it (then the photo is turned before its features are found).
+    const bool stored = header.width == camera.width && header.height == camera.height;
+    const bool turned =
+        header.Turned() && header.height == camera.width && header.width == camera.height;
+    if (!stored && !turned) {
+      if (header.Turned()) {
+        Throw(400, fmt::format("{}: the photo is {}x{} pixels as stored, {}x{} as displayed (EXIF "
+                               "orientation {}), but the camera is {}x{}",
+                               name, header.width, header.height, header.height, header.width,
+                               header.exif_orientation, camera.width, camera.height));
+      }
       Throw(400, fmt::format("{}: the photo is {}x{} pixels but the camera is {}x{}", name,
                              header.width, header.height, camera.width, camera.height));
     }
@@ -388,7 +453,7 @@ struct Server::Impl {
     const size_t need = SiftScaleSpaceBytes(static_cast<int>(width), static_cast<int>(height));
     if (need > BudgetBytes()) {
       Throw(413, fmt::format("{}: SIFT on a {}x{} photo needs {} MB, over the server's memory "
-                             "budget of {} MB (--memory-budget-mb): send a smaller photo",
+                             "budget of {} MB: send a smaller photo",
                              name, width, height, need >> 20, BudgetBytes() >> 20));
     }
   }
@@ -463,7 +528,7 @@ struct Server::Impl {
                           {"ransac", r.times.ransac_ms},
                           {"total", r.times.total_ms}};
     (*log)["success"] = r.success();
-    return PoseJson(r, token && token->admin);
+    return PoseJson(r, token && token->admin ? &map->localizer->map() : nullptr);
   }
 
   std::function<LocalizerResult()> FeaturesJob(const std::string& body,
@@ -788,14 +853,16 @@ struct Server::Impl {
       // Far over the cap: answered at once and the connection closed. A body
       // just over the cap is still read (and dropped), so its client reads
       // the 413 (HttpServer).
-      refusal = HttpError{413, "the body exceeds --max-body-mb"};
+      refusal = HttpError{
+          413, fmt::format("the body exceeds this server's limit of {} MB", options.max_body_mb)};
     } else if (req.HeaderCount("Transfer-Encoding") > 0) {
       refusal =
           HttpError{411, "send the body with a Content-Length (Transfer-Encoding is refused)"};
     } else if (range.find(',') != std::string::npos || req.HeaderCount("Range") > 1) {
       // 500 ranges of one file answered 808 MB (cpp-httplib).
       refusal = HttpError{416, "one range per request"};
-    } else if (req.method == "POST" && !tokens.open() && !tokens.Authenticate(Authorization(req))) {
+    } else if (const auto tokens = Tokens(); req.method == "POST" && !tokens->open() &&
+                                             !tokens->Authenticate(Authorization(req))) {
       refusal = HttpError{401, "a valid 'Authorization: Bearer TOKEN' header is required"};
     }
     if (!refusal) return std::nullopt;
@@ -906,13 +973,34 @@ struct Server::Impl {
     std::error_code ec;
     if (fs::is_directory(file, ec)) file /= "index.html";
     if (!fs::is_regular_file(file, ec)) Throw(404, "no such route");
+    res->content_type = MediaType(file.extension().string());
+    const std::string range = req.Header("Range");
+    // The file compressed beside it (scripts/build_web.sh writes NAME.gz) when the client takes
+    // gzip and wants the whole file.
+    std::string etag_suffix;
+    res->headers = {
+        {"Accept-Ranges", "bytes"}, {"Cache-Control", "no-cache"}, {"Vary", "Accept-Encoding"}};
+    if (range.empty() && AcceptsGzip(req.Header("Accept-Encoding")) &&
+        fs::is_regular_file(file.string() + ".gz", ec)) {
+      file += ".gz";
+      etag_suffix = "-gz";
+      res->headers.emplace_back("Content-Encoding", "gzip");
+    }
     const uint64_t size = fs::file_size(file, ec);
     if (ec) Throw(404, "no such route");
+    const auto mtime = fs::last_write_time(file, ec);
+    if (ec) Throw(404, "no such route");
+    // Revalidated on each load (no-cache): an unchanged file costs a 304 and no bytes.
+    const std::string etag =
+        fmt::format("\"{:x}-{:x}{}\"", size, mtime.time_since_epoch().count(), etag_suffix);
+    res->headers.emplace_back("ETag", etag);
+    if (const std::string match = req.Header("If-None-Match");
+        !match.empty() && (match == "*" || match.find(etag) != std::string::npos)) {
+      res->status = 304;
+      return;
+    }
     res->file = file.string();
     res->file_length = size;
-    res->content_type = MediaType(file.extension().string());
-    res->headers = {{"Accept-Ranges", "bytes"}, {"Cache-Control", "no-cache"}};
-    const std::string range = req.Header("Range");
     if (range.empty()) return;
     // bytes=A-B, bytes=A-, bytes=-N (RFC 9110 14.1.2); other forms ignored.
     if (range.rfind("bytes=", 0) != 0) return;
@@ -976,7 +1064,9 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   if (sodium_init() < 0) Fail("libsodium could not be initialised");
   impl_->options = std::move(options);
   const ServeOptions& o = impl_->options;
-  if (!o.tokens_path.empty()) impl_->tokens = TokenStore::Read(o.tokens_path);
+  if (!o.tokens_path.empty()) {
+    impl_->tokens_ = std::make_shared<const TokenStore>(TokenStore::Read(o.tokens_path));
+  }
   std::tie(impl_->host, impl_->port) = ParseListen(o.listen, "--listen");
   impl_->registry = std::make_unique<MapRegistry>(
       o.maps_dir, o.max_pixels, [impl = impl_.get()](const std::string& line) { impl->Log(line); },
@@ -1037,7 +1127,10 @@ void Server::Run() { impl_->http->Run(); }
 
 void Server::Stop() { impl_->http->Stop(); }
 
-void Server::Reload() { impl_->registry->Reload(); }
+void Server::Reload() {
+  impl_->registry->Reload();
+  impl_->ReloadTokens();
+}
 
 size_t Server::num_maps() const { return impl_->Maps()->size(); }
 

@@ -123,7 +123,7 @@ std::optional<TokenEntry> TokenStore::Authenticate(const std::string& authorizat
 }
 
 std::optional<double> TokenStore::Throttle(const std::string& id, double requests_per_minute,
-                                           std::chrono::steady_clock::time_point now) {
+                                           std::chrono::steady_clock::time_point now) const {
   const double rate = requests_per_minute / 60.0;     // per second
   const double capacity = std::max(1.0, rate * 5.0);  // five seconds' worth of burst
   std::lock_guard<std::mutex> lock(buckets_->mutex);

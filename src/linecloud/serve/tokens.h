@@ -44,7 +44,9 @@ class TokenStore {
   // back (Retry-After).
   std::optional<double> Throttle(
       const std::string& id, double requests_per_minute,
-      std::chrono::steady_clock::time_point now = std::chrono::steady_clock::now());
+      std::chrono::steady_clock::time_point now = std::chrono::steady_clock::now()) const;
+  // A reloaded file (SIGHUP) keeps the rates spent under the previous one.
+  void KeepRatesOf(const TokenStore& previous) { buckets_ = previous.buckets_; }
 
  private:
   struct Buckets;
