@@ -45,32 +45,32 @@ MapDescriptors MapDescriptorsFromModel(const Reconstruction& model, const std::s
   return out;
 }
 
-Camera ParseCameraString(const std::string& text) {
+Camera ParseCameraString(const std::string& text, const std::string& what) {
   const auto tokens = SplitWhitespace(text);
   if (tokens.size() < 3) {
-    Fail("--camera '{}': expected \"MODEL WIDTH HEIGHT PARAMS...\" (COLMAP's cameras.txt order)",
+    Fail("{} '{}': expected \"MODEL WIDTH HEIGHT PARAMS...\" (COLMAP's cameras.txt order)", what,
          text);
   }
   Camera camera;
   camera.model_id = CameraModelFromName(tokens[0]);
   if (camera.model_id == CameraModelId::kInvalid) {
     Fail(
-        "--camera: unknown camera model '{}' (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, "
+        "{}: unknown camera model '{}' (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, "
         "OPENCV, OPENCV_FISHEYE, FULL_OPENCV)",
-        tokens[0]);
+        what, tokens[0]);
   }
   const auto number = [&](size_t i) {
     double v = 0;
     const std::string_view t = tokens[i];
     const auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), v);
     if (ec != std::errc() || ptr != t.data() + t.size() || !std::isfinite(v)) {
-      Fail("--camera: '{}' is not a finite number", t);
+      Fail("{}: '{}' is not a finite number", what, t);
     }
     return v;
   };
   const double w = number(1), h = number(2);
   if (!(w >= 1 && h >= 1 && w <= 1e6 && h <= 1e6) || w != std::floor(w) || h != std::floor(h)) {
-    Fail("--camera: width and height must be whole numbers of pixels, got {} x {}", tokens[1],
+    Fail("{}: width and height must be whole numbers of pixels, got {} x {}", what, tokens[1],
          tokens[2]);
   }
   camera.width = static_cast<uint64_t>(w);
@@ -78,9 +78,9 @@ Camera ParseCameraString(const std::string& text) {
   for (size_t i = 3; i < tokens.size(); ++i) camera.params.push_back(number(i));
   const int expected = CameraModelNumParams(camera.model_id);
   if (static_cast<int>(camera.params.size()) != expected) {
-    Fail("--camera: {} takes {} parameters, got {}", tokens[0], expected, camera.params.size());
+    Fail("{}: {} takes {} parameters, got {}", what, tokens[0], expected, camera.params.size());
   }
-  camera.Check("--camera");
+  camera.Check(what);
   return camera;
 }
 

@@ -36,8 +36,8 @@ MapDescriptors MapDescriptorsFromModel(const Reconstruction& model, const std::s
 
 // "MODEL WIDTH HEIGHT PARAMS..." in COLMAP's cameras.txt order, e.g.
 // "PINHOLE 1536 1024 1520.4 1525.9 768 512"; throws Error on an unknown model
-// or a wrong parameter count.
-Camera ParseCameraString(const std::string& text);
+// or a wrong parameter count, naming `what` (the CLI's flag, the request's part).
+Camera ParseCameraString(const std::string& text, const std::string& what = "--camera");
 
 // "x,y,z" (a direction, e.g. --gravity); throws Error naming `option` on
 // anything else, a non-finite or a zero vector. Returns it normalised.

@@ -488,7 +488,7 @@ struct Server::Impl {
       if (!part("camera")) Throw(400, "multipart: the 'camera' part is missing");
       Camera camera;
       try {
-        camera = ParseCameraString(*part("camera"));
+        camera = ParseCameraString(*part("camera"), "camera part");
         CheckServedCamera(camera, "camera");
       } catch (const Error& e) {
         Throw(400, std::string("camera: ") + e.what());
