@@ -111,10 +111,11 @@ async function signIn(token) {
   setStatus("signing in ...");  // and the last error gone
   const session = state.session;
   state.token = token;
-  sessionStorage.setItem("linecloud-token", token);
+  sessionStorage.removeItem("linecloud-token");
   try {
     const { maps } = await api("/v1/maps");
     if (session !== state.session) return;
+    sessionStorage.setItem("linecloud-token", token);  // kept only once it worked
     for (const m of maps) {
       const li = document.createElement("li");
       const b = document.createElement("button");
@@ -164,7 +165,7 @@ async function openMap(id) {
       ["encoding", info.encoding],
       ["descriptors", info.has_descriptors ? `${info.descriptors.dim}-D ${info.descriptors.type}` : "none"],
       ["gravity", info.gravity ? info.gravity.map((v) => v.toFixed(3)).join(", ") : "unknown"],
-      ["geo-anchor", info.geo_anchor ? JSON.stringify(info.geo_anchor.geo_anchor) : "none"],
+      ["geo-anchor", info.geo_anchor ? `${info.geo_anchor.lat.toFixed(6)}°, ${info.geo_anchor.lon.toFixed(6)}°, ${info.geo_anchor.h.toFixed(1)} m` : "none"],
       ["key", info.key_fingerprint],
     ]);
     $("map-info").replaceChildren(dl);
@@ -629,8 +630,9 @@ async function photoAsLocalized(file, cam) {
 
 // The photo with what the CLI's --overlay draws (for the map's owner): inliers,
 // outliers and the inliers' map lines where the pose puts them.
-async function drawOverlay(file, r, cam) {
+async function drawOverlay(file, r, cam, gen) {
   const photo = await photoAsLocalized(file, cam);
+  if (gen !== state.requestGen) return;  // another request, map or token meanwhile
   const { orientation } = photo;
   const canvas = $("overlay");
   const scale = Math.min(1, 640 / photo.width);
@@ -729,12 +731,13 @@ async function localize(file) {
 
 async function localizeNow(file) {
   if (!state.map) return setError("open a map first");
+  clearRequest();  // a new request: the last one's pose and photo go, whatever follows
+  const gen = state.requestGen, mapGen = state.mapGen, map = state.map;
   const problem = await checkPhoto(file);
+  if (gen !== state.requestGen) return;
   if (problem) return setError(problem);
   const cameraText = $("camera").value.trim();
   if (!cameraText) return setError("give the photo's camera");
-  clearRequest();
-  const gen = state.requestGen, mapGen = state.mapGen, map = state.map;
   const form = new FormData();
   form.append("image", file, file.name);
   form.append("camera", cameraText);
@@ -766,7 +769,7 @@ async function localizeNow(file) {
     showFrustum(state.pose, cam);
     addToHistory({ map, name: file.name, camera: cameraText, q, t: r.t, center: r.center,
                    num_inliers: r.num_inliers, num_matches: r.num_matches });
-    await drawOverlay(file, r, cam);
+    await drawOverlay(file, r, cam, gen);
     if (gen === state.requestGen) setStatus(`${file.name}: localized`);
   } catch (e) {
     if (gen !== state.requestGen) return;

@@ -174,6 +174,13 @@ TEST(Hostile, ConsoleFilesAreCompressedAndRevalidated) {
   EXPECT_EQ(part.status, 206);
   EXPECT_EQ(part.body, "const");
   EXPECT_EQ(part.Header("Content-Encoding"), "");
+  // If-Range: the piece when the validator is the file's, the whole file otherwise.
+  part = Send(s.port(),
+              Request("GET", "/app.js", {"Range: bytes=0-4", "If-Range: " + plain.Header("ETag")}));
+  EXPECT_EQ(part.status, 206);
+  part = Send(s.port(), Request("GET", "/app.js", {"Range: bytes=0-4", "If-Range: \"stale\""}));
+  EXPECT_EQ(part.status, 200);
+  EXPECT_EQ(part.body, plain.body);
   // A file changed on disk gets a new ETag.
   std::ofstream(m.tmp.Path("web/app.js")) << "const x = 22;\n";
   EXPECT_NE(Send(s.port(), Request("GET", "/app.js")).Header("ETag"), plain.Header("ETag"));

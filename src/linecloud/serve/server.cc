@@ -1001,7 +1001,9 @@ struct Server::Impl {
     }
     res->file = file.string();
     res->file_length = size;
-    if (range.empty()) return;
+    // If-Range with another validator: the whole (changed) file, not a piece of it.
+    if (range.empty() || (req.HeaderCount("If-Range") > 0 && req.Header("If-Range") != etag))
+      return;
     // bytes=A-B, bytes=A-, bytes=-N (RFC 9110 14.1.2); other forms ignored.
     if (range.rfind("bytes=", 0) != 0) return;
     const std::string spec = range.substr(6);
