@@ -12,10 +12,10 @@ import { OrbitControls } from "three/addons/controls/OrbitControls.js";
 const $ = (id) => document.getElementById(id);
 // The server's default --max-body-mb: larger photos are refused here, before the upload.
 const MAX_PHOTO_BYTES = 16 * 1024 * 1024;
-const COLOURS = { exact: 0x56b4e9, near: 0xf0e442, far: 0xd55e00, lines: 0x6fa8d6 };
+// The page's colours, defined once in style.css (--exact, --near, --far, --lines).
+const colour = (name) => getComputedStyle(document.documentElement).getPropertyValue(`--${name}`).trim();
 const state = {
   token: sessionStorage.getItem("linecloud-token") || "",
-  signedIn: false,
   session: 0, mapGen: 0, requestGen: 0,  // generations: an answer for an old one is dropped
   map: null, info: null, busy: false, pose: null, history: [], view: null,
 };
@@ -127,7 +127,6 @@ async function signIn(token) {
       li.append(b);
       $("maps").append(li);
     }
-    state.signedIn = true;
     $("logout-button").hidden = false;
     setStatus(maps.length ? `${maps.length} map(s) for this token` : "no map for this token");
   } catch (e) {
@@ -138,7 +137,6 @@ async function signIn(token) {
 function signOut() {
   clearSession();
   state.token = "";
-  state.signedIn = false;
   sessionStorage.removeItem("linecloud-token");
   $("token").value = "";
   $("logout-button").hidden = true;
@@ -473,7 +471,7 @@ async function loadSegments(gen) {
   const geometry = new THREE.BufferGeometry();
   geometry.setAttribute("position", new THREE.BufferAttribute(positions, 3));
   view.lines = new THREE.LineSegments(geometry, new THREE.LineBasicMaterial({
-    color: COLOURS.lines, transparent: true, opacity: Number($("opacity").value), depthWrite: false }));
+    color: colour("lines"), transparent: true, opacity: Number($("opacity").value), depthWrite: false }));
   view.lines.userData.segments = shown;
   view.lines.visible = $("show-lines").checked;
   view.scene.add(view.lines);
@@ -577,7 +575,7 @@ function showFrustum(pose, cam) {
   const points = [];
   for (let i = 0; i < 4; ++i) points.push(centre, corners[i], corners[i], corners[(i + 1) % 4]);
   view.frustum = new THREE.LineSegments(new THREE.BufferGeometry().setFromPoints(points),
-                                        new THREE.LineBasicMaterial({ color: COLOURS.near, depthTest: false }));
+                                        new THREE.LineBasicMaterial({ color: colour("near"), depthTest: false }));
   view.scene.add(view.frustum);
   view.dirty = true;
 }
@@ -646,9 +644,8 @@ async function drawOverlay(file, r, cam, gen) {
   ctx.setTransform(1, 0, 0, 1, 0, 0);
   ctx.filter = "none";
   const at = (x, y) => [(x - 0.5) * scale, (y - 0.5) * scale];  // COLMAP's pixel centres
-  const hex = (c) => `#${c.toString(16).padStart(6, "0")}`;
   ctx.lineWidth = 1.5;
-  ctx.strokeStyle = hex(COLOURS.near);
+  ctx.strokeStyle = colour("near");
   let segments = 0;
   for (const s of r.inlier_segments || []) {
     if (!s) continue;
@@ -658,16 +655,16 @@ async function drawOverlay(file, r, cam, gen) {
     ctx.stroke();
     segments += 1;
   }
-  const circles = (points, colour) => {
-    ctx.strokeStyle = hex(colour);
+  const circles = (points, name) => {
+    ctx.strokeStyle = colour(name);
     for (const [x, y] of points || []) {
       ctx.beginPath();
       ctx.arc(...at(x, y), 2.5, 0, 2 * Math.PI);
       ctx.stroke();
     }
   };
-  circles(r.outlier_keypoints, COLOURS.far);
-  circles(r.inlier_keypoints, COLOURS.exact);
+  circles(r.outlier_keypoints, "far");
+  circles(r.inlier_keypoints, "exact");
   const inliers = (r.inlier_keypoints || []).length, outliers = (r.outlier_keypoints || []).length;
   Object.assign(canvas.dataset, { inliers, outliers, segments, orientation, exif: photo.exif });
   canvas.setAttribute("aria-label", r.inlier_keypoints

@@ -236,22 +236,24 @@ ImageHeader ReadImageHeader(std::span<const uint8_t> data, const std::string& so
     Fail("{}: the image header says {}x{} pixels, more than the limit of {}", source, h.width,
          h.height, limits.max_pixels);
   }
-  const auto fits = [&](uint64_t w, uint64_t height) {
-    return (!limits.expected_width || w == limits.expected_width) &&
-           (!limits.expected_height || height == limits.expected_height);
-  };
-  if (!fits(h.width, h.height) && !(h.Turned() && fits(h.height, h.width))) {
-    if (h.Turned()) {
-      Fail(
-          "{}: the image is {}x{} pixels as stored, {}x{} as displayed (EXIF orientation {}), "
-          "but the camera is {}x{}",
-          source, h.width, h.height, h.height, h.width, h.exif_orientation, limits.expected_width,
-          limits.expected_height);
-    }
-    Fail("{}: the image is {}x{} pixels but the camera is {}x{}", source, h.width, h.height,
-         limits.expected_width, limits.expected_height);
-  }
+  CheckImageSize(h, limits.expected_width, limits.expected_height, source);
   return h;
+}
+
+void CheckImageSize(const ImageHeader& h, uint64_t width, uint64_t height,
+                    const std::string& source) {
+  const auto fits = [&](uint64_t w, uint64_t ht) {
+    return (!width || w == width) && (!height || ht == height);
+  };
+  if (fits(h.width, h.height) || (h.Turned() && fits(h.height, h.width))) return;
+  if (h.Turned()) {
+    Fail(
+        "{}: the image is {}x{} pixels as stored, {}x{} as displayed (EXIF orientation {}), "
+        "but the camera is {}x{}",
+        source, h.width, h.height, h.height, h.width, h.exif_orientation, width, height);
+  }
+  Fail("{}: the image is {}x{} pixels but the camera is {}x{}", source, h.width, h.height, width,
+       height);
 }
 
 GreyImage DecodeGreyImage(std::span<const uint8_t> data, const std::string& source,

@@ -51,6 +51,12 @@ struct ImageHeader {
 ImageHeader ReadImageHeader(std::span<const uint8_t> data, const std::string& source,
                             const ImageLimits& limits = {});
 
+// ReadImageHeader's size check on its own: a camera of `width` x `height` (0:
+// any) is the image's stored size or, when its EXIF orientation turns it, its
+// displayed size; throws Error naming `source` otherwise.
+void CheckImageSize(const ImageHeader& header, uint64_t width, uint64_t height,
+                    const std::string& source);
+
 // Decodes an encoded JPEG or PNG image (bytes, e.g. an HTTP body; other
 // formats are refused: FreeImage's other decoders are not hardened) after
 // ReadImageHeader's checks. The EXIF orientation is applied (the pixels as

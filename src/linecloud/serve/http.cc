@@ -28,12 +28,6 @@
 namespace linecloud {
 namespace {
 
-// 413's message: the limit in MB, not the operator's flag (clients cannot set it).
-std::string BodyLimitMessage(uint64_t max_body_bytes) {
-  return fmt::format("the body exceeds this server's limit of {:g} MB",
-                     static_cast<double>(max_body_bytes) / (1 << 20));
-}
-
 bool SameName(std::string_view a, std::string_view b) {
   return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
            return std::tolower(static_cast<unsigned char>(x)) ==
@@ -164,6 +158,11 @@ std::string HttpRequest::Header(std::string_view name) const {
 size_t HttpRequest::HeaderCount(std::string_view name) const {
   return static_cast<size_t>(std::count_if(headers.begin(), headers.end(),
                                            [&](const auto& f) { return SameName(f.first, name); }));
+}
+
+std::string BodyLimitMessage(uint64_t max_body_bytes) {
+  return fmt::format("the body exceeds this server's limit of {:g} MB",
+                     static_cast<double>(max_body_bytes) / (1 << 20));
 }
 
 uint64_t HttpRequest::BodyLength() const {

@@ -55,6 +55,9 @@ struct HttpResponse {
   bool close = false;  // Connection: close after this answer
 };
 
+// 413's message: the limit in MB, not the operator's flag (clients cannot set it).
+std::string BodyLimitMessage(uint64_t max_body_bytes);
+
 // {"error": message} with `status`.
 HttpResponse ErrorResponse(int status, std::string_view message, bool close = false);
 

@@ -431,18 +431,10 @@ struct Server::Impl {
     }
     // The camera is the photo's size as stored, or as displayed when its EXIF
     // orientation turns it (then the photo is turned before its features are found).
-    const bool stored = header.width == camera.width && header.height == camera.height;
-    const bool turned =
-        header.Turned() && header.height == camera.width && header.width == camera.height;
-    if (!stored && !turned) {
-      if (header.Turned()) {
-        Throw(400, fmt::format("{}: the photo is {}x{} pixels as stored, {}x{} as displayed (EXIF "
-                               "orientation {}), but the camera is {}x{}",
-                               name, header.width, header.height, header.height, header.width,
-                               header.exif_orientation, camera.width, camera.height));
-      }
-      Throw(400, fmt::format("{}: the photo is {}x{} pixels but the camera is {}x{}", name,
-                             header.width, header.height, camera.width, camera.height));
+    try {
+      CheckImageSize(header, camera.width, camera.height, name);
+    } catch (const Error& e) {
+      Throw(400, e.what());
     }
     CheckPhotoMemory(header.width, header.height, name);
   }
@@ -854,7 +846,7 @@ struct Server::Impl {
       // just over the cap is still read (and dropped), so its client reads
       // the 413 (HttpServer).
       refusal = HttpError{
-          413, fmt::format("the body exceeds this server's limit of {} MB", options.max_body_mb)};
+          413, BodyLimitMessage(static_cast<uint64_t>(options.max_body_mb * 1024 * 1024))};
     } else if (req.HeaderCount("Transfer-Encoding") > 0) {
       refusal =
           HttpError{411, "send the body with a Content-Length (Transfer-Encoding is refused)"};
