@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # clang-format over the C++ sources (.clang-format). With --check: lists the
-# files that differ and exits non-zero; otherwise rewrites them in place.
+# files that differ and exits non-zero, and checks the layers (scripts/check_layers.py);
+# otherwise rewrites them in place.
 # Generated files (solvers/p6l_template.h) are left as their generator writes them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,6 +16,7 @@ if [ "${1:-}" = "--check" ]; then
     exit 1
   fi
   echo "format: ${#files[@]} files formatted as .clang-format says"
+  python3 scripts/check_layers.py && echo "layers: no upward include (scripts/check_layers.py)"
 else
   clang-format -i "${files[@]}"
 fi

@@ -340,7 +340,8 @@ TEST(Cli, LocalizeImageRejectsBadInput) {
               "unknown camera model 'FISHEYE_X'");
   ExpectError(localize(tmp.Path("m.lcm"), photo, "SIMPLE_PINHOLE 640 480 500 320 240"),
               "the image is 1919x1079 pixels but the camera is 640x480");
-  ExpectError(localize(tmp.Path("bare.lcm"), photo, camera), "lift it with --database");
+  ExpectError(localize(tmp.Path("bare.lcm"), photo, camera),
+              "lift it with the model's COLMAP database");
   ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--image", photo, "--method", "p6L"}),
               "--image needs --camera");
   ExpectError(RunCli({"localize", "--map", tmp.Path("m.lcm"), "--image", photo, "--query",
@@ -399,9 +400,10 @@ TEST(Cli, LocalizeImageRejectsBadInput) {
   }
   ::unsetenv("XDG_CACHE_HOME");
   ExpectError(localize(tmp.Path("m.lcm"), photo, camera, {"--features", "vlfeat"}),
-              "--features: unknown feature extractor 'vlfeat' (colmap or opencv)");
-  ExpectError(localize(tmp.Path("m.lcm"), photo, camera, {"--index", "annoy"}),
-              "--index: unknown index 'annoy'");
+              "--features: features must be one of colmap, opencv, got \"vlfeat\"");
+  ExpectError(
+      localize(tmp.Path("m.lcm"), photo, camera, {"--index", "annoy"}),
+      "--index: index must be one of ivf, faiss-ivf, faiss-hnsw, hnswlib, flann, got \"annoy\"");
   // The overlay is the photo's size (PNG header: width and height, big-endian).
   const std::string png = ReadFileToString(tmp.Path("o.png"));
   ASSERT_GT(png.size(), 24u);
@@ -841,7 +843,7 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
   ASSERT_EQ(r.code, 0) << r.err;
   const nlohmann::json no_pose = nlohmann::json::parse(r.out);
   EXPECT_FALSE(no_pose["success"].get<bool>());
-  EXPECT_NE(no_pose["reason"].get<std::string>().find("--min-inliers"), std::string::npos);
+  EXPECT_NE(no_pose["reason"].get<std::string>().find("(option min_inliers)"), std::string::npos);
   EXPECT_FALSE(no_pose.contains("q"));
   EXPECT_TRUE(no_pose.contains("rejected_q"));
   EXPECT_LE(no_pose["stats"]["iterations"].get<int>(), 50);

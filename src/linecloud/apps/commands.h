@@ -18,6 +18,7 @@ void RegisterEvalCommand(CLI::App& app);
 void RegisterServeCommand(CLI::App& app);
 void RegisterAttackCommand(CLI::App& app);
 void RegisterAuditCommand(CLI::App& app);
+void RegisterOptionsCommand(CLI::App& app);
 
 // Runs the CLI; returns the process exit code. Errors are printed to stderr
 // as one line `error: ...`.

@@ -30,6 +30,7 @@ int RunLinecloud(int argc, const char* const* argv) {
   RegisterExportCommand(app);
   RegisterSolveCommand(app);
   RegisterLocalizeCommand(app);
+  RegisterOptionsCommand(app);
   RegisterMakeQueryCommand(app);
   RegisterBenchCommand(app);
   RegisterEvalCommand(app);

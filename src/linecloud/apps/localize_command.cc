@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/apps/localizer_flags.h"
 #include "linecloud/lifting/key_store.h"
 #include "linecloud/draw/overlay.h"
 #include "linecloud/features/sift_opencv.h"
@@ -18,6 +19,7 @@
 #include "linecloud/localize/localize.h"
 #include "linecloud/localize/query_json.h"
 #include "linecloud/pipeline/localizer.h"
+#include "linecloud/pipeline/localizer_result_json.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
@@ -31,23 +33,16 @@ struct LocalizeArgs {
   std::vector<std::string> image_paths;
   std::vector<std::string> cameras;
   std::string rig;
-  bool exact_matching = false;
-  std::string features = SiftExtractorName(SiftOptions{}.extractor), index = "ivf";
   std::string database;
-  ImageQueryOptions image;
   std::string method;
-  bool no_refine = false;
-  double threshold = 4.0;
-  uint64_t seed = 0;
   std::string out;
   std::string format = "json";
   std::string ply;
   std::string overlay;
-  std::string gravity, map_gravity;
+  std::string gravity;
   bool with_inliers = false;
   bool quiet = false;
-  int min_inliers = -1;
-  LocalizeOptions options;
+  LocalizerFlags options;  // every option of localizer_option_table.h
 };
 
 void PrintProgress(int iterations, int needed, int inliers, double seconds) {
@@ -95,18 +90,14 @@ std::string IndexCachePath(const std::string& map_path) {
   return JoinPaths(UserCacheDirectory("index"), ToHex(hash) + ".index");
 }
 
-// The Localizer's options from the command line: matching, the index cache
-// in the user's cache folder (authenticated with this user's secret; no key
-// store, no cache), defaults of every request, the map gravity.
-LocalizerOptions MakeLocalizerOptions(LocalizeArgs& args) {
+// The Localizer's options from the command line: the option table's flags,
+// the index cache in the user's cache folder (authenticated with this user's
+// secret; no key store, no cache), progress on standard error.
+LocalizerOptions MakeLocalizerOptions(const LocalizeArgs& args) {
   LocalizerOptions o;
-  o.image = args.image;
-  o.image.sift.extractor = ParseSiftExtractor(args.features, "--features");
-  o.image.index.kind = ParseDescriptorIndexKind(args.index, "--index");
-  o.image.index.threads = o.image.threads;
+  args.options.Apply(&o);
   SetOpenCVThreads(o.image.threads);
-  if (args.exact_matching) o.image.approximate_from = 0;
-  if (!args.map_path.empty() && !args.exact_matching && !args.image_paths.empty()) {
+  if (!args.map_path.empty() && o.image.approximate_from != 0 && !args.image_paths.empty()) {
     try {
       o.index_cache_key = KeyStore(KeyStore::DefaultDirectory()).CacheSecret();
       // In this user's own cache folder, never beside the map (a folder others
@@ -116,14 +107,6 @@ LocalizerOptions MakeLocalizerOptions(LocalizeArgs& args) {
       if (!args.quiet) std::cerr << "descriptor index not cached: " << e.what() << "\n";
     }
   }
-  o.localize = args.options;
-  o.localize.ransac.max_error = args.threshold;
-  o.localize.ransac.seed = args.seed;
-  o.localize.refine = !args.no_refine;
-  if (args.min_inliers >= 0) {
-    o.localize.success.min_inliers_points = o.localize.success.min_inliers_lines = args.min_inliers;
-  }
-  if (!args.map_gravity.empty()) o.map_gravity = ParseDirection(args.map_gravity, "--map-gravity");
   if (!args.quiet) o.progress = [](const std::string& what) { std::cerr << what << "\n"; };
   return o;
 }
@@ -161,8 +144,7 @@ std::vector<QueryPhoto> ReadPhotos(const LocalizeArgs& args, const MethodInfo& m
   return photos;
 }
 
-std::string FormatResult(const LocalizeArgs& args, const MethodInfo& method,
-                         const LocalizerResult& r) {
+std::string FormatResult(const LocalizeArgs& args, const LocalizerResult& r) {
   if (args.format == "colmap") {
     if (r.query.cameras.size() != 1) {
       Fail("--format colmap writes one image's pose; this query has {} cameras (use JSON)",
@@ -173,17 +155,10 @@ std::string FormatResult(const LocalizeArgs& args, const MethodInfo& method,
     return r.success() ? LocalizeResultToColmapImagesTxt(r.pose, name)
                        : "# no pose: " + r.reason + "\n";
   }
-  nlohmann::ordered_json j = LocalizeResultToJson(method, r.pose, args.with_inliers);
-  if (!r.photos.empty()) {
-    std::vector<ImageOrientation> orientations;
-    for (const ImageQuery& photo : r.photos) orientations.push_back(photo.image.orientation);
-    AddPhotoStats(r.num_features(), r.num_matches(), r.times.decode_ms, r.times.extract_ms,
-                  r.times.match_ms, r.pose, &j, orientations);
-  }
-  return j.dump(2) + "\n";
+  return LocalizerResultToJson(r, args.with_inliers).dump(2) + "\n";
 }
 
-void RunLocalize(LocalizeArgs args) {
+void RunLocalize(const LocalizeArgs& args) {
   CheckArgs(args);
   std::optional<LineCloud> cloud;
   std::optional<Reconstruction> model;
@@ -218,7 +193,7 @@ void RunLocalize(LocalizeArgs args) {
           ? localizer.LocalizeQuery(ReadQueryJson(args.query_path), request, args.query_path)
           : localizer.LocalizePhotos(ReadPhotos(args, method, &bytes), request);
   if (progress_shown) std::cerr << "\n";
-  const std::string text = FormatResult(args, FindMethod(r.method), r);
+  const std::string text = FormatResult(args, r);
   if (!args.overlay.empty()) {
     WriteLocalizationOverlay(args.overlay, r.photos[0].image, r.query, r.pose, localizer.map());
   }
@@ -258,68 +233,13 @@ void RegisterLocalizeCommand(CLI::App& app) {
                   "[x,y,z]}, ...]}, one pose per --image");
   cmd->add_option("--database", args->database,
                   "With --model and --image: the COLMAP database of the model (descriptors)");
-  cmd->add_option("--max-ratio", args->image.matching.max_ratio,
-                  "Lowe's ratio test on descriptor angles (COLMAP's default)")
-      ->capture_default_str();
-  cmd->add_flag("--cross-check", args->image.matching.cross_check,
-                "Keep only mutual nearest neighbours (exact matching)");
-  cmd->add_option("--approximate-from", args->image.approximate_from,
-                  "Maps with at least this many descriptors use the approximate index")
-      ->capture_default_str();
-  cmd->add_flag("--exact-matching", args->exact_matching,
-                "Match exactly even on large maps (default: maps of 4 096 descriptors or more "
-                "use the approximate index, cached in ~/.cache/linecloud/index)");
-  cmd->add_option("--features", args->features,
-                  "SIFT extractor: colmap (COLMAP 3.8's CPU extractor's features, to the bit) "
-                  "or opencv (OpenCV's SIFT, close to them)")
-      ->capture_default_str();
-  cmd->add_option("--index", args->index,
-                  "Approximate index: ivf, faiss-ivf, faiss-hnsw, hnswlib or flann")
-      ->capture_default_str();
-  cmd->add_option("--nprobe", args->image.index.nprobe, "IVF cells scanned per query descriptor")
-      ->capture_default_str();
-  cmd->add_option("--threads", args->image.threads,
-                  "Threads for extraction and matching (results do not depend on it)")
-      ->capture_default_str();
   cmd->add_option("--gravity", args->gravity,
                   "Gravity direction x,y,z in the query's (camera or rig) frame, for +u methods");
-  cmd->add_option("--map-gravity", args->map_gravity,
-                  "Gravity direction x,y,z in the map frame (default: the one lift --gravity "
-                  "stored in the .lcm)");
-  cmd->add_option("--max-image-size", args->image.sift.max_image_size,
-                  "Photos with a larger side are downscaled before SIFT (COLMAP's "
-                  "SiftExtraction.max_image_size)")
-      ->capture_default_str();
-  cmd->add_option("--max-pixels", args->image.max_pixels,
-                  "Photos (JPEG or PNG) whose header announces more pixels are refused before "
-                  "decoding")
-      ->capture_default_str();
   cmd->add_option("--method", args->method,
                   "One of the 16 methods, e.g. p6L, p3P, m-P3P+l (default: p6L with --map, p3P "
                   "with --model)");
-  cmd->add_flag("--no-refine", args->no_refine, "Skip the final LM refinement");
-  cmd->add_flag("--refine-focal", args->options.refine_focal,
-                "Refine the focal length with the pose (single camera; the given focal is a "
-                "prior, e.g. from EXIF)");
-  cmd->add_option("--threshold", args->threshold, "RANSAC inlier threshold in pixels")
-      ->capture_default_str();
-  cmd->add_option("--seed", args->seed, "RANSAC seed")->capture_default_str();
-  cmd->add_option("--max-iterations", args->options.ransac.max_iterations, "RANSAC iteration cap")
-      ->capture_default_str();
-  cmd->add_option("--max-seconds", args->options.ransac.max_seconds,
-                  "RANSAC time budget in seconds (0: none)")
-      ->capture_default_str();
-  cmd->add_flag("!--uniform-sampling", args->options.ransac.progressive_sampling,
-                "Uniform RANSAC samples even when matches have Lowe ratios (--image, or \"ratio\" "
-                "in QUERY.json); by default the best-ranked matches are tried first (PROSAC)");
-  cmd->add_option("--min-inliers", args->min_inliers,
-                  "Inliers a pose needs (default: 30 on a point model, 60 on a line cloud)");
-  cmd->add_option("--min-inlier-ratio", args->options.success.min_inlier_ratio,
-                  "Share of the correspondences that must be inliers")
-      ->capture_default_str();
-  cmd->add_option("--max-rotation-uncertainty", args->options.success.max_rotation_uncertainty_deg,
-                  "Largest estimated 1-sigma rotation uncertainty (degrees) of a success")
-      ->capture_default_str();
+  constexpr OptionScope kAll[] = {OptionScope::kMap, OptionScope::kRequest};
+  args->options.Add(cmd, kAll);
   cmd->add_flag("--inliers", args->with_inliers, "Also list the inlier observation indices");
   cmd->add_option("--format", args->format,
                   "json, or colmap (an images.txt entry for COLMAP's tools)")

@@ -7,6 +7,7 @@
 #include <thread>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/apps/localizer_flags.h"
 #include "linecloud/serve/load.h"
 #include "linecloud/serve/server.h"
 #include "linecloud/serve/tokens.h"
@@ -85,7 +86,15 @@ void RegisterServeCommand(CLI::App& app) {
   cmd->add_option("--request-seconds", o->request_seconds,
                   "Deadline of a localization, queue wait included (then 504)")
       ->capture_default_str();
-  cmd->callback([o] { RunServe(*o); });
+  // Every map's Localizer options (a map's DIR/ID.json "options" change them
+  // for it); --threads and --max-pixels above are the server's own.
+  auto flags = std::make_shared<LocalizerFlags>();
+  constexpr OptionScope kAll[] = {OptionScope::kMap, OptionScope::kRequest};
+  flags->Add(cmd, kAll, {"threads", "max_pixels"});
+  cmd->callback([o, flags] {
+    flags->Apply(&o->localizer);
+    RunServe(*o);
+  });
 
   auto load = std::make_shared<LoadOptions>();
   auto load_json = std::make_shared<bool>(false);

@@ -23,8 +23,8 @@ using Clock = std::chrono::steady_clock;
 MapDescriptors MapDescriptorsFromCloud(const LineCloud& cloud, const std::string& source) {
   if (!cloud.has_descriptors()) {
     Fail(
-        "{}: the map has no descriptors to match a photo to; lift it with --database "
-        "colmap.db",
+        "{}: the map has no descriptors to match a photo to; lift it with the model's COLMAP "
+        "database",
         source);
   }
   if (cloud.descriptor_dim != 128 || cloud.descriptor_type != "colmap-sift-uint8") {

@@ -169,8 +169,7 @@ void CheckMethodAndMap(const MethodInfo& method, const LocalizationMap& map) {
   const bool line_map = std::holds_alternative<LineMap>(map);
   if (method.lines != line_map) {
     Fail("method {} needs a {} map, but got a {}", method.name,
-         method.lines ? "line cloud (--map)" : "point model (--model)",
-         line_map ? "line cloud" : "point model");
+         method.lines ? "line cloud" : "point model", line_map ? "line cloud" : "point model");
   }
 }
 
@@ -264,11 +263,11 @@ std::string SupportFailure(const MethodInfo& method, const LocalizeResult& r,
   const double ratio =
       r.num_correspondences > 0 ? static_cast<double>(inliers) / r.num_correspondences : 0.0;
   if (inliers < min_inliers) {
-    return fmt::format("{} inliers, fewer than the {} a {} map needs (--min-inliers)", inliers,
+    return fmt::format("{} inliers, fewer than the {} a {} map needs (option min_inliers)", inliers,
                        min_inliers, method.lines ? "line" : "point");
   }
   if (ratio < c.min_inlier_ratio) {
-    return fmt::format("inlier ratio {:.3f} is below {:.2f} (--min-inlier-ratio)", ratio,
+    return fmt::format("inlier ratio {:.3f} is below {:.2f} (option min_inlier_ratio)", ratio,
                        c.min_inlier_ratio);
   }
   if (r.calibration_check && c.max_focal_discrepancy > 0) {
@@ -285,7 +284,7 @@ std::string SupportFailure(const MethodInfo& method, const LocalizeResult& r,
       return fmt::format(
           "the calibration looks wrong: the inliers fit a focal length of {:.1f} px (99.7 % "
           "interval {:.1f}-{:.1f} px), the camera says {:.1f} px ({:.0f} % off, more than {:.0f} "
-          "%); check the camera, or refine its focal length",
+          "%); check the camera, or refine its focal length (option refine_focal)",
           check.best_fit_focal, check.interval[0], check.interval[1], r.given_focal, 100 * off,
           100 * c.max_focal_discrepancy);
     }
@@ -308,7 +307,7 @@ std::string SupportFailure(const MethodInfo& method, const LocalizeResult& r,
   if (!(r.uncertainty.rotation_deg <= c.max_rotation_uncertainty_deg)) {
     return fmt::format(
         "the rotation is undetermined: uncertainty {:.3g}° exceeds {:.3g}° "
-        "(--max-rotation-uncertainty; weak geometry or a wrong calibration)",
+        "(option max_rotation_uncertainty; weak geometry or a wrong calibration)",
         r.uncertainty.rotation_deg, c.max_rotation_uncertainty_deg);
   }
   return "";

@@ -130,7 +130,8 @@ Localizer::Localizer(const LineCloud& cloud, const LocalizerOptions& options,
       cloud.has_descriptors() ? std::optional(MapDescriptorsFromCloud(cloud, source))
                               : std::nullopt,
       fmt::format(
-          "{}: the map has no descriptors to match a photo to; lift it with --database colmap.db",
+          "{}: the map has no descriptors to match a photo to; lift it with the model's COLMAP "
+          "database",
           source),
       cloud.gravity, options, source);
 }
@@ -141,8 +142,8 @@ Localizer::Localizer(const Reconstruction& model, const std::string& database,
   state_ = MakeState(
       PointMapFromModel(model),
       database.empty() ? std::nullopt : std::optional(MapDescriptorsFromModel(model, database)),
-      fmt::format("{}: photos need the model's COLMAP database (--database colmap.db)", source),
-      std::nullopt, options, source);
+      fmt::format("{}: photos need the model's COLMAP database", source), std::nullopt, options,
+      source);
 }
 
 Localizer::Localizer(LocalizationMap map, std::optional<MapDescriptors> descriptors,
@@ -171,6 +172,8 @@ bool Localizer::has_descriptors() const { return state_->descriptors.has_value()
 const std::optional<Eigen::Vector3d>& Localizer::map_gravity() const { return state_->gravity; }
 
 const LocalizationMap& Localizer::map() const { return state_->map; }
+
+const LocalizerOptions& Localizer::options() const { return state_->options; }
 
 const MethodInfo& Localizer::DefaultMethod(size_t num_cameras) const {
   const bool several = num_cameras > 1;
@@ -311,10 +314,8 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
     query.gravity_query = request.gravity->normalized();
   }
   if (!query.gravity_map && state_->gravity) query.gravity_map = state_->gravity;
-  LocalizeOptions options = state_->options.localize;
-  if (request.threshold_px) options.ransac.max_error = *request.threshold_px;
-  if (request.seed) options.ransac.seed = *request.seed;
-  if (request.max_seconds) options.ransac.max_seconds = *request.max_seconds;
+  LocalizeOptions options = request.options.value_or(state_->options.localize);
+  if (request.options) options.Check();
   if (request.deadline) {
     const double left = std::chrono::duration<double>(*request.deadline - Clock::now()).count();
     if (left <= 0)
@@ -324,7 +325,6 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
       options.ransac.max_seconds = left;
     }
   }
-  if (request.refine_focal) options.refine_focal = *request.refine_focal;
   if (request.ransac_progress) options.ransac.progress = request.ransac_progress;
   if (!result.photos.empty() &&
       query.observations.size() < static_cast<size_t>(method.sample_size)) {

@@ -70,16 +70,16 @@ struct QueryPhoto {
 struct LocalizeRequest {
   std::string method;                      // empty: p6L / p3P, m-p6L / m-p3P for rigs
   std::optional<Eigen::Vector3d> gravity;  // gravity direction in the query (rig) frame
-  std::optional<double> threshold_px;
-  std::optional<double> max_seconds;  // RANSAC's time budget
+  // This request's RANSAC, refinement and success criteria (unset: the
+  // Localizer's). Front ends start from Localizer::options().localize and set
+  // the request-scope options of localizer_option_table.h on it.
+  std::optional<LocalizeOptions> options;
   // When the caller stops waiting (a service's request deadline): a stage
   // not started by then is skipped, RANSAC's budget ends there and the
   // colmap extractor stops between its octaves and levels (decoding and
   // matching one photo run to their end). The result is then "no pose", its
   // reason naming the stage.
   std::optional<std::chrono::steady_clock::time_point> deadline;
-  std::optional<bool> refine_focal;
-  std::optional<uint64_t> seed;
   int threads = 0;           // this request's matching threads (0: the Localizer's image.threads)
   bool keep_images = false;  // keep each decoded photo in the result (overlays)
   // RANSAC progress (iterations, needed, best inliers, seconds) and stage messages.
@@ -135,6 +135,8 @@ class Localizer {
   size_t size() const;  // lines or points
   bool has_descriptors() const;
   const std::optional<Eigen::Vector3d>& map_gravity() const;
+  // The options the Localizer was made with (the defaults of its requests).
+  const LocalizerOptions& options() const;
   const LocalizationMap& map() const;
   // The default method for `num_cameras` cameras on this map.
   const MethodInfo& DefaultMethod(size_t num_cameras) const;

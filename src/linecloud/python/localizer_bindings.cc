@@ -4,6 +4,7 @@
 #include <memory>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
@@ -12,6 +13,8 @@
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/localize/query_json.h"
 #include "linecloud/pipeline/localizer.h"
+#include "linecloud/pipeline/localizer_option_table.h"
+#include "linecloud/pipeline/localizer_result_json.h"
 #include "linecloud/python/bindings.h"
 #include "linecloud/python/convert.h"
 #include "linecloud/util/error.h"
@@ -29,58 +32,44 @@ struct PyLocalizer {
   std::string source;
 };
 
-LocalizerOptions MakeOptions(const nlohmann::json& o, int threads) {
-  const std::string where = kClass;
+// Keyword arguments as JSON, None left out (Python's "the default"). Names
+// that are neither an option of `scopes` nor in `own` are a TypeError.
+nlohmann::json OptionKwargs(const py::kwargs& kwargs, std::span<const OptionScope> scopes,
+                            std::span<const std::string_view> own, const std::string& where) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& [key, value] : kwargs) {
+    const std::string name = key.cast<std::string>();
+    const OptionSpec* spec = FindLocalizerOption(name);
+    const bool mine = std::find(own.begin(), own.end(), name) != own.end();
+    if (!mine && !spec) {
+      std::vector<std::string> known(own.begin(), own.end());
+      for (const OptionSpec& s : LocalizerOptionTable()) {
+        if (std::find(scopes.begin(), scopes.end(), s.scope) != scopes.end())
+          known.push_back(s.name);
+      }
+      throw py::type_error(fmt::format("{}: unexpected keyword argument '{}' (options: {})", where,
+                                       name, fmt::join(known, ", ")));
+    }
+    if (value.is_none()) continue;
+    j[name] = ToJson(value, where + ": " + name);
+  }
+  return j;
+}
+
+constexpr OptionScope kEveryScope[] = {OptionScope::kMap, OptionScope::kRequest};
+constexpr OptionScope kRequestScope[] = {OptionScope::kRequest};
+
+LocalizerOptions MakeOptions(const py::kwargs& kwargs, int threads) {
   LocalizerOptions options;
-  ImageQueryOptions& image = options.image;
-  image.threads = threads;
-  if (threads < 1) Fail("{}: threads must be at least 1, got {}", where, threads);
-  if (auto v = StringOption(o, "features", where)) {
-    image.sift.extractor = ParseSiftExtractor(*v, "features");
-  }
-  if (auto v = StringOption(o, "index", where)) {
-    image.index.kind = ParseDescriptorIndexKind(*v, "index");
-  }
-  if (auto v = IntegerOption(o, "nprobe", where)) {
-    if (*v < 1 || *v > 1 << 20) Fail("{}: nprobe must be in [1, 2^20], got {}", where, *v);
-    image.index.nprobe = static_cast<int>(*v);
-  }
-  if (auto v = NumberOption(o, "max_ratio", where)) image.matching.max_ratio = *v;
-  if (auto v = BoolOption(o, "cross_check", where)) image.matching.cross_check = *v;
-  if (auto v = BoolOption(o, "exact_matching", where); v && *v) image.approximate_from = 0;
-  if (auto v = IntegerOption(o, "max_pixels", where)) {
-    if (*v < 1) Fail("{}: max_pixels must be positive, got {}", where, *v);
-    image.max_pixels = static_cast<uint64_t>(*v);
-  }
-  image.index.threads = threads;
-  LocalizeOptions& l = options.localize;
-  if (auto v = NumberOption(o, "threshold", where)) l.ransac.max_error = *v;
-  if (auto v = IntegerOption(o, "seed", where)) {
-    if (*v < 0) Fail("{}: seed must be non-negative, got {}", where, *v);
-    l.ransac.seed = static_cast<uint64_t>(*v);
-  }
-  if (auto v = BoolOption(o, "refine", where)) l.refine = *v;
-  if (auto v = NumberOption(o, "max_seconds", where)) l.ransac.max_seconds = *v;
-  if (auto v = IntegerOption(o, "min_inliers", where)) {
-    if (*v < 0 || *v > 1 << 30) Fail("{}: min_inliers must be in [0, 2^30], got {}", where, *v);
-    l.success.min_inliers_points = l.success.min_inliers_lines = static_cast<int>(*v);
-  }
-  if (o.contains("map_gravity") && !o["map_gravity"].is_null()) {
-    options.map_gravity = JsonVector3(o["map_gravity"], where + ": map_gravity");
-  }
-  options.image.matching.Check();
-  options.localize.Check();
+  SetLocalizerOption(&options, *FindLocalizerOption("threads"), threads, kClass);
+  SetLocalizerOptions(&options, OptionKwargs(kwargs, kEveryScope, {}, kClass), kEveryScope, kClass);
+  options.Check();
   return options;
 }
 
 PyLocalizer MakeLocalizer(py::object cloud_or_path, std::optional<std::string> method, int threads,
                           const py::kwargs& kwargs) {
-  const nlohmann::json o = Options(
-      kwargs,
-      {"features", "index", "nprobe", "max_ratio", "cross_check", "exact_matching", "max_pixels",
-       "threshold", "seed", "refine", "max_seconds", "min_inliers", "map_gravity"},
-      kClass);
-  const LocalizerOptions options = MakeOptions(o, threads);
+  const LocalizerOptions options = MakeOptions(kwargs, threads);
   if (options.image.sift.extractor == SiftExtractor::kOpenCV) SetOpenCVThreads(threads);
   PyLocalizer out;
   out.method = method.value_or("");
@@ -107,12 +96,9 @@ struct Request {
 
 Request MakeRequest(const PyLocalizer& self, const py::kwargs& kwargs, const std::string& where,
                     bool photos) {
-  std::initializer_list<const char*> keys = {"method",      "gravity",      "threshold",
-                                             "max_seconds", "refine_focal", "seed",
-                                             "threads",     "with_inliers"};
-  std::initializer_list<const char*> photo_keys = {"method",      "gravity",      "threshold",
-                                                   "max_seconds", "refine_focal", "seed",
-                                                   "threads",     "with_inliers", "cam_from_rig"};
+  static constexpr std::string_view kOwn[] = {"method", "gravity", "threads", "with_inliers",
+                                              "cam_from_rig"};
+  const std::span<const std::string_view> own(kOwn, photos ? 5 : 4);
   py::dict plain;
   py::object rig = py::none();
   for (const auto& [key, value] : kwargs) {
@@ -122,20 +108,22 @@ Request MakeRequest(const PyLocalizer& self, const py::kwargs& kwargs, const std
       plain[key] = value;
     }
   }
-  const nlohmann::json o = Options(py::kwargs(plain), photos ? photo_keys : keys, where);
+  const nlohmann::json o = OptionKwargs(py::kwargs(plain), kRequestScope, own, where);
   Request r;
   r.request.method = StringOption(o, "method", where).value_or(self.method);
   if (!r.request.method.empty()) FindMethod(r.request.method);
   if (o.contains("gravity") && !o["gravity"].is_null()) {
     r.request.gravity = JsonVector3(o["gravity"], where + ": gravity");
   }
-  r.request.threshold_px = NumberOption(o, "threshold", where);
-  r.request.max_seconds = NumberOption(o, "max_seconds", where);
-  r.request.refine_focal = BoolOption(o, "refine_focal", where);
-  if (auto v = IntegerOption(o, "seed", where)) {
-    if (*v < 0) Fail("{}: seed must be non-negative, got {}", where, *v);
-    r.request.seed = static_cast<uint64_t>(*v);
+  // The request-scope options on the Localizer's defaults (one table: the CLI's and the service's).
+  LocalizerOptions options = self.localizer->options();
+  bool any = false;
+  for (const auto& [key, value] : o.items()) {
+    if (std::find(own.begin(), own.end(), key) != own.end()) continue;
+    SetLocalizerOptions(&options, nlohmann::json{{key, value}}, kRequestScope, where);
+    any = true;
   }
+  if (any) r.request.options = options.localize;
   if (auto v = IntegerOption(o, "threads", where)) {
     if (*v < 1 || *v > 1024) Fail("{}: threads must be in [1, 1024], got {}", where, *v);
     r.request.threads = static_cast<int>(*v);
@@ -154,21 +142,8 @@ Request MakeRequest(const PyLocalizer& self, const py::kwargs& kwargs, const std
 }
 
 py::dict ResultToDict(const LocalizerResult& r, bool with_inliers) {
-  nlohmann::ordered_json j = LocalizeResultToJson(FindMethod(r.method), r.pose, with_inliers);
-  if (!r.photos.empty()) {
-    std::vector<ImageOrientation> orientations;
-    for (const ImageQuery& photo : r.photos) orientations.push_back(photo.image.orientation);
-    AddPhotoStats(r.num_features(), r.num_matches(), r.times.decode_ms, r.times.extract_ms,
-                  r.times.match_ms, r.pose, &j, orientations);
-  }
-  if (!r.success()) j["reason"] = r.reason;
-  const StageTimes& t = r.times;
-  j["times_ms"] = {{"decode", t.decode_ms},   {"extract", t.extract_ms}, {"match", t.match_ms},
-                   {"prepare", t.prepare_ms}, {"ransac", t.ransac_ms},   {"refine", t.refine_ms},
-                   {"check", t.check_ms},     {"total", t.total_ms}};
-  return FromJson(j).cast<py::dict>();
+  return FromJson(LocalizerResultToJson(r, with_inliers)).cast<py::dict>();
 }
-
 // One photo or a list of them (a rig), each with its camera.
 std::vector<py::handle> Items(py::handle value, bool* many) {
   *many = py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value);
@@ -355,27 +330,39 @@ py::dict LocalizeQuery(const PyLocalizer& self, py::handle query, const py::kwar
 }  // namespace
 
 void BindLocalizer(py::module_& m) {
+  m.def(
+      "localizer_options", [] { return FromJson(LocalizerOptionTableJson()); },
+      "The Localizer's options, one dict each (name, flag, scope, type, default, help; min / "
+      "max, choices): the same table the command line's flags and the service's fields are "
+      "made from.");
   py::class_<PyLocalizer>(m, kClass,
                           "A map loaded once, many photos localized: SIFT, matching to the "
                           "map's descriptors, RANSAC with the method's minimal solver, LM. Safe "
                           "to call from many threads; each call releases the GIL.")
       .def(py::init(&MakeLocalizer), py::arg("cloud_or_path"), py::arg("method") = py::none(),
            py::arg("threads") = 1,
-           "cloud_or_path: a LineCloud or a .lcm path. Options: features ('opencv' | "
-           "'colmap'), index ('ivf', 'faiss-ivf', 'faiss-hnsw', 'hnswlib', 'flann'), nprobe, "
-           "max_ratio, cross_check, exact_matching, max_pixels, threshold (px), seed, refine, "
-           "max_seconds, min_inliers, map_gravity.")
+           "cloud_or_path: a LineCloud or a .lcm path. Options: every option of "
+           "linecloud.localizer_options() (the CLI's localize flags, snake_case): the map's "
+           "(features, index, max_ratio, ...) and the defaults of its requests (threshold, seed, "
+           "max_iterations, min_inliers, ...).")
       .def("localize_image", &LocalizeImages, py::arg("image"), py::arg("camera"),
            "image: a path, the encoded file's bytes or a grey uint8 H x W array (or a list of "
            "them with cam_from_rig=[pose, ...] for a rig); camera: a camera dict (or one per "
-           "photo). Options: method, gravity, threshold, max_seconds, refine_focal, seed, "
-           "threads, with_inliers. Returns localize's result dict.")
+           "photo). Options: method, gravity, threads, with_inliers and every request-scope option "
+           "of linecloud.localizer_options() (threshold, seed, max_seconds, refine_focal, ...). "
+           "Returns localize's result dict.")
       .def("localize_features", &LocalizeFeatures, py::arg("keypoints"), py::arg("descriptors"),
            py::arg("camera"),
            "keypoints: N x 2 (or N x 4 with scale, orientation) in COLMAP's pixel convention; "
            "descriptors: N x 128 uint8 in COLMAP's SIFT normalisation. Lists for a rig.")
       .def("localize_query", &LocalizeQuery, py::arg("query"),
            "query: a dict laid out as QUERY.json (cameras, observations, ...).")
+      .def_property_readonly(
+          "options",
+          [](const PyLocalizer& s) {
+            return FromJson(LocalizerOptionsToJson(s.localizer->options()));
+          },
+          "Every option's value on this Localizer (name -> value)")
       .def_property_readonly("size", [](const PyLocalizer& s) { return s.localizer->size(); })
       .def_property_readonly("has_descriptors",
                              [](const PyLocalizer& s) { return s.localizer->has_descriptors(); })

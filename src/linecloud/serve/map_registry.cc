@@ -14,6 +14,7 @@
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/io/line_cloud_info.h"
 #include "linecloud/io/ply.h"
+#include "linecloud/pipeline/localizer_option_table.h"
 #include "linecloud/serve/wire.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
@@ -64,6 +65,23 @@ std::vector<float> MapSegments(const LineCloud& cloud) {
   return out;
 }
 
+// A map's options: the server's defaults with the owner's "options" of
+// DIR/ID.json (any option of the table but the two the server sets itself).
+LocalizerOptions MapOptions(const LocalizerOptions& defaults, const json& fields,
+                            const std::string& path) {
+  const std::string where = path + ": options";
+  if (!fields.is_object()) Fail("{}: expected an object of options", where);
+  for (const char* own : {"threads", "max_pixels"}) {
+    if (fields.contains(own))
+      Fail("{}: '{}' is set for every map by the server's flags", where, own);
+  }
+  LocalizerOptions o = defaults;
+  constexpr OptionScope kEvery[] = {OptionScope::kMap, OptionScope::kRequest};
+  SetLocalizerOptions(&o, fields, kEvery, where);
+  o.Check();
+  return o;
+}
+
 }  // namespace
 
 std::shared_ptr<const LoadedMap> MapRegistry::LoadMap(const std::string& id,
@@ -72,15 +90,17 @@ std::shared_ptr<const LoadedMap> MapRegistry::LoadMap(const std::string& id,
   m->id = id;
   m->stamp = MapStamp(path);
   const LineCloud cloud = ReadLineCloud(path);
-  LocalizerOptions lo;
-  lo.image.max_pixels = max_pixels_;
-  lo.image.threads = 1;  // concurrency comes from the workers
-  m->localizer = std::make_unique<Localizer>(cloud, lo, id);
   const std::string anchor_path = JoinPaths(maps_dir_, id + ".json");
   json owner_file;
+  LocalizerOptions lo = defaults_;
   if (FileExists(anchor_path)) {
     owner_file = ParseRequestJson(ReadFilePrefix(anchor_path, 1 << 16), anchor_path);
     if (!owner_file.is_object()) Fail("{}: expected a JSON object", anchor_path);
+    if (owner_file.contains("options"))
+      lo = MapOptions(defaults_, owner_file["options"], anchor_path);
+  }
+  m->localizer = std::make_unique<Localizer>(cloud, lo, id);
+  if (FileExists(anchor_path)) {
     if (owner_file.contains("geo_anchor")) {
       m->anchor = GeoAnchorFromJson(owner_file, anchor_path);
     }

@@ -48,10 +48,11 @@ using MapSet = std::map<std::string, std::shared_ptr<const LoadedMap>>;
 class MapRegistry {
  public:
   // `log` takes notices (JSON lines); load errors are counted in `metrics`.
-  MapRegistry(std::string maps_dir, uint64_t max_pixels,
+  // `defaults`: every map's Localizer options, before its ID.json "options".
+  MapRegistry(std::string maps_dir, LocalizerOptions defaults,
               std::function<void(const std::string&)> log, Metrics* metrics)
       : maps_dir_(std::move(maps_dir)),
-        max_pixels_(max_pixels),
+        defaults_(std::move(defaults)),
         log_(std::move(log)),
         metrics_(metrics) {}
 
@@ -73,7 +74,7 @@ class MapRegistry {
   void Log(const std::string& line) const { log_(line); }
 
   const std::string maps_dir_;
-  const uint64_t max_pixels_;
+  const LocalizerOptions defaults_;
   const std::function<void(const std::string&)> log_;
   Metrics* const metrics_;
   mutable std::mutex mutex_;

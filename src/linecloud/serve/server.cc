@@ -31,6 +31,8 @@
 #include "linecloud/localize/image_query.h"
 #include "linecloud/localize/query_json.h"
 #include "linecloud/pipeline/localizer.h"
+#include "linecloud/pipeline/localizer_option_table.h"
+#include "linecloud/pipeline/localizer_result_json.h"
 #include "linecloud/serve/geo.h"
 #include "linecloud/serve/http.h"
 #include "linecloud/serve/map_registry.h"
@@ -136,9 +138,7 @@ json PoseJson(const LocalizerResult& r, const LocalizationMap* owner_map = nullp
   const Eigen::Vector3d c = p.Inverse().translation;
   const Eigen::Quaterniond q = p.rotation.normalized();
   const size_t matches = r.query.observations.size();
-  json times = {{"decode", r.times.decode_ms}, {"extract", r.times.extract_ms},
-                {"match", r.times.match_ms},   {"ransac", r.times.ransac_ms},
-                {"refine", r.times.refine_ms}, {"total", r.times.total_ms}};
+  const json times = json(StageTimesToJson(r.times));
   json j = {{"success", true},
             {"q", {q.w(), q.x(), q.y(), q.z()}},
             {"t", {p.translation.x(), p.translation.y(), p.translation.z()}},
@@ -270,6 +270,7 @@ void ServeOptions::Check() const {
     Fail("serve: --body-budget-mb must be in [--max-body-mb, 1e6], got {}", body_budget_mb);
   }
   if (max_pixels < 1) Fail("serve: --max-pixels must be positive");
+  localizer.Check();
   if (!(memory_budget_mb >= 64 && memory_budget_mb <= 1e7)) {
     Fail("serve: --memory-budget-mb must be in [64, 1e7], got {}", memory_budget_mb);
   }
@@ -399,15 +400,26 @@ struct Server::Impl {
     }
   }
 
-  LocalizeRequest RequestOptions(const std::string& method, const std::string& gravity,
-                                 std::optional<double> max_seconds, Clock::time_point deadline) {
+  // A request's method, gravity and options (`fields`: the request-scope
+  // options of localizer_option_table.h, on the map's defaults); 400 naming
+  // the field when one is bad, unknown or the map's.
+  LocalizeRequest RequestOptions(const LoadedMap& map, const std::string& method,
+                                 const std::string& gravity, const json& fields,
+                                 Clock::time_point deadline, const std::string& where) {
     LocalizeRequest r;
-    r.method = method;
-    if (!gravity.empty()) r.gravity = ParseDirection(gravity, "gravity");
-    if (max_seconds && !(*max_seconds > 0 && std::isfinite(*max_seconds))) {
-      Fail("max_seconds: expected a positive number of seconds");
+    try {
+      r.method = method;
+      if (!method.empty()) FindMethod(method);
+      if (!gravity.empty()) r.gravity = ParseDirection(gravity, "gravity");
+      if (!fields.empty()) {
+        LocalizerOptions o = map.localizer->options();
+        constexpr OptionScope kRequest[] = {OptionScope::kRequest};
+        SetLocalizerOptions(&o, fields, kRequest, where);
+        r.options = o.localize;
+      }
+    } catch (const Error& e) {
+      Throw(400, e.what());
     }
-    r.max_seconds = max_seconds;
     // Counted when the work starts, not when the request arrived: a job that
     // waited in the queue past its deadline (already answered 504) is
     // skipped, and RANSAC stops at it (3 requests RANSAC could not finish
@@ -487,21 +499,24 @@ struct Server::Impl {
       }
       auto bytes = std::make_shared<std::string>(*part("image"));
       CheckPhotoHeader(*bytes, camera, "image");
-      std::optional<double> max_seconds;
-      if (part("max_seconds")) {
+      // The other parts: request options, as text (a part that is none fails).
+      json fields = json::object();
+      for (const auto& [name, value] : req.parts) {
+        if (name == "image" || name == "camera" || name == "method" || name == "gravity") continue;
+        const OptionSpec* spec = FindLocalizerOption(name);
+        if (!spec || spec->scope != OptionScope::kRequest) {
+          fields[name] = value;  // RequestOptions names it (unknown, or the map's)
+          continue;
+        }
         try {
-          max_seconds = std::stod(*part("max_seconds"));
-        } catch (const std::exception&) {
-          Throw(400, "max_seconds: not a number");
+          fields[name] = ParseOptionText(*spec, value, "multipart");
+        } catch (const Error& e) {
+          Throw(400, e.what());
         }
       }
-      LocalizeRequest r;
-      try {
-        r = RequestOptions(part("method").value_or(""), part("gravity").value_or(""), max_seconds,
-                           deadline);
-      } catch (const Error& e) {
-        Throw(400, e.what());
-      }
+      const LocalizeRequest r =
+          RequestOptions(*map, part("method").value_or(""), part("gravity").value_or(""), fields,
+                         deadline, "multipart");
       job = [map, bytes, camera, r] {
         return map->localizer->LocalizeEncodedImage(
             std::span(reinterpret_cast<const uint8_t*>(bytes->data()), bytes->size()), camera, r,
@@ -514,11 +529,7 @@ struct Server::Impl {
     }
     const LocalizerResult r = RunBounded(std::move(job), deadline);
     RecordStages(r);
-    (*log)["times_ms"] = {{"decode", r.times.decode_ms},
-                          {"extract", r.times.extract_ms},
-                          {"match", r.times.match_ms},
-                          {"ransac", r.times.ransac_ms},
-                          {"total", r.times.total_ms}};
+    (*log)["times_ms"] = json(StageTimesToJson(r.times));
     (*log)["success"] = r.success();
     return PoseJson(r, token && token->admin ? &map->localizer->map() : nullptr);
   }
@@ -533,7 +544,7 @@ struct Server::Impl {
     }
     auto features = std::make_shared<SiftFeatures>();
     Camera camera;
-    LocalizeRequest r;
+    std::string method, gravity;
     try {
       camera = CameraFromJson(j["camera"], "camera");
       CheckServedCamera(camera, "camera");
@@ -548,7 +559,6 @@ struct Server::Impl {
       if (!j["descriptors"].is_string()) Fail("descriptors: expected base64 of N x 128 bytes");
       const std::string d = Base64Decode(j["descriptors"].get<std::string>(), "descriptors");
       features->descriptors.assign(d.begin(), d.end());
-      std::string gravity;
       if (j.contains("gravity")) {
         const json& g = j["gravity"];
         if (g.is_string()) {
@@ -561,17 +571,19 @@ struct Server::Impl {
           Fail("gravity: expected [x, y, z] or \"x,y,z\"");
         }
       }
-      std::optional<double> max_seconds;
-      if (j.contains("max_seconds")) {
-        if (!j["max_seconds"].is_number()) Fail("max_seconds: expected a number");
-        max_seconds = j["max_seconds"].get<double>();
-      }
-      const std::string method =
-          j.contains("method") && j["method"].is_string() ? j["method"].get<std::string>() : "";
-      r = RequestOptions(method, gravity, max_seconds, deadline);
+      if (j.contains("method") && !j["method"].is_string()) Fail("method: expected a name");
+      method = j.value("method", "");
     } catch (const Error& e) {
       Throw(400, e.what());
     }
+    json fields = json::object();
+    for (const auto& [key, value] : j.items()) {
+      if (key != "camera" && key != "keypoints" && key != "descriptors" && key != "method" &&
+          key != "gravity") {
+        fields[key] = value;
+      }
+    }
+    const LocalizeRequest r = RequestOptions(*map, method, gravity, fields, deadline, "body");
     return [map, features, camera, r] {
       return map->localizer->LocalizeFeatures(*features, camera, r);
     };
@@ -735,7 +747,7 @@ struct Server::Impl {
       *image = GreyImageFromPixels(std::span(b, bytes->size()), static_cast<int>(camera.width),
                                    static_cast<int>(camera.height), channels, "imageBytes");
     }
-    LocalizeRequest r = RequestOptions("", "", std::nullopt, deadline);
+    const LocalizeRequest r = RequestOptions(*map, "", "", json::object(), deadline, "geopose");
     const LocalizerResult result = RunBounded(
         [map, bytes, image, camera, r, encoded] {
           return encoded ? map->localizer->LocalizeEncodedImage(
@@ -1062,8 +1074,11 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
     impl_->tokens_ = std::make_shared<const TokenStore>(TokenStore::Read(o.tokens_path));
   }
   std::tie(impl_->host, impl_->port) = ParseListen(o.listen, "--listen");
+  LocalizerOptions defaults = o.localizer;
+  defaults.image.max_pixels = o.max_pixels;
+  defaults.image.threads = defaults.image.index.threads = 1;  // concurrency: the workers
   impl_->registry = std::make_unique<MapRegistry>(
-      o.maps_dir, o.max_pixels, [impl = impl_.get()](const std::string& line) { impl->Log(line); },
+      o.maps_dir, defaults, [impl = impl_.get()](const std::string& line) { impl->Log(line); },
       &impl_->metrics);
   impl_->registry->Load();
   impl_->pool = std::make_unique<WorkPool>(o.threads, o.queue);

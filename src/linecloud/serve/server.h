@@ -19,6 +19,8 @@
 #include <memory>
 #include <string>
 
+#include "linecloud/pipeline/localizer.h"
+
 namespace linecloud {
 
 struct ServeOptions {
@@ -51,6 +53,11 @@ struct ServeOptions {
   // Empty: `web` beside the executable (the build tree), else
   // `../share/linecloud/web` from it (an install); none found: no console.
   std::string web_dir;
+  // Every map's Localizer options (the option table's flags of `serve`; a
+  // map's DIR/ID.json "options" change them for that map). The server sets
+  // image.max_pixels (max_pixels above) and threads (1: concurrency comes
+  // from the workers) itself.
+  LocalizerOptions localizer;
   // Access log lines (JSON) and notices; default: standard error.
   std::function<void(const std::string&)> log;
 

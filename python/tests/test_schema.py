@@ -1,0 +1,290 @@
+"""[schema]: one option table for the command line, Python and the service.
+
+The tests walk `lc.localizer_options()` (the table the CLI's flags, Python's keyword arguments and
+the service's request fields are made from) and check, through the real `linecloud` binary, the
+module and a real `linecloud serve` process, that the three take the same names, defaults and
+ranges, and give the same pose for the same photo and options (to 1e-12)."""
+
+import json
+import re
+import subprocess
+import threading
+import urllib.error
+import urllib.request
+import uuid
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import linecloud as lc
+from conftest import _binary, run_cli
+
+TABLE = lc.localizer_options()
+BY_NAME = {o["name"]: o for o in TABLE}
+
+# A valid value other than the default for every option. An option added to the table without
+# a value here fails test_every_option_has_a_test_value.
+OTHER = {
+    "features": "opencv", "max_image_size": 2000, "max_num_features": 4000,
+    "max_pixels": 10_000_000, "max_ratio": 0.7, "cross_check": True, "approximate_from": 100,
+    "exact_matching": True, "index": "flann", "nprobe": 8, "threads": 2,
+    "map_gravity": [0.0, -1.0, 0.0], "threshold": 3.0, "seed": 7, "confidence": 0.999,
+    "min_iterations": 20, "max_iterations": 5000, "max_seconds": 5.0, "uniform_sampling": True,
+    "local_optimization": False, "refine": False, "refine_focal": True, "min_inliers": 40,
+    "min_inlier_ratio": 0.2, "max_rotation_uncertainty": 2.0, "max_focal_discrepancy": 0.2,
+}
+
+
+def _bad(o):
+    """A value the option refuses (outside its range, not a choice, not a direction)."""
+    if "choices" in o:
+        return "nope"
+    if o["type"].startswith("true or false"):
+        return "maybe"
+    if o["type"].startswith("a finite non-zero direction"):
+        return [0.0, 0.0, 0.0]
+    if o["type"].startswith("a whole number"):
+        return int(o["max"]) * 2 + 1
+    return o["max"] * 2 + 1
+
+
+def _text(value):
+    """A value as a flag or a multipart part writes it."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, list):
+        return ",".join(map(str, value))
+    return str(value)
+
+
+def _flag_args(options):
+    args = []
+    for name, value in options.items():
+        o = BY_NAME[name]
+        if o["type"].startswith("true or false"):
+            assert value != o["default"], f"{name}: a switch only turns its default round"
+            args.append(o["flag"])
+        else:
+            args += [o["flag"], _text(value)]
+    return args
+
+
+def test_every_option_has_a_test_value():
+    assert set(OTHER) == set(BY_NAME)
+    assert len(BY_NAME) == len(TABLE), "names are unique"
+    for o in TABLE:
+        assert re.fullmatch(r"[a-z][a-z_]*", o["name"]), o["name"]
+        dashed = "--" + o["name"].replace("_", "-")
+        assert o["flag"] in (dashed, "--no-" + dashed[2:]), o
+        assert o["scope"] in ("map", "request")
+        assert OTHER[o["name"]] != o["default"], o["name"]
+
+
+def test_python_defaults_are_the_tables(demo):
+    options = lc.Localizer(demo / "map.lcm").options
+    assert options == {o["name"]: o["default"] for o in TABLE}
+
+
+def test_cli_help_lists_every_option_with_its_default():
+    text = run_cli("localize", "--help")
+    serve = run_cli("serve", "--help")
+    for o in TABLE:
+        assert o["flag"] in text, o["name"]
+        if o["name"] not in ("threads", "max_pixels"):  # the server's own flags, not a map's
+            assert o["flag"] in serve, o["name"]
+        if o["default"] is not None and not isinstance(o["default"], bool):
+            shown = o["default"] if isinstance(o["default"], str) else json.dumps(o["default"])
+            line = next(line for line in text.splitlines() if o["flag"] + " " in line + " ")
+            assert f"={shown}" in line, (o["name"], line)
+
+
+def test_every_option_is_taken_and_checked_by_python_and_the_cli(demo, tmp_path):
+    query_path = sorted((demo / "queries").glob("*.json"))[0]
+    query = json.loads(query_path.read_text())
+    base = ["localize", "--map", demo / "map.lcm", "--query", query_path, "--quiet"]
+    for o in TABLE:
+        name, value, bad = o["name"], OTHER[o["name"]], _bad(o)
+        # Python: the Localizer takes every option; requests take the request-scope ones.
+        localizer = lc.Localizer(demo / "map.lcm", **{name: value})
+        assert localizer.options[name] == value, name
+        with pytest.raises(ValueError, match=rf"Localizer: {name} must be"):
+            lc.Localizer(demo / "map.lcm", **{name: bad})
+        if o["scope"] == "request":
+            lc.Localizer(demo / "map.lcm").localize_query(query, **{name: value})
+            with pytest.raises(ValueError, match=rf"localize_query: {name} must be"):
+                lc.Localizer(demo / "map.lcm").localize_query(query, **{name: bad})
+        elif name != "threads":  # a call's own threads= (its matching threads) is allowed
+            with pytest.raises(ValueError, match=rf"'{name}' is fixed when the map is loaded"):
+                lc.Localizer(demo / "map.lcm").localize_query(query, **{name: value})
+        # The command line: the same option, the same check.
+        out = subprocess.run([str(_binary()), *map(str, base + _flag_args({name: value}))],
+                             capture_output=True, text=True, check=False)
+        assert out.returncode == 0, (name, out.stderr)
+        if not o["type"].startswith("true or false"):
+            out = subprocess.run([str(_binary()), *map(str, base), o["flag"], _text(bad)],
+                                 capture_output=True, text=True, check=False)
+            assert out.returncode != 0, name
+            assert f"{o['flag']}: {name} must be" in out.stderr, (name, out.stderr)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'thresold'"):
+        lc.Localizer(demo / "map.lcm", thresold=3)
+
+
+# --- the service: a real `linecloud serve` on 127.0.0.1 ---------------------------------
+
+class Served:
+    def __init__(self, maps: Path, *flags):
+        self.proc = subprocess.Popen(
+            [str(_binary()), "serve", "--maps", str(maps), "--listen", "127.0.0.1:0",
+             "--threads", "1", *map(str, flags)],
+            stderr=subprocess.PIPE, text=True)
+        self.port = None
+        lines = []
+        for line in self.proc.stderr:
+            lines.append(line)
+            m = re.search(r"listening on http://127\.0\.0\.1:(\d+)", line)
+            if m:
+                self.port = int(m.group(1))
+                break
+        assert self.port, "".join(lines)
+        # Keep reading its log so that it never blocks on a full pipe.
+        threading.Thread(target=lambda: [None for _ in self.proc.stderr], daemon=True).start()
+
+    def post(self, path, body: bytes, content_type: str):
+        req = urllib.request.Request(f"http://127.0.0.1:{self.port}{path}", data=body,
+                                     headers={"Content-Type": content_type}, method="POST")
+        try:
+            with urllib.request.urlopen(req, timeout=60) as r:
+                return r.status, json.loads(r.read())
+        except urllib.error.HTTPError as e:
+            return e.code, json.loads(e.read())
+
+    def close(self):
+        self.proc.terminate()
+        self.proc.wait(timeout=30)
+
+
+def _multipart(parts):
+    boundary = uuid.uuid4().hex
+    body = b""
+    for name, value in parts.items():
+        body += f"--{boundary}\r\nContent-Disposition: form-data; name=\"{name}\"".encode()
+        if isinstance(value, bytes):
+            body += b"; filename=\"photo.jpg\"\r\nContent-Type: image/jpeg\r\n\r\n" + value
+        else:
+            body += b"\r\n\r\n" + value.encode()
+        body += b"\r\n"
+    body += f"--{boundary}--\r\n".encode()
+    return body, f"multipart/form-data; boundary={boundary}"
+
+
+@pytest.fixture(scope="module")
+def fountain_map(fountain, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("schema-maps")
+    lc.lift(fountain["model"], database=fountain["database"],
+            key_store=tmp_path_factory.mktemp("schema-keys")).write(folder / "fountain.lcm")
+    return folder
+
+
+def _camera_text(camera):
+    return " ".join([camera["model"], str(camera["width"]), str(camera["height"]),
+                     *map(str, camera["params"])])
+
+
+def test_every_request_option_is_taken_and_checked_by_the_service(fountain, fountain_map,
+                                                                  tmp_path):
+    body_path = tmp_path / "body.json"
+    run_cli("features", "--image", fountain["photo"], "--camera", _camera_text(fountain["camera"]),
+            "--out", body_path)
+    body = json.loads(body_path.read_text())
+    server = Served(fountain_map)
+    try:
+        status, plain = server.post("/v1/maps/fountain/localize", json.dumps(body).encode(),
+                                    "application/json")
+        assert status == 200 and plain["success"], plain
+        for o in TABLE:
+            name = o["name"]
+            sent = json.dumps(dict(body, **{name: OTHER[name]})).encode()
+            status, answer = server.post("/v1/maps/fountain/localize", sent, "application/json")
+            if o["scope"] == "map":
+                assert status == 400, (name, answer)
+                assert answer["error"] == (f"body: '{name}' is fixed when the map is loaded, not "
+                                           "set per request")
+                continue
+            assert status == 200, (name, answer)
+            assert set(answer) <= {"success", "reason", "q", "t", "center", "num_matches",
+                                   "num_inliers", "inlier_ratio", "uncertainty", "times_ms"}
+            sent = json.dumps(dict(body, **{name: _bad(o)})).encode()
+            status, answer = server.post("/v1/maps/fountain/localize", sent, "application/json")
+            assert status == 400, (name, answer)
+            assert answer["error"].startswith(f"body: {name} must be "), answer
+        # One request option changes the answer as it does in Python: seed and threshold.
+        sent = json.dumps(dict(body, threshold=2.0, seed=3)).encode()
+        status, answer = server.post("/v1/maps/fountain/localize", sent, "application/json")
+        kp = np.array(body["keypoints"], dtype=np.float64)
+        desc = np.frombuffer(__import__("base64").b64decode(body["descriptors"]),
+                             np.uint8).reshape(-1, 128)
+        ours = lc.Localizer(fountain_map / "fountain.lcm").localize_features(
+            kp, desc, fountain["camera"], threshold=2.0, seed=3)
+        np.testing.assert_allclose(answer["q"], ours["q"], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(answer["t"], ours["t"], rtol=0, atol=1e-12)
+        status, answer = server.post("/v1/maps/fountain/localize",
+                                     json.dumps(dict(body, thresold=2)).encode(),
+                                     "application/json")
+        assert status == 400 and "unknown option 'thresold'" in answer["error"], answer
+    finally:
+        server.close()
+
+
+# Every option changed from its default at once (values that still localize the photo).
+MAP_OPTIONS = {"max_ratio": 0.75, "nprobe": 8, "max_num_features": 6000, "max_image_size": 3000,
+               "approximate_from": 1000, "index": "ivf", "features": "colmap"}
+REQUEST_OPTIONS = {"threshold": 3.5, "seed": 7, "confidence": 0.9995, "min_iterations": 20,
+                   "max_iterations": 4000, "uniform_sampling": True, "min_inliers": 40,
+                   "min_inlier_ratio": 0.2, "max_rotation_uncertainty": 2.0,
+                   "max_focal_discrepancy": 0.2}
+
+
+def test_the_same_pose_through_cli_python_and_http(fountain, fountain_map, tmp_path):
+    camera = fountain["camera"]
+    cli = json.loads(run_cli("localize", "--map", fountain_map / "fountain.lcm", "--image",
+                             fountain["photo"], "--camera", _camera_text(camera), "--quiet",
+                             *_flag_args(MAP_OPTIONS), *_flag_args(REQUEST_OPTIONS)))
+    assert cli["success"], cli
+    # Python: every option on the Localizer, or the request's on each call.
+    whole = lc.Localizer(fountain_map / "fountain.lcm", **MAP_OPTIONS, **REQUEST_OPTIONS)
+    per_call = lc.Localizer(fountain_map / "fountain.lcm", **MAP_OPTIONS)
+    answers = {"python": whole.localize_image(fountain["photo"], camera),
+               "python per call": per_call.localize_image(fountain["photo"], camera,
+                                                          **REQUEST_OPTIONS)}
+    # The service: the map's options in its owner's ID.json, the request's as multipart parts.
+    maps = tmp_path / "maps"
+    maps.mkdir()
+    (maps / "fountain.lcm").symlink_to(fountain_map / "fountain.lcm")
+    (maps / "fountain.json").write_text(json.dumps({"options": MAP_OPTIONS}))
+    server = Served(maps)
+    try:
+        parts = {"image": fountain["photo"].read_bytes(), "camera": _camera_text(camera)}
+        parts.update({k: _text(v) for k, v in REQUEST_OPTIONS.items()})
+        status, answers["http"] = server.post("/v1/maps/fountain/localize", *_multipart(parts))
+        assert status == 200, answers["http"]
+    finally:
+        server.close()
+    for who, r in answers.items():
+        assert r["success"], (who, r)
+        np.testing.assert_allclose(r["q"], cli["q"], rtol=0, atol=1e-12, err_msg=who)
+        np.testing.assert_allclose(r["t"], cli["t"], rtol=0, atol=1e-12, err_msg=who)
+    assert answers["python"]["num_inliers"] == cli["num_inliers"]
+    # The options did change the answer: the defaults give another run.
+    default = lc.Localizer(fountain_map / "fountain.lcm").localize_image(fountain["photo"], camera)
+    assert default["stats"]["sampling"] == "progressive"
+    assert cli["stats"]["sampling"] == "uniform"
+
+
+def test_generated_files_are_the_tables():
+    """The stub's Localizer signatures, docs/options.md and the OpenAPI document's request
+    options are generated from the table (scripts/gen_schema.py)."""
+    tool = Path(__file__).resolve().parents[2] / "scripts" / "gen_schema.py"
+    r = subprocess.run([__import__("sys").executable, str(tool), "--check", "--cli",
+                        str(_binary())], capture_output=True, text=True, check=False)
+    assert r.returncode == 0, r.stderr

@@ -1,0 +1,76 @@
+#include "linecloud/apps/localizer_flags.h"
+
+#include <algorithm>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include "linecloud/util/error.h"
+
+namespace linecloud {
+
+void LocalizerFlags::Add(CLI::App* cmd, std::span<const OptionScope> scopes,
+                         const std::set<std::string>& skip) {
+  for (const OptionSpec& spec : LocalizerOptionTable()) {
+    if (skip.count(spec.name) ||
+        std::find(scopes.begin(), scopes.end(), spec.scope) == scopes.end()) {
+      continue;
+    }
+    const std::string name = spec.name;
+    if (spec.type == OptionType::kBool) {
+      // A switch off by default turns it on; one on by default is --no-NAME.
+      const bool on = spec.Default().get<bool>();
+      cmd->add_flag_function(
+          spec.Flag(), [this, name](std::int64_t) { switches_.insert(name); },
+          spec.help + (on ? " (on by default; this flag turns it off)" : ""));
+      continue;
+    }
+    std::string help = spec.help;
+    if (spec.nullable) help += " (default: " + spec.null_means + ")";
+    CLI::Option* option = cmd->add_option_function<std::string>(
+        spec.Flag(), [this, name](const std::string& v) { text_[name] = v; }, help);
+    switch (spec.type) {
+      case OptionType::kInteger:
+        option->type_name("INT");
+        break;
+      case OptionType::kNumber:
+        option->type_name("NUMBER");
+        break;
+      case OptionType::kChoice:
+        option->type_name(fmt::format("{{{}}}", fmt::join(spec.choices, ",")));
+        break;
+      default:
+        option->type_name("X,Y,Z");
+    }
+    if (!spec.nullable) {
+      const nlohmann::json d = spec.Default();
+      option->default_str(d.is_string() ? d.get<std::string>() : d.dump());
+    }
+  }
+}
+
+nlohmann::json LocalizerFlags::Given() const {
+  nlohmann::json out = nlohmann::json::object();
+  LocalizerOptions probe;
+  for (const std::string& name : switches_) {
+    const OptionSpec& spec = *FindLocalizerOption(name);
+    out[name] = !spec.Default().get<bool>();
+  }
+  for (const auto& [name, text] : text_) {
+    const OptionSpec& spec = *FindLocalizerOption(name);
+    const nlohmann::json value = ParseOptionText(spec, text, spec.Flag());
+    SetLocalizerOption(&probe, spec, value, spec.Flag());  // checked here, naming the flag
+    out[name] = value;
+  }
+  return out;
+}
+
+void LocalizerFlags::Apply(LocalizerOptions* options) const {
+  const nlohmann::json given = Given();  // named: items() of a temporary would dangle
+  for (const auto& [name, value] : given.items()) {
+    const OptionSpec& spec = *FindLocalizerOption(name);
+    SetLocalizerOption(options, spec, value, spec.Flag());
+  }
+}
+
+}  // namespace linecloud

@@ -1,0 +1,33 @@
+// The command line's flags of the Localizer's options, made from
+// localizer_option_table.h: `localize` takes every option, `serve` the ones
+// that are a map's or a request's default.
+#pragma once
+
+#include <map>
+#include <set>
+#include <span>
+#include <string>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include "linecloud/pipeline/localizer_option_table.h"
+
+namespace linecloud {
+
+class LocalizerFlags {
+ public:
+  // One flag per option of `scopes` not in `skip` (the command's own flags).
+  void Add(CLI::App* cmd, std::span<const OptionScope> scopes,
+           const std::set<std::string>& skip = {});
+  // The options given on the command line, by name (JSON values, checked).
+  nlohmann::json Given() const;
+  // Sets the given options on `options`; a bad value fails naming its flag.
+  void Apply(LocalizerOptions* options) const;
+
+ private:
+  std::map<std::string, std::string> text_;  // option name → argument as typed
+  std::set<std::string> switches_;           // bool options whose flag was given
+};
+
+}  // namespace linecloud
