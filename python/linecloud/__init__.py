@@ -13,6 +13,7 @@ parameter order); poses are ``cam_from_world`` dicts ``{"q": (w, x, y, z),
 from pathlib import Path as _Path
 
 from . import interop
+from .pose import Pose
 from ._core import (
     LineCloud,
     Localizer,
@@ -41,6 +42,7 @@ def cli_path() -> str:
 __all__ = [
     "LineCloud",
     "Localizer",
+    "Pose",
     "__version__",
     "attack",
     "audit",

@@ -46,7 +46,11 @@ class LineCloud:
 
 def lift(model_dir: _Path, database: _Path | None = None, out: _Path | None = None,
          key_store: _Path | None = None, key_file: _Path | None = None, compact: bool = False,
-         force: bool = False) -> LineCloud: ...
+         force: bool = False, *, descriptor: Literal['medoid', 'mean'] = 'medoid',
+         gravity: Sequence[float] | None = None, sparsify: float = 0.0,
+         sparsify_mode: Literal['uniform', 'balanced'] = 'uniform',
+         resist_attack: float | None = None, same_place: float | None = None,
+         allow_shared_key: bool = False) -> LineCloud: ...
 
 
 def read_colmap_model(path: _Path) -> dict[str, Any]: ...

@@ -288,3 +288,67 @@ def test_generated_files_are_the_tables():
     r = subprocess.run([__import__("sys").executable, str(tool), "--check", "--cli",
                         str(_binary())], capture_output=True, text=True, check=False)
     assert r.returncode == 0, r.stderr
+
+
+def test_lift_takes_every_option_of_the_cli(demo, tmp_path):
+    """Python's lift has a keyword for each of the CLI's lift flags, and gives the same map."""
+    flags = set(re.findall(r"^\s+(--[a-z-]+)", run_cli("lift", "--help"), re.M))
+    doc = lc.lift.__doc__.splitlines()[0]
+    for flag in flags - {"--help", "--quiet"}:
+        name = {"--model": "model_dir", "--resist-attack": "resist_attack"}.get(
+            flag, flag[2:].replace("-", "_"))
+        assert f"{name}:" in doc, (flag, doc)
+    # The same lifting through both: sparsified (balanced), attack-aware, with gravity.
+    options = {"sparsify": 0.3, "sparsify_mode": "balanced", "resist_attack": 0.5,
+               "gravity": [0.0, 0.0, -1.0], "descriptor": "mean"}
+    run_cli("lift", "--model", demo / "model", "--out", tmp_path / "cli.lcm", "--quiet",
+            "--sparsify", 0.3, "--sparsify-mode", "balanced", "--resist-attack", 0.5,
+            "--gravity", "0,0,-1", "--descriptor", "mean")
+    cli = lc.LineCloud.read(tmp_path / "cli.lcm")
+    ours = lc.lift(demo / "model", **options)
+    assert 0 < len(ours) < 0.75 * len(lc.lift(demo / "model"))
+    np.testing.assert_array_equal(ours.ids, cli.ids)
+    np.testing.assert_array_equal(ours.lines, cli.lines)
+    assert ours.gravity == cli.gravity == (0.0, 0.0, -1.0)
+    with pytest.raises(ValueError, match="sparsify_mode"):
+        lc.lift(demo / "model", sparsify=0.3, sparsify_mode="dense")
+
+
+def test_ctrl_c_stops_a_long_localization(demo):
+    """A call runs without the GIL and polls Python's signal handlers: Ctrl-C (SIGINT) ends a
+    RANSAC run that would take hours within a fraction of a second."""
+    import os
+    import signal
+    import time
+    query = json.loads(sorted((demo / "queries").glob("*.json"))[0].read_text())
+    localizer = lc.Localizer(demo / "map.lcm")
+    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    start = time.monotonic()
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        localizer.localize_query(query, method="p6L", min_iterations=10_000_000,
+                                 max_iterations=10_000_000, uniform_sampling=True)
+    elapsed = time.monotonic() - start
+    timer.join()
+    assert 0.5 <= elapsed < 3, elapsed
+    # The Localizer is still fine afterwards.
+    assert localizer.localize_query(query)["success"]
+
+
+def test_python_and_the_cli_share_the_index_cache(fountain, fountain_map, tmp_path, monkeypatch):
+    """Localizer(path) caches the map's approximate index where the CLI does: one build."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    path = fountain_map / "fountain.lcm"
+    ours = lc.Localizer(path).localize_image(fountain["photo"], fountain["camera"])
+    cached = list((tmp_path / "cache" / "linecloud" / "index").glob("*.index"))
+    assert len(cached) == 1, cached
+    stamp = cached[0].stat().st_mtime_ns
+    out = subprocess.run([str(_binary()), "localize", "--map", str(path), "--image",
+                          str(fountain["photo"]), "--camera", _camera_text(fountain["camera"])],
+                         capture_output=True, text=True, check=True)
+    assert "building the descriptor index" not in out.stderr, out.stderr
+    assert cached[0].stat().st_mtime_ns == stamp
+    assert json.loads(out.stdout)["q"] == ours["q"]
+    # And the other way round: a second Python Localizer reads it too.
+    assert lc.Localizer(path).localize_image(fountain["photo"], fountain["camera"])["q"] == ours["q"]
+    assert cached[0].stat().st_mtime_ns == stamp

@@ -32,15 +32,15 @@ void RunLift(LiftArgs args) {
   lifting.sparsify_mode = SparsifyModeFromName(args.sparsify_mode, "--sparsify-mode");
   lifting.resist_attack = args.resist_attack;
   lifting.compact = args.options.compact;
-  ApplyMapLifting(lifting, &args.options, [quiet = args.quiet](size_t round, double recovered) {
-    if (!quiet) {
-      std::cerr << fmt::format(
-          "resist: round {}: the attack recovers {:.1f} % of the points kept\n", round,
-          100 * recovered);
-    }
-  });
   if (!args.gravity.empty()) args.options.gravity = ParseDirection(args.gravity, "--gravity");
-  const LiftModelResult r = LiftModel(args.options);
+  const LiftModelResult r =
+      LiftModelWith(args.options, lifting, [quiet = args.quiet](size_t round, double recovered) {
+        if (!quiet) {
+          std::cerr << fmt::format(
+              "resist: round {}: the attack recovers {:.1f} % of the points kept\n", round,
+              100 * recovered);
+        }
+      });
   const LineCloud& cloud = r.cloud;
   std::cout << fmt::format(
       "lifted {} points of {} to {} lines ({}{}) in {:.2f} s -> {}\n", r.num_points,

@@ -1,6 +1,5 @@
 #include <cstdio>
 #include <filesystem>
-#include <sodium.h>
 
 #include <iostream>
 #include <memory>
@@ -9,7 +8,6 @@
 
 #include "linecloud/apps/commands.h"
 #include "linecloud/apps/localizer_flags.h"
-#include "linecloud/lifting/key_store.h"
 #include "linecloud/draw/overlay.h"
 #include "linecloud/features/sift_opencv.h"
 #include "linecloud/io/colmap_model.h"
@@ -77,19 +75,6 @@ void CheckArgs(const LocalizeArgs& args) {
   }
 }
 
-// MAP's descriptor index cache: ~/.cache/linecloud/index/HASH.index, HASH of
-// MAP's absolute path (the cache is authenticated and checked against MAP's
-// descriptors when read).
-std::string IndexCachePath(const std::string& map_path) {
-  std::error_code ec;
-  const std::string abs = std::filesystem::absolute(map_path, ec).lexically_normal().string();
-  EnsureSodiumInitialized();
-  std::array<uint8_t, 16> hash;
-  crypto_generichash(hash.data(), hash.size(), reinterpret_cast<const unsigned char*>(abs.data()),
-                     abs.size(), nullptr, 0);
-  return JoinPaths(UserCacheDirectory("index"), ToHex(hash) + ".index");
-}
-
 // The Localizer's options from the command line: the option table's flags,
 // the index cache in the user's cache folder (authenticated with this user's
 // secret; no key store, no cache), progress on standard error.
@@ -97,14 +82,9 @@ LocalizerOptions MakeLocalizerOptions(const LocalizeArgs& args) {
   LocalizerOptions o;
   args.options.Apply(&o);
   SetOpenCVThreads(o.image.threads);
-  if (!args.map_path.empty() && o.image.approximate_from != 0 && !args.image_paths.empty()) {
-    try {
-      o.index_cache_key = KeyStore(KeyStore::DefaultDirectory()).CacheSecret();
-      // In this user's own cache folder, never beside the map (a folder others
-      // may write into, where a link or a FIFO could be planted).
-      o.index_cache = IndexCachePath(args.map_path);
-    } catch (const Error& e) {
-      if (!args.quiet) std::cerr << "descriptor index not cached: " << e.what() << "\n";
+  if (!args.map_path.empty() && !args.image_paths.empty()) {
+    if (const auto note = UseIndexCache(args.map_path, &o); note && !args.quiet) {
+      std::cerr << *note << "\n";
     }
   }
   if (!args.quiet) o.progress = [](const std::string& what) { std::cerr << what << "\n"; };

@@ -29,6 +29,7 @@
 #include <cmath>
 #include <cstdint>
 #include <functional>
+#include <string_view>
 #include <limits>
 #include <optional>
 #include <span>
@@ -58,6 +59,9 @@ struct RansacOptions {
   // current best model needs, its inliers, seconds elapsed.
   std::function<void(int, int, int, double)> progress;
   double progress_interval_s = 1.0;
+  // Polled about every 50 ms while the run lasts: true ends it at once with
+  // no model (stop_reason "stopped"), e.g. Python's Ctrl-C.
+  std::function<bool()> should_stop;
 
   void Check() const {
     if (!(max_error > 0) || !std::isfinite(max_error)) {
@@ -93,7 +97,7 @@ struct RansacStats {
   int uniform_iterations = 0;  // of which uniform (all of a uniform run; a progressive run's last)
   int local_optimizations = 0;
   // Why the run stopped: "confidence" (enough iterations for an all-inlier
-  // sample), "max_iterations" or "max_seconds".
+  // sample), "max_iterations", "max_seconds" or "stopped" (should_stop).
   const char* stop_reason = "confidence";
 };
 
@@ -153,6 +157,7 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
   int needed = options.max_iterations;
   int iteration = 0;
   double next_progress = options.progress_interval_s;
+  double next_stop_check = 0;
   const char* stop_reason = "max_iterations";
   // A progressive run ends with a uniform phase. PROSAC's rule judges the best
   // model by the best-ranked data it explains, and its first samples all come
@@ -186,11 +191,18 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
       stop_reason = "confidence";
       break;
     }
-    if (options.max_seconds > 0 || options.progress) {
+    if (options.max_seconds > 0 || options.progress || options.should_stop) {
       const double elapsed = seconds_since(start);
       if (options.max_seconds > 0 && elapsed >= options.max_seconds) {
         stop_reason = "max_seconds";
         break;
+      }
+      if (options.should_stop && elapsed >= next_stop_check) {
+        if (options.should_stop()) {
+          stop_reason = "stopped";
+          break;
+        }
+        next_stop_check = elapsed + 0.05;
       }
       if (options.progress && elapsed >= next_progress) {
         options.progress(iteration, needed, best_inliers, elapsed);
@@ -245,7 +257,9 @@ RansacResult<typename Estimator::Model> Ransac(Estimator& estimator, const Ransa
     }
   }
   result.stats.iterations = iteration;
-  if (enough()) stop_reason = "confidence";
+  const bool stopped = std::string_view(stop_reason) == "stopped";
+  if (stopped) result.success = false;  // the caller stopped waiting: no model
+  if (!stopped && enough()) stop_reason = "confidence";
   result.stats.stop_reason = stop_reason;
   result.stats.progressive = progressive;
   result.stats.uniform_iterations = uniform_drawn;

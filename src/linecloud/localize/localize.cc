@@ -506,6 +506,11 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
   // model the best-ranked matches alone support.
   RansacResult<Sim3d> ransac = Ransac(estimator, options.ransac, prepared.data.ranking);
   result.stats = ransac.stats;
+  if (std::string_view(ransac.stats.stop_reason) == "stopped") {
+    result.failure =
+        fmt::format("stopped by the caller after {} RANSAC iterations", ransac.stats.iterations);
+    return result;
+  }
   if (!ransac.success) {
     result.failure = fmt::format("RANSAC found no pose in {} iterations (stopped by {})",
                                  ransac.stats.iterations, ransac.stats.stop_reason);

@@ -3,9 +3,15 @@
 #include <chrono>
 #include <cmath>
 
+#include <filesystem>
+
 #include <fmt/format.h>
+#include <sodium.h>
 
 #include "linecloud/features/sift_opencv.h"
+#include "linecloud/lifting/key.h"
+#include "linecloud/lifting/key_store.h"
+#include "linecloud/util/file.h"
 #include "linecloud/util/clock.h"
 #include "linecloud/util/error.h"
 
@@ -75,6 +81,23 @@ struct Localizer::State {
     }
   }
 };
+
+std::optional<std::string> UseIndexCache(const std::string& map_path, LocalizerOptions* options) {
+  if (options->image.approximate_from == 0) return std::nullopt;  // exact matching: no index
+  try {
+    options->index_cache_key = KeyStore(KeyStore::DefaultDirectory()).CacheSecret();
+  } catch (const Error& e) {
+    return std::string("descriptor index not cached: ") + e.what();
+  }
+  std::error_code ec;
+  const std::string abs = std::filesystem::absolute(map_path, ec).lexically_normal().string();
+  EnsureSodiumInitialized();
+  std::array<uint8_t, 16> hash;
+  crypto_generichash(hash.data(), hash.size(), reinterpret_cast<const unsigned char*>(abs.data()),
+                     abs.size(), nullptr, 0);
+  options->index_cache = JoinPaths(UserCacheDirectory("index"), ToHex(hash) + ".index");
+  return std::nullopt;
+}
 
 void LocalizerOptions::Check() const {
   image.sift.Check();
@@ -326,6 +349,12 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
     }
   }
   if (request.ransac_progress) options.ransac.progress = request.ransac_progress;
+  if (request.should_stop) {
+    if (request.should_stop()) {
+      return PastDeadline(method, std::move(result), "stopped by the caller before RANSAC", start);
+    }
+    options.ransac.should_stop = request.should_stop;
+  }
   if (!result.photos.empty() &&
       query.observations.size() < static_cast<size_t>(method.sample_size)) {
     // Too few matches for one sample: no pose (a photo of something else).

@@ -53,6 +53,15 @@ struct LocalizerOptions {
   void Check() const;
 };
 
+// The index cache policy the CLI and Python share: a map file's approximate
+// index is cached in this user's cache folder (~/.cache/linecloud/index/
+// HASH.index, HASH of the map's absolute path; never beside the map, a folder
+// others may write into), authenticated with the key store's cache secret
+// and checked against the map's descriptors when read. Sets `index_cache` /
+// `index_cache_key` unless matching is exact; returns why not when there is
+// no key store to authenticate with (the index is then built in memory).
+std::optional<std::string> UseIndexCache(const std::string& map_path, LocalizerOptions* options);
+
 // One photo of a request: exactly one source — the encoded file (JPEG or PNG
 // bytes, as an HTTP body brings it), a decoded grey image, or features the
 // caller extracted (keypoints in COLMAP's pixel convention, descriptors N×128
@@ -82,6 +91,10 @@ struct LocalizeRequest {
   std::optional<std::chrono::steady_clock::time_point> deadline;
   int threads = 0;           // this request's matching threads (0: the Localizer's image.threads)
   bool keep_images = false;  // keep each decoded photo in the result (overlays)
+  // Polled while RANSAC runs (about every 50 ms) and between stages: true
+  // stops the request, whose result is then "no pose" ("stopped by the
+  // caller"), e.g. Python's Ctrl-C.
+  std::function<bool()> should_stop;
   // RANSAC progress (iterations, needed, best inliers, seconds) and stage messages.
   std::function<void(int, int, int, double)> ransac_progress;
   std::function<void(const std::string&)> progress;

@@ -60,6 +60,47 @@ TEST(Localizer, AQueryGivesWhatLocalizeGives) {
   }
 }
 
+// A request's options replace the Localizer's for that request only, and a
+// caller that stops waiting (should_stop) ends RANSAC with no pose.
+TEST(Localizer, RequestOptionsAndStopping) {
+  const MethodInfo& method = FindMethod("p6L");
+  std::mt19937_64 rng(4);
+  const LocalizationInstance inst = RandomLocalizationInstance(method, {}, rng);
+  LineCloud cloud;
+  for (const auto& [id, line] : inst.line_map.lines) {
+    cloud.ids.push_back(id);
+    cloud.lines.push_back(line);
+  }
+  const Localizer localizer(cloud);
+  LocalizeRequest request;
+  request.options = localizer.options().localize;
+  request.options->ransac.max_iterations = 3;
+  request.options->ransac.min_iterations = 3;
+  request.options->ransac.progressive_sampling = false;
+  const LocalizerResult few = localizer.LocalizeQuery(inst.query, request);
+  EXPECT_LE(few.pose.stats.iterations, 3);
+  const LocalizerResult plain = localizer.LocalizeQuery(inst.query);
+  EXPECT_TRUE(plain.success()) << plain.reason;
+  EXPECT_GT(plain.pose.stats.iterations, 3) << "the request's options did not stay with it";
+  request.options->ransac.max_error = -1;
+  EXPECT_NE(ErrorOf([&] { localizer.LocalizeQuery(inst.query, request); }).find("threshold"),
+            std::string::npos);
+  // Stopped after a few polls: no pose, the reason says so.
+  LocalizeRequest stop;
+  stop.options = localizer.options().localize;
+  stop.options->ransac.min_iterations = stop.options->ransac.max_iterations = 10000000;
+  int polls = 0;
+  stop.should_stop = [&] { return ++polls > 3; };
+  const LocalizerResult stopped = localizer.LocalizeQuery(inst.query, stop);
+  EXPECT_FALSE(stopped.success());
+  EXPECT_NE(stopped.reason.find("stopped by the caller"), std::string::npos) << stopped.reason;
+  EXPECT_EQ(polls, 4);
+  EXPECT_LT(stopped.pose.stats.iterations, 10000000);
+  stop.should_stop = [] { return true; };
+  EXPECT_EQ(localizer.LocalizeQuery(inst.query, stop).reason,
+            "stopped by the caller before RANSAC");
+}
+
 struct Maupertuis {
   Reconstruction model;
   std::string database;

@@ -93,6 +93,12 @@ void ApplyMapLifting(const MapLifting& lifting, LiftModelOptions* options,
   };
 }
 
+LiftModelResult LiftModelWith(LiftModelOptions options, const MapLifting& lifting,
+                              std::function<void(size_t, double)> progress) {
+  ApplyMapLifting(lifting, &options, std::move(progress));
+  return LiftModel(options);
+}
+
 LineCloud LiftMap(const LiftingKey& key, std::span<const uint64_t> ids,
                   std::span<const Eigen::Vector3d> points, const MapLifting& lifting) {
   lifting.Check();

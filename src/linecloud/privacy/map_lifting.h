@@ -44,6 +44,13 @@ LiftingKey MapLiftingKey(const LiftingKey& key, const MapLifting& lifting);
 void ApplyMapLifting(const MapLifting& lifting, LiftModelOptions* options,
                      std::function<void(size_t round, double recovered)> progress = nullptr);
 
+// `lift` as the command line and Python run it: `options.model_dir` lifted
+// under the model's key with this lifting (its sparsification, attack-aware
+// selection and encoding replace those fields of `options`).
+LiftModelResult LiftModelWith(
+    LiftModelOptions options, const MapLifting& lifting,
+    std::function<void(size_t round, double recovered)> progress = nullptr);
+
 // The map of (ids, points): the kept points lifted under MapLiftingKey.
 LineCloud LiftMap(const LiftingKey& key, std::span<const uint64_t> ids,
                   std::span<const Eigen::Vector3d> points, const MapLifting& lifting);

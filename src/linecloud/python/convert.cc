@@ -157,6 +157,10 @@ py::dict CameraToDict(const Camera& camera) {
 }
 
 Rigid3d PoseFromDict(py::handle pose, const std::string& where) {
+  // A linecloud.Pose (or any object with to_dict()) stands for its dict.
+  if (!py::isinstance<py::dict>(pose) && py::hasattr(pose, "to_dict")) {
+    return PoseFromDict(pose.attr("to_dict")(), where);
+  }
   if (!py::isinstance<py::dict>(pose)) {
     throw py::type_error(
         fmt::format("{}: expected a pose dict {{\"q\": [w, x, y, z], \"t\": "

@@ -82,8 +82,11 @@ PyLocalizer MakeLocalizer(py::object cloud_or_path, std::optional<std::string> m
     return out;
   }
   out.source = py::str(py::module_::import("os").attr("fspath")(cloud_or_path));
+  // A map file's index is cached as the CLI caches it (the same file: built once for both).
+  LocalizerOptions cached = options;
+  UseIndexCache(out.source, &cached);
   py::gil_scoped_release release;
-  out.localizer = std::make_shared<const Localizer>(ReadLineCloud(out.source), options, out.source);
+  out.localizer = std::make_shared<const Localizer>(ReadLineCloud(out.source), cached, out.source);
   return out;
 }
 
@@ -129,6 +132,12 @@ Request MakeRequest(const PyLocalizer& self, const py::kwargs& kwargs, const std
     r.request.threads = static_cast<int>(*v);
   }
   r.with_inliers = BoolOption(o, "with_inliers", where).value_or(true);
+  // Ctrl-C: the request polls Python's signal handlers while it runs without
+  // the GIL (a handler that raises stops it; ResultToDict re-raises).
+  r.request.should_stop = [] {
+    py::gil_scoped_acquire gil;
+    return PyErr_CheckSignals() != 0;
+  };
   if (!rig.is_none()) {
     if (!py::isinstance<py::list>(rig) && !py::isinstance<py::tuple>(rig)) {
       throw py::type_error(where + ": cam_from_rig must be a list of pose dicts");
@@ -142,6 +151,7 @@ Request MakeRequest(const PyLocalizer& self, const py::kwargs& kwargs, const std
 }
 
 py::dict ResultToDict(const LocalizerResult& r, bool with_inliers) {
+  if (PyErr_Occurred()) throw py::error_already_set();  // a signal handler raised (Ctrl-C)
   return FromJson(LocalizerResultToJson(r, with_inliers)).cast<py::dict>();
 }
 // One photo or a list of them (a rig), each with its camera.

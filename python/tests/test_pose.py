@@ -1,0 +1,68 @@
+"""lc.Pose: one type for a pose (cam_from_world, q = (w, x, y, z)), read from and written to the
+dicts results and JSON use, and taken wherever a pose dict is."""
+
+import json
+
+import numpy as np
+import pytest
+
+import linecloud as lc
+
+
+def _random_pose(rng, scale=1.0):
+    q = rng.normal(size=4)
+    return lc.Pose(q, rng.normal(size=3) * 3, scale)
+
+
+def test_matrix_inverse_and_composition_agree():
+    rng = np.random.default_rng(5)
+    for scale in (1.0, 0.37, 4.2):
+        a, b = _random_pose(rng, scale), _random_pose(rng)
+        assert a.q[0] >= 0 and abs(np.linalg.norm(a.q) - 1) < 1e-15
+        np.testing.assert_allclose(a.R @ a.R.T, np.eye(3), atol=1e-14)
+        assert abs(np.linalg.det(a.R) - 1) < 1e-14
+        back = lc.Pose.from_matrix(a.matrix)
+        np.testing.assert_allclose(back.q, a.q, atol=1e-14)
+        np.testing.assert_allclose(back.t, a.t, atol=1e-13)
+        assert abs(back.scale - a.scale) < 1e-13
+        x = rng.normal(size=(5, 3))
+        np.testing.assert_allclose(a.inverse().transform(a.transform(x)), x, atol=1e-12)
+        np.testing.assert_allclose((a @ b).transform(x), a.transform(b.transform(x)), atol=1e-12)
+        np.testing.assert_allclose(a.transform(a.center[None]), [[0, 0, 0]], atol=1e-12)
+        d = a.to_dict()
+        json.dumps(d)  # serialisable as it is
+        assert ("scale" in d) == (scale != 1.0)
+        np.testing.assert_allclose(lc.Pose.from_dict(d).matrix, a.matrix, atol=0)
+
+
+def test_bad_poses_are_refused():
+    with pytest.raises(ValueError, match="q must be"):
+        lc.Pose([0, 0, 0, 0], [0, 0, 0])
+    with pytest.raises(ValueError, match="t must be"):
+        lc.Pose([1, 0, 0, 0], [0, 0])
+    with pytest.raises(ValueError, match="scale must be"):
+        lc.Pose([1, 0, 0, 0], [0, 0, 0], -1)
+    with pytest.raises(ValueError, match="check its 'success'"):
+        lc.Pose.from_dict({"success": False, "reason": "no"})
+
+
+def test_a_result_reads_as_a_pose_and_a_pose_is_taken_as_cam_from_rig(demo):
+    query = json.loads(sorted((demo / "rig_queries").glob("*.json"))[0].read_text())
+    localizer = lc.Localizer(demo / "map.lcm")
+    r = localizer.localize_query(query)
+    assert r["success"], r.get("reason")
+    pose = lc.Pose.from_dict(r)
+    np.testing.assert_allclose(pose.center, r["center"], atol=1e-9)
+    # A Pose where a pose dict goes: a rig's cam_from_rig.
+    first = query["cameras"][0] if "cameras" in query else None
+    assert first is not None
+    f = lc.Pose.from_dict({"q": [1, 0, 0, 0], "t": [0.1, 0, 0]})
+    keypoints = np.zeros((6, 2))
+    with pytest.raises(ValueError, match="descriptor"):  # the demo map has no descriptors
+        localizer.localize_features([keypoints, keypoints],
+                                    [np.zeros((6, 128), np.uint8)] * 2, [first, first],
+                                    method="m-p6L", cam_from_rig=[lc.Pose(), f])
+    with pytest.raises(TypeError, match="cam_from_rig"):
+        localizer.localize_features([keypoints, keypoints],
+                                    [np.zeros((6, 128), np.uint8)] * 2, [first, first],
+                                    method="m-p6L", cam_from_rig=[lc.Pose(), 3])
