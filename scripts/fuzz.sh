@@ -33,14 +33,35 @@ if [ -d "$shared_model" ]; then
 else
   echo "note: $shared_model absent; text fuzzer starts from an empty corpus"
 fi
-run() {
+# Two targets at a time (each fuzzer is one process on one core; the machine has two): every
+# target still gets its SECONDS of wall time. Findings go to build-san/artifacts/TARGET-*.
+artifacts=build-san/artifacts
+rm -rf "$artifacts" && mkdir -p "$artifacts"
+targets=()
+run() { targets+=("$1 $2"); }
+run_one() {
   local target=$1 dir=$2
-  echo "fuzzing $target for ${SECONDS_PER_TARGET}s"
   ./build-san/"$target" -max_total_time="$SECONDS_PER_TARGET" -rss_limit_mb=2048 \
-    -max_len=65536 -print_final_stats=1 "$dir" 2>&1 | grep -E "^(stat::number_of_executed_units|stat::peak_rss_mb|==|SUMMARY|Done)" || true
-  # libFuzzer exits non-zero and writes crash-* files on a finding.
-  if ls crash-* leak-* timeout-* oom-* >/dev/null 2>&1; then
-    echo "error: $target found a failing input:"; ls crash-* leak-* timeout-* oom-* 2>/dev/null
+    -max_len=65536 -print_final_stats=1 -artifact_prefix="$artifacts/$target-" "$dir" \
+    > "build-san/fuzz-$target.log" 2>&1 || true
+}
+run_all() {
+  for spec in "${targets[@]}"; do
+    set -- $spec
+    echo "fuzzing $1 for ${SECONDS_PER_TARGET}s"
+    run_one "$1" "$2" &
+    while [ "$(jobs -rp | wc -l)" -ge 2 ]; do wait -n || true; done
+  done
+  wait
+  for spec in "${targets[@]}"; do
+    set -- $spec
+    echo "== $1"
+    grep -E "^(stat::number_of_executed_units|stat::peak_rss_mb|==|SUMMARY|Done)" \
+      "build-san/fuzz-$1.log" || true
+  done
+  # libFuzzer exits non-zero and writes crash-/leak-/timeout-/oom- files on a finding.
+  if [ -n "$(ls -A "$artifacts")" ]; then
+    echo "error: a fuzzer found a failing input:"; ls "$artifacts"
     exit 1
   fi
 }
@@ -80,4 +101,5 @@ form=$'--B\r\nContent-Disposition: form-data; name="camera"\r\n\r\nPINHOLE 8 8 5
 printf 'POST /v1/maps/synth/localize HTTP/1.1\r\nHost: a\r\nAuthorization: Bearer root-secret\r\nContent-Type: multipart/form-data; boundary=B\r\nContent-Length: %d\r\n\r\n%s' "${#form}" "$form" > "$corpus/http/multipart"
 run index_cache_fuzzer "$corpus/cache"
 run http_fuzzer "$corpus/http"
+run_all
 echo "fuzzing finished: no crashes"

@@ -153,3 +153,23 @@ def test_solve_rejects_a_wrong_sample():
         lc.solve("p3P", bearings=np.ones((2, 3)), points=np.ones((3, 3)))
     with pytest.raises(TypeError, match="unknown option 'point'"):
         lc.solve("p3P", point=np.ones((3, 3)))
+
+
+def test_lines_in_a_wrong_layout_are_refused_naming_the_line():
+    """[X, v] instead of [v, w = X x v]: refused before RANSAC, not a misleading no-pose."""
+    rng = np.random.default_rng(8)
+    camera, truth, xy, points, _ = synthetic_instance(rng, n=60, outliers=0.0)
+    lines = lines_through(points, rng)
+    wrong = np.hstack([points, lines[:, :3]])  # a point and a direction
+    with pytest.raises(ValueError, match=r"lines\[0\] is not a Pluecker line \[v, w\]"):
+        lc.estimate_pose("p6L", xy, wrong, camera)
+    zero = lines.copy()
+    zero[5, :3] = 0
+    with pytest.raises(ValueError, match=r"lines\[5\]: the direction v is zero"):
+        lc.estimate_pose("p6L", xy, zero, camera)
+    # Any length of v is the same line: the same pose.
+    scaled = lines * rng.uniform(0.5, 3, size=(60, 1))
+    a, _ = lc.estimate_pose("p6L", xy, lines, camera, ransac={"seed": 1})
+    b, _ = lc.estimate_pose("p6L", xy, scaled, camera, ransac={"seed": 1})
+    np.testing.assert_allclose(a["q"], b["q"], atol=1e-9)
+    np.testing.assert_allclose(a["t"], b["t"], atol=1e-9)

@@ -117,12 +117,9 @@ void RunBenchLocalize(const LocalizeBenchArgs& args) {
                "(bound): the ratio of the two maps' bounds on the same queries\n";
 }
 
-}  // namespace
-
-void RegisterBenchCommand(CLI::App& app) {
+// `linecloud bench solvers`: the minimal solvers against their peers.
+void RegisterBenchSolvers(CLI::App* bench) {
   auto args = std::make_shared<BenchArgs>();
-  CLI::App* bench = app.add_subcommand("bench", "Benchmarks");
-  bench->require_subcommand(1);
   CLI::App* solvers = bench->add_subcommand(
       "solvers",
       "Every minimal solver (and its peers: OpenGV, Eigen) on fixed-seed noise-free "
@@ -136,7 +133,10 @@ void RegisterBenchCommand(CLI::App& app) {
       ->capture_default_str();
   solvers->add_option("--methods", args->options.methods, "Only these methods")->delimiter(',');
   solvers->callback([args] { RunBenchSolvers(*args); });
+}
 
+// `linecloud bench localize`: every method on seeded synthetic queries.
+void RegisterBenchLocalize(CLI::App* bench) {
   auto loc = std::make_shared<LocalizeBenchArgs>();
   CLI::App* localize = bench->add_subcommand(
       "localize",
@@ -169,7 +169,10 @@ void RegisterBenchCommand(CLI::App& app) {
   localize->add_flag("!--uniform", loc->options.localize.ransac.progressive_sampling,
                      "Uniform samples even when matches have scores (the reference for PROSAC)");
   localize->callback([loc] { RunBenchLocalize(*loc); });
+}
 
+// `linecloud bench match`: the approximate indexes against exact matching.
+void RegisterBenchMatch(CLI::App* bench) {
   auto match = std::make_shared<MatchBenchOptions>();
   auto match_json = std::make_shared<bool>(false);
   auto match_kinds =
@@ -210,32 +213,13 @@ void RegisterBenchCommand(CLI::App& app) {
     if (!match_real->empty()) match->real_images = RealBenchImages(*match_real);
     match->progress = [](const std::string& s) { std::cerr << s << "\n"; };
     const nlohmann::json rows = RunMatchBench(*match);
-    if (*match_json) {
-      std::cout << rows.dump(2) << "\n";
-      return;
-    }
-    std::cout << fmt::format(
-        "bench match: {} query descriptors ({}), ratio 0.8\n"
-        "| map size | index | build s | memory MB | ms, 1 thread | ms, 2 threads | exact ms "
-        "(extrapolated) | recall of exact matches |\n|---|---|---|---|---|---|---|---|\n",
-        match->queries,
-        match_real->empty() ? "synthetic: half noisy copies of map descriptors"
-                            : "real SIFT of fountain-P11 0000.jpg; map: the other photos");
-    for (const auto& r : rows) {
-      const auto& ms = r["ms_by_threads"];
-      auto at = [&](const char* t) {
-        return ms.contains(t) ? fmt::format("{:.0f}", ms[t].get<double>()) : std::string("-");
-      };
-      std::cout << fmt::format(
-          "| {} | {} | {:.1f} | {:.0f} | {} | {} | {:.0f} | {:.3f} ({} exact matches of {} "
-          "queries) |\n",
-          r["map_size"].get<size_t>(), r["index"].get<std::string>(),
-          r["index_build_s"].get<double>(), r["memory_mb"].get<double>(), at("1"), at("2"),
-          r["exact_ms_extrapolated"].get<double>(), r["recall"].get<double>(),
-          r["exact_matches"].get<size_t>(), r["recall_queries"].get<size_t>());
-    }
+    std::cout << (*match_json ? rows.dump(2) + "\n"
+                              : MatchBenchMarkdown(rows, match->queries, !match_real->empty()));
   });
+}
 
+// `linecloud bench photo`: a photo to a pose, per stage.
+void RegisterBenchPhoto(CLI::App* bench) {
   auto photo = std::make_shared<PhotoBenchOptions>();
   auto photo_json = std::make_shared<bool>(false);
   auto photo_features =
@@ -271,7 +255,10 @@ void RegisterBenchCommand(CLI::App& app) {
     const nlohmann::json report = RunPhotoBench(*photo);
     std::cout << (*photo_json ? report.dump(2) + "\n" : PhotoBenchMarkdown(report));
   });
+}
 
+// `linecloud bench attack`: the density attack per size.
+void RegisterBenchAttack(CLI::App* bench) {
   auto attack = std::make_shared<AttackBenchOptions>();
   CLI::App* a = bench->add_subcommand(
       "attack",
@@ -295,7 +282,10 @@ void RegisterBenchCommand(CLI::App& app) {
           100 * r["within_1_percent"].get<double>(), 100 * r["within_2_percent"].get<double>());
     }
   });
+}
 
+// `linecloud bench features`: our SIFT against COLMAP's extractor.
+void RegisterBenchFeatures(CLI::App* bench) {
   auto images = std::make_shared<std::vector<std::string>>();
   auto colmap = std::make_shared<std::string>("colmap");
   CLI::App* f = bench->add_subcommand(
@@ -321,6 +311,19 @@ void RegisterBenchCommand(CLI::App& app) {
           a.colmap_ms / mp, a.ours_ms / a.colmap_ms);
     }
   });
+}
+
+}  // namespace
+
+void RegisterBenchCommand(CLI::App& app) {
+  CLI::App* bench = app.add_subcommand("bench", "Benchmarks");
+  bench->require_subcommand(1);
+  RegisterBenchSolvers(bench);
+  RegisterBenchLocalize(bench);
+  RegisterBenchMatch(bench);
+  RegisterBenchPhoto(bench);
+  RegisterBenchAttack(bench);
+  RegisterBenchFeatures(bench);
 }
 
 }  // namespace linecloud

@@ -80,13 +80,7 @@ void RegisterEvalCommand(CLI::App& app) {
         if (l.Name() != "plain") o.liftings.push_back(l);
       }
     }
-    if (*tradeoff_quick) {
-      MapLifting uniform, balanced, resist;
-      uniform.sparsify = balanced.sparsify = 0.9;
-      balanced.sparsify_mode = SparsifyMode::kBalanced;
-      resist.resist_attack = 0.2;
-      o.liftings = {MapLifting{}, uniform, balanced, resist};
-    }
+    if (*tradeoff_quick) o.liftings = QuickTradeoffLiftings();
     o.progress = [](const std::string& s) { std::cout << "[eval privacy] " << s << std::endl; };
     RunPrivacyTradeoff(o);
     std::cout << ReadFileToString(JoinPaths(o.out_dir, "tradeoff.md"));

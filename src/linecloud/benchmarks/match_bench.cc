@@ -236,4 +236,28 @@ nlohmann::json RunMatchBench(const MatchBenchOptions& o) {
   return rows;
 }
 
+std::string MatchBenchMarkdown(const nlohmann::json& rows, size_t queries, bool real) {
+  std::string out = fmt::format(
+      "bench match: {} query descriptors ({}), ratio 0.8\n"
+      "| map size | index | build s | memory MB | ms, 1 thread | ms, 2 threads | exact ms "
+      "(extrapolated) | recall of exact matches |\n|---|---|---|---|---|---|---|---|\n",
+      queries,
+      real ? "real SIFT of fountain-P11 0000.jpg; map: the other photos"
+           : "synthetic: half noisy copies of map descriptors");
+  for (const auto& r : rows) {
+    const auto& ms = r["ms_by_threads"];
+    auto at = [&](const char* t) {
+      return ms.contains(t) ? fmt::format("{:.0f}", ms[t].get<double>()) : std::string("-");
+    };
+    out += fmt::format(
+        "| {} | {} | {:.1f} | {:.0f} | {} | {} | {:.0f} | {:.3f} ({} exact matches of {} "
+        "queries) |\n",
+        r["map_size"].get<size_t>(), r["index"].get<std::string>(),
+        r["index_build_s"].get<double>(), r["memory_mb"].get<double>(), at("1"), at("2"),
+        r["exact_ms_extrapolated"].get<double>(), r["recall"].get<double>(),
+        r["exact_matches"].get<size_t>(), r["recall_queries"].get<size_t>());
+  }
+  return out;
+}
+
 }  // namespace linecloud

@@ -67,4 +67,8 @@ RealDescriptors RealSiftDescriptors(const std::vector<std::string>& images, size
 // approximate matches on the recall queries, recall.
 nlohmann::json RunMatchBench(const MatchBenchOptions& options);
 
+// RunMatchBench's rows as the Markdown table `linecloud bench match` prints
+// (`real`: the descriptors were real photos').
+std::string MatchBenchMarkdown(const nlohmann::json& rows, size_t queries, bool real);
+
 }  // namespace linecloud

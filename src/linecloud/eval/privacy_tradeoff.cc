@@ -202,6 +202,14 @@ void TradeoffPlot(const std::string& path, const std::string& dataset, const ojs
 
 }  // namespace
 
+std::vector<MapLifting> QuickTradeoffLiftings() {
+  MapLifting uniform, balanced, resist;
+  uniform.sparsify = balanced.sparsify = 0.9;
+  balanced.sparsify_mode = SparsifyMode::kBalanced;
+  resist.resist_attack = 0.2;
+  return {MapLifting{}, uniform, balanced, resist};
+}
+
 std::vector<MapLifting> DefaultTradeoffLiftings() {
   std::vector<MapLifting> l = {MapLifting{}};
   for (const SparsifyMode mode : {SparsifyMode::kUniform, SparsifyMode::kBalanced}) {

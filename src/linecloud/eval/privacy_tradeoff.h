@@ -33,6 +33,8 @@ struct PrivacyTradeoffOptions {
 };
 
 std::vector<MapLifting> DefaultTradeoffLiftings();
+// The `--quick` preset: plain, uniform and balanced 90 %, resist 0.2.
+std::vector<MapLifting> QuickTradeoffLiftings();
 
 nlohmann::ordered_json RunPrivacyTradeoff(const PrivacyTradeoffOptions& options);
 

@@ -121,8 +121,22 @@ void AddCorrespondences(const MethodInfo& method, int camera, py::handle points2
     e->query.observations.push_back(o);
     const double* r = rows.data() + cols * i;
     if (method.lines) {
-      std::get<LineMap>(e->map).lines[id] =
-          PluckerLine(Eigen::Vector3d(r[0], r[1], r[2]), Eigen::Vector3d(r[3], r[4], r[5]));
+      // The C++ entry points' check (LineCloud::Check): a direction and its
+      // moment w = X x v. Any length of v is taken (the line is the same).
+      Eigen::Vector3d v(r[0], r[1], r[2]), w(r[3], r[4], r[5]);
+      const double length = v.norm();
+      if (!(length > 0)) Fail("{}: lines{}[{}]: the direction v is zero", kEstimate, suffix, i);
+      if (std::abs(length - 1) > 1e-12) {  // unit directions are taken bit for bit
+        v /= length;
+        w /= length;
+      }
+      if (!(std::abs(v.dot(w)) <= 1e-6 * std::max(1.0, w.norm()))) {
+        Fail(
+            "{}: lines{}[{}] is not a Pluecker line [v, w]: its moment w is not orthogonal to v "
+            "(v.w / |v| = {:.3g}); give w = X x v for a point X on the line",
+            kEstimate, suffix, i, v.dot(w));
+      }
+      std::get<LineMap>(e->map).lines[id] = PluckerLine(v, w);
     } else {
       std::get<PointMap>(e->map).points[id] = Eigen::Vector3d(r[0], r[1], r[2]);
     }
