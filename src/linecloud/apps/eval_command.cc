@@ -11,11 +11,10 @@
 
 namespace linecloud {
 
-void RegisterEvalCommand(CLI::App& app) {
-  CLI::App* eval = app.add_subcommand(
-      "eval", "The paper's experiments on a real image dataset (layout: docs/data.md)");
-  eval->require_subcommand(1);
+namespace {
 
+// `linecloud eval prepare`.
+void RegisterEvalPrepare(CLI::App* eval) {
   auto prepare_options = std::make_shared<EvalPrepareOptions>();
   CLI::App* prepare = eval->add_subcommand(
       "prepare",
@@ -43,7 +42,10 @@ void RegisterEvalCommand(CLI::App& app) {
   prepare->add_option("--seed", prepare_options->seed, "seed of the gravity noise")
       ->capture_default_str();
   prepare->callback([prepare_options] { PrepareEvaluation(*prepare_options); });
+}
 
+// `linecloud eval privacy`.
+void RegisterEvalPrivacy(CLI::App* eval) {
   auto tradeoff = std::make_shared<PrivacyTradeoffOptions>();
   auto tradeoff_quick = std::make_shared<bool>(false);
   CLI::App* privacy = eval->add_subcommand(
@@ -85,7 +87,10 @@ void RegisterEvalCommand(CLI::App& app) {
     RunPrivacyTradeoff(o);
     std::cout << ReadFileToString(JoinPaths(o.out_dir, "tradeoff.md"));
   });
+}
 
+// `linecloud eval colmap`.
+void RegisterEvalColmap(CLI::App* eval) {
   auto registration = std::make_shared<ColmapRegistrationOptions>();
   CLI::App* colmap = eval->add_subcommand(
       "colmap",
@@ -102,7 +107,10 @@ void RegisterEvalCommand(CLI::App& app) {
     RunColmapRegistration(*registration);
     std::cout << ReadFileToString(JoinPaths(registration->out_dir, "colmap_registration.md"));
   });
+}
 
+// `linecloud eval scores`.
+void RegisterEvalScores(CLI::App* eval) {
   auto scores = std::make_shared<MatchScoreOptions>();
   CLI::App* scores_cmd = eval->add_subcommand(
       "scores",
@@ -118,7 +126,10 @@ void RegisterEvalCommand(CLI::App& app) {
     const auto report = RunMatchScores(*scores);
     std::cout << report["histogram"].dump() << "\n" << report["top_share"].dump() << "\n";
   });
+}
 
+// `linecloud eval keys`.
+void RegisterEvalKeys(CLI::App* eval) {
   auto sweep = std::make_shared<KeySweepOptions>();
   auto sweep_features = std::make_shared<std::string>(SiftExtractorName(sweep->features));
   CLI::App* keys_cmd = eval->add_subcommand(
@@ -146,7 +157,10 @@ void RegisterEvalCommand(CLI::App& app) {
     if (!report["wrong"].empty())
       std::cout << "wrong successes: " << report["wrong"].dump(1) << "\n";
   });
+}
 
+// `linecloud eval run`.
+void RegisterEvalRun(CLI::App* eval) {
   auto run_options = std::make_shared<EvalRunOptions>();
   auto no_sweeps = std::make_shared<bool>(false);
   CLI::App* run = eval->add_subcommand(
@@ -198,6 +212,21 @@ void RegisterEvalCommand(CLI::App& app) {
     }
     RunEvaluation(o);
   });
+}
+
+}  // namespace
+
+void RegisterEvalCommand(CLI::App& app) {
+  CLI::App* eval = app.add_subcommand(
+      "eval", "The paper's experiments on a real image dataset (layout: docs/data.md)");
+  eval->require_subcommand(1);
+
+  RegisterEvalPrepare(eval);
+  RegisterEvalPrivacy(eval);
+  RegisterEvalColmap(eval);
+  RegisterEvalScores(eval);
+  RegisterEvalKeys(eval);
+  RegisterEvalRun(eval);
 }
 
 }  // namespace linecloud

@@ -8,11 +8,10 @@
 
 namespace linecloud {
 
-int RunLinecloud(int argc, const char* const* argv) {
-  CLI::App app{
-      "linecloud: privacy-preserving image-based localization with line "
-      "clouds (Speciale et al., CVPR 2019)",
-      "linecloud"};
+namespace {
+
+// Every command, and the key store guarded from every output.
+void RegisterCommands(CLI::App& app) {
   app.require_subcommand(1);
   // No command writes into the user's key store (a --out, --ply or cache
   // naming a key, directly or through a link): util/file.h.
@@ -37,31 +36,47 @@ int RunLinecloud(int argc, const char* const* argv) {
   RegisterServeCommand(app);
   RegisterAttackCommand(app);
   RegisterAuditCommand(app);
-  if (argc >= 2 && argv[1][0] != '-') {
-    const std::string name = argv[1];
-    bool known = false;
-    std::string names;
-    for (const CLI::App* sub : app.get_subcommands({})) {
-      known |= sub->get_name() == name;
-      names += (names.empty() ? "" : ", ") + sub->get_name();
-    }
-    if (!known) {
-      std::cerr << "error: unknown command '" << name << "' (commands: " << names << ")\n";
-      return 2;
+}
+
+// An unknown command word, named with the commands there are (CLI11 would
+// take it for an extra argument).
+bool RefuseUnknownCommand(const CLI::App& app, int argc, const char* const* argv) {
+  if (argc < 2 || argv[1][0] == '-') return false;
+  const std::string name = argv[1];
+  std::string names;
+  for (const CLI::App* sub : app.get_subcommands({})) {
+    if (sub->get_name() == name) return false;
+    names += (names.empty() ? "" : ", ") + sub->get_name();
+  }
+  std::cerr << "error: unknown command '" << name << "' (commands: " << names << ")\n";
+  return true;
+}
+
+// Outputs named on the command line are checked before any work: one inside
+// the key store (directly or through a link) is refused at once.
+void CheckOutputsFirst(int argc, const char* const* argv) {
+  for (int i = 1; i + 1 < argc; ++i) {
+    const std::string_view flag = argv[i];
+    if (flag != "--out" && flag != "--ply" && flag != "--overlay") continue;
+    try {
+      CheckNotProtected(argv[i + 1]);
+    } catch (const Error& e) {
+      Fail("{} {}", flag, e.what());
     }
   }
+}
+
+}  // namespace
+
+int RunLinecloud(int argc, const char* const* argv) {
+  CLI::App app{
+      "linecloud: privacy-preserving image-based localization with line "
+      "clouds (Speciale et al., CVPR 2019)",
+      "linecloud"};
+  RegisterCommands(app);
+  if (RefuseUnknownCommand(app, argc, argv)) return 2;
   try {
-    // Outputs named on the command line are checked before any work: one
-    // inside the key store (directly or through a link) is refused at once.
-    for (int i = 1; i + 1 < argc; ++i) {
-      const std::string_view flag = argv[i];
-      if (flag != "--out" && flag != "--ply" && flag != "--overlay") continue;
-      try {
-        CheckNotProtected(argv[i + 1]);
-      } catch (const Error& e) {
-        Fail("{} {}", flag, e.what());
-      }
-    }
+    CheckOutputsFirst(argc, argv);
     app.parse(argc, argv);
   } catch (const CLI::CallForHelp& e) {
     return app.exit(e);

@@ -45,9 +45,8 @@ void RunServe(const ServeOptions& options) {
   std::cerr << "stopped" << std::endl;
 }
 
-}  // namespace
-
-void RegisterServeCommand(CLI::App& app) {
+// `linecloud serve`: the HTTP service.
+void RegisterServe(CLI::App& app) {
   auto o = std::make_shared<ServeOptions>();
   CLI::App* cmd = app.add_subcommand(
       "serve",
@@ -95,10 +94,12 @@ void RegisterServeCommand(CLI::App& app) {
     flags->Apply(&o->localizer);
     RunServe(*o);
   });
+}
 
+// `linecloud bench serve`: the load test (the bench command is registered first).
+void RegisterBenchServe(CLI::App& app) {
   auto load = std::make_shared<LoadOptions>();
   auto load_json = std::make_shared<bool>(false);
-  // `linecloud bench serve` (the bench command is registered first).
   CLI::App* bench = app.get_subcommand("bench")->add_subcommand(
       "serve",
       "Load test of the service (in this process, 127.0.0.1): client features and photos at "
@@ -136,7 +137,10 @@ void RegisterServeCommand(CLI::App& app) {
     const nlohmann::json r = RunLoad(*load);
     std::cout << (*load_json ? r.dump(2) + "\n" : LoadMarkdown(r));
   });
+}
 
+// `linecloud features`: a client-features body.
+void RegisterFeatures(CLI::App& app) {
   auto features = std::make_shared<std::array<std::string, 4>>();
   auto features_max = std::make_shared<int>(8192);
   CLI::App* fc = app.add_subcommand(
@@ -156,7 +160,10 @@ void RegisterServeCommand(CLI::App& app) {
         image, camera, ParseSiftExtractor(extractor, "--features"), *features_max);
     WriteFileAtomically(out, [&](std::ostream& os) { os << body; });
   });
+}
 
+// `linecloud token-hash`: what TOKENS.json stores.
+void RegisterTokenHash(CLI::App& app) {
   CLI::App* hash = app.add_subcommand(
       "token-hash", "The SHA-256 of a bearer token, as TOKENS.json stores it (read from stdin)");
   hash->callback([] {
@@ -164,6 +171,15 @@ void RegisterServeCommand(CLI::App& app) {
     std::getline(std::cin, t);
     std::cout << TokenSha256Hex(t) << "\n";
   });
+}
+
+}  // namespace
+
+void RegisterServeCommand(CLI::App& app) {
+  RegisterServe(app);
+  RegisterBenchServe(app);
+  RegisterFeatures(app);
+  RegisterTokenHash(app);
 }
 
 }  // namespace linecloud
