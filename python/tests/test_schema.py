@@ -128,6 +128,13 @@ def test_every_option_is_taken_and_checked_by_python_and_the_cli(demo, tmp_path)
             assert f"{o['flag']}: {name} must be" in out.stderr, (name, out.stderr)
     with pytest.raises(TypeError, match="unexpected keyword argument 'thresold'"):
         lc.Localizer(demo / "map.lcm", thresold=3)
+    # A switch takes no value (--uniform-sampling=0 used to turn it on).
+    for flag in ("--uniform-sampling=0", "--no-refine=false", "--refine-focal=banana"):
+        out = subprocess.run([str(_binary()), *map(str, base), flag], capture_output=True,
+                             text=True, check=False)
+        assert out.returncode != 0 and flag.split("=")[0].lstrip("-") in out.stderr, (flag,
+                                                                                     out.stderr)
+        assert "internal" not in out.stderr, out.stderr
 
 
 # --- the service: a real `linecloud serve` on 127.0.0.1 ---------------------------------
@@ -231,7 +238,22 @@ def test_every_request_option_is_taken_and_checked_by_the_service(fountain, foun
         status, answer = server.post("/v1/maps/fountain/localize",
                                      json.dumps(dict(body, thresold=2)).encode(),
                                      "application/json")
-        assert status == 400 and "unknown option 'thresold'" in answer["error"], answer
+        assert status == 400 and 'unknown option "thresold"' in answer["error"], answer
+        # An outsider's findings: a field name with a NUL is shown escaped; a huge value is
+        # cut short; an impossible combination is refused before any work, naming the options.
+        status, answer = server.post("/v1/maps/fountain/localize",
+                                     json.dumps(dict(body, **{"seed\u0000x": 1})).encode(),
+                                     "application/json")
+        assert status == 400 and '"seed\\u0000x"' in answer["error"], answer
+        status, answer = server.post("/v1/maps/fountain/localize",
+                                     json.dumps(dict(body, threshold="9" * 100000)).encode(),
+                                     "application/json")
+        assert status == 400 and len(answer["error"]) < 200, answer
+        status, answer = server.post("/v1/maps/fountain/localize",
+                                     json.dumps(dict(body, max_iterations=1)).encode(),
+                                     "application/json")
+        assert status == 400, answer
+        assert answer["error"].startswith("body: RANSAC iterations: min_iterations (10)"), answer
     finally:
         server.close()
 

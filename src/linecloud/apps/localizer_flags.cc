@@ -21,8 +21,9 @@ void LocalizerFlags::Add(CLI::App* cmd, std::span<const OptionScope> scopes,
       // A switch off by default turns it on; one on by default is --no-NAME.
       const bool on = spec.Default().get<bool>();
       cmd->add_flag_function(
-          spec.Flag(), [this, name](std::int64_t) { switches_.insert(name); },
-          spec.help + (on ? " (on by default; this flag turns it off)" : ""));
+             spec.Flag(), [this, name](std::int64_t) { switches_.insert(name); },
+             spec.help + (on ? " (on by default; this flag turns it off)" : ""))
+          ->disable_flag_override();  // a switch takes no value: --no-refine=false is an error
       continue;
     }
     std::string help = spec.help;

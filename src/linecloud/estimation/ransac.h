@@ -77,8 +77,10 @@ struct RansacOptions {
       Fail("RANSAC time budget must be a non-negative number of seconds, got {}", max_seconds);
     }
     if (min_iterations < 0 || max_iterations < 1 || min_iterations > max_iterations) {
-      Fail("RANSAC iterations: need 0 <= min ({}) <= max ({}) and max >= 1", min_iterations,
-           max_iterations);
+      Fail(
+          "RANSAC iterations: min_iterations ({}) must be at least 0 and at most max_iterations "
+          "({}), which must be at least 1",
+          min_iterations, max_iterations);
     }
   }
 };

@@ -258,8 +258,16 @@ std::string Number(double v) {
   return fmt::format("{}", v);
 }
 
+// A value or name as the error shows it: JSON-escaped (no raw NUL or line
+// break) and at most ~80 characters.
+std::string Shown(const json& value) {
+  std::string text = value.dump(-1, ' ', false, json::error_handler_t::replace);
+  if (text.size() > 80) text = text.substr(0, 77) + "...";
+  return text;
+}
+
 [[noreturn]] void Expected(const OptionSpec& spec, const json& value, std::string_view where) {
-  Fail("{}: {} must be {}, got {}", where, spec.name, spec.Describe(), value.dump());
+  Fail("{}: {} must be {}, got {}", where, spec.name, spec.Describe(), Shown(value));
 }
 
 bool InRange(const OptionSpec& spec, double v) {
@@ -281,9 +289,16 @@ json CheckedValue(const OptionSpec& spec, const json& value, std::string_view wh
       return value;
     case OptionType::kInteger: {
       if (!value.is_number()) Expected(spec, value, where);
+      if (value.is_number_unsigned()) {  // exact: no rounding through a double (2^53 + 1)
+        const uint64_t u = value.get<uint64_t>();
+        if (u > static_cast<uint64_t>(spec.max) || static_cast<double>(u) < spec.min) {
+          Expected(spec, value, where);
+        }
+        return value;
+      }
       const double v = value.get<double>();
       if (v != std::floor(v) || !InRange(spec, v)) Expected(spec, value, where);
-      return value.is_number_unsigned() ? value : json(static_cast<int64_t>(v));
+      return json(static_cast<int64_t>(v));
     }
     case OptionType::kNumber:
       if (!value.is_number() || !InRange(spec, value.get<double>())) Expected(spec, value, where);
@@ -368,20 +383,20 @@ json ParseOptionText(const OptionSpec& spec, std::string_view text, std::string_
   if (spec.nullable && s == "null") return json();
   switch (spec.type) {
     case OptionType::kBool:
-      if (s == "true" || s == "1") return true;
-      if (s == "false" || s == "0") return false;
+      if (s == "true") return true;
+      if (s == "false") return false;
       break;
     case OptionType::kInteger:
     case OptionType::kNumber: {
-      if (s.empty() || s.size() > 64 || std::isspace(static_cast<unsigned char>(s[0]))) break;
-      char* end = nullptr;
-      errno = 0;
-      const double v = std::strtod(s.c_str(), &end);
-      if (end != s.c_str() + s.size() || errno == ERANGE) break;
-      if (spec.type == OptionType::kInteger && v == std::floor(v) && v >= 0 && v <= kMaxInteger) {
-        return json(static_cast<uint64_t>(v));
+      // A JSON number and nothing else (no hex, "+3", "3.", "nan", spaces):
+      // the text means what the same value in a JSON body means.
+      if (s.empty() || s.size() > 64 || std::isspace(static_cast<unsigned char>(s.front())) ||
+          std::isspace(static_cast<unsigned char>(s.back()))) {
+        break;
       }
-      return json(v);
+      const json v = json::parse(s, nullptr, false);
+      if (v.is_discarded() || !v.is_number()) break;
+      return v;
     }
     case OptionType::kChoice:
       return json(s);
@@ -417,7 +432,7 @@ void SetLocalizerOptions(LocalizerOptions* options, const json& fields,
         if (std::find(scopes.begin(), scopes.end(), s.scope) != scopes.end())
           known.push_back(s.name);
       }
-      Fail("{}: unknown option '{}' (known: {})", where, key, fmt::join(known, ", "));
+      Fail("{}: unknown option {} (known: {})", where, Shown(json(key)), fmt::join(known, ", "));
     }
     if (std::find(scopes.begin(), scopes.end(), spec->scope) == scopes.end()) {
       Fail("{}: '{}' is fixed when the map is loaded, not set per request", where, key);

@@ -120,6 +120,25 @@ TEST(LocalizerOptionTable, BadValuesNameTheOptionAndItsRange) {
             std::string::npos);
   EXPECT_NE(ErrorOf([&] { ParseOptionText(threshold, "", "x"); }), "");
   EXPECT_NE(ErrorOf([&] { ParseOptionText(threshold, " 3", "x"); }), "");
+  // Text means what JSON means: no hex, signs, bare dots, nan, 1/0 for switches.
+  for (const char* text : {"0x10", "+3", "3.", ".5", "nan", "inf", "3 ", "1e400"}) {
+    EXPECT_NE(ErrorOf([&] {
+                LocalizerOptions o;
+                SetLocalizerOption(&o, threshold, ParseOptionText(threshold, text, "x"), "x");
+              }),
+              "")
+        << text;
+  }
+  EXPECT_NE(ErrorOf([&] { ParseOptionText(*FindLocalizerOption("refine"), "1", "x"); }), "");
+  // Whole numbers are checked exactly (2^53 + 1 is not rounded into the range).
+  EXPECT_NE(error("seed", json(uint64_t{9007199254740993u})).find("seed must be"),
+            std::string::npos);
+  EXPECT_EQ(error("seed", json(uint64_t{9007199254740992u})), "");
+  EXPECT_EQ(error("seed", 0), "");  // back to the default for the check below
+  // Errors show a bad value escaped and cut short.
+  EXPECT_EQ(error("features", std::string(1 << 20, 'x')).size(), 130u);  // 50 + 80
+  EXPECT_EQ(error("features", std::string("a\0b", 3)),
+            "body: features must be one of colmap, opencv, got \"a\\u0000b\"");
   EXPECT_EQ(ParseOptionText(*FindLocalizerOption("refine"), "false", "x"), json(false));
   EXPECT_EQ(ParseOptionText(*FindLocalizerOption("min_inliers"), "null", "x"), json());
   EXPECT_EQ(ParseOptionText(*FindLocalizerOption("map_gravity"), "0,-1,0", "x"),
@@ -141,7 +160,7 @@ TEST(LocalizerOptionTable, AnObjectOfOptionsKeepsToItsScopes) {
   const std::string unknown = ErrorOf([&] {
     SetLocalizerOptions(&o, {{"thresold", 3}}, kRequest, "body");
   });
-  EXPECT_NE(unknown.find("body: unknown option 'thresold' (known: threshold, seed"),
+  EXPECT_NE(unknown.find("body: unknown option \"thresold\" (known: threshold, seed"),
             std::string::npos)
       << unknown;
   EXPECT_EQ(unknown.find("features"), std::string::npos) << "only this scope's names";

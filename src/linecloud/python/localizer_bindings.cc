@@ -126,7 +126,10 @@ Request MakeRequest(const PyLocalizer& self, const py::kwargs& kwargs, const std
     SetLocalizerOptions(&options, nlohmann::json{{key, value}}, kRequestScope, where);
     any = true;
   }
-  if (any) r.request.options = options.localize;
+  if (any) {
+    options.localize.Check();  // combinations (min_iterations <= max_iterations) before any work
+    r.request.options = options.localize;
+  }
   if (auto v = IntegerOption(o, "threads", where)) {
     if (*v < 1 || *v > 1024) Fail("{}: threads must be in [1, 1024], got {}", where, *v);
     r.request.threads = static_cast<int>(*v);

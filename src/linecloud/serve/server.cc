@@ -411,10 +411,20 @@ struct Server::Impl {
       r.method = method;
       if (!method.empty()) FindMethod(method);
       if (!gravity.empty()) r.gravity = ParseDirection(gravity, "gravity");
-      if (!fields.empty()) {
+      // null is "not set": the map's value (as Python's None), never the table's default.
+      json set = json::object();
+      for (const auto& [key, value] : fields.items()) {
+        if (!value.is_null()) set[key] = value;
+      }
+      if (!set.empty()) {
         LocalizerOptions o = map.localizer->options();
         constexpr OptionScope kRequest[] = {OptionScope::kRequest};
-        SetLocalizerOptions(&o, fields, kRequest, where);
+        SetLocalizerOptions(&o, set, kRequest, where);
+        try {
+          o.localize.Check();  // combinations (min_iterations <= max_iterations) before any work
+        } catch (const Error& e) {
+          Fail("{}: {}", where, e.what());
+        }
         r.options = o.localize;
       }
     } catch (const Error& e) {
@@ -428,7 +438,8 @@ struct Server::Impl {
     return r;
   }
 
-  void CheckPhotoHeader(const std::string& bytes, const Camera& camera, const std::string& name) {
+  void CheckPhotoHeader(const std::string& bytes, const Camera& camera, const std::string& name,
+                        const LoadedMap& map) {
     const std::span<const uint8_t> data(reinterpret_cast<const uint8_t*>(bytes.data()),
                                         bytes.size());
     ImageHeader header;
@@ -448,13 +459,16 @@ struct Server::Impl {
     } catch (const Error& e) {
       Throw(400, e.what());
     }
-    CheckPhotoMemory(header.width, header.height, name);
+    CheckPhotoMemory(header.width, header.height, name, map);
   }
 
   // 413 when SIFT's scale space for a photo this size (after downscaling
   // to max_image_size) alone exceeds the budget; others wait for room.
-  void CheckPhotoMemory(uint64_t width, uint64_t height, const std::string& name) const {
-    const size_t need = SiftScaleSpaceBytes(static_cast<int>(width), static_cast<int>(height));
+  void CheckPhotoMemory(uint64_t width, uint64_t height, const std::string& name,
+                        const LoadedMap& map) const {
+    // With the map's SIFT options: its max_image_size decides the downscaling.
+    const size_t need = SiftScaleSpaceBytes(static_cast<int>(width), static_cast<int>(height),
+                                            map.localizer->options().image.sift);
     if (need > BudgetBytes()) {
       Throw(413, fmt::format("{}: SIFT on a {}x{} photo needs {} MB, over the server's memory "
                              "budget of {} MB: send a smaller photo",
@@ -498,7 +512,7 @@ struct Server::Impl {
         Throw(400, std::string("camera: ") + e.what());
       }
       auto bytes = std::make_shared<std::string>(*part("image"));
-      CheckPhotoHeader(*bytes, camera, "image");
+      CheckPhotoHeader(*bytes, camera, "image", *map);
       // The other parts: request options, as text (a part that is none fails).
       json fields = json::object();
       for (const auto& [name, value] : req.parts) {
@@ -728,7 +742,7 @@ struct Server::Impl {
     const bool encoded =
         bytes->size() > 8 && ((b[0] == 0xFF && b[1] == 0xD8) || (b[0] == 0x89 && b[1] == 'P'));
     if (encoded) {
-      CheckPhotoHeader(*bytes, camera, "imageBytes");
+      CheckPhotoHeader(*bytes, camera, "imageBytes", *map);
     } else {
       // Raw pixels: GRAY8 or RGBA32 of `size`.
       const std::string format = c.contains("imageFormat") && c["imageFormat"].is_string()
@@ -736,7 +750,7 @@ struct Server::Impl {
                                      : "";
       const uint64_t n = camera.width * camera.height;
       if (n > options.max_pixels) Throw(413, "imageBytes: the image exceeds the pixel cap");
-      CheckPhotoMemory(camera.width, camera.height, "imageBytes");
+      CheckPhotoMemory(camera.width, camera.height, "imageBytes", *map);
       const int channels = format == "GRAY8" ? 1 : format == "RGBA32" ? 4 : 0;
       if (channels == 0) Throw(400, "imageBytes: neither JPEG / PNG nor GRAY8 / RGBA32 pixels");
       if (bytes->size() != n * channels) {
