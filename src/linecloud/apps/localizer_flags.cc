@@ -50,27 +50,15 @@ void LocalizerFlags::Add(CLI::App* cmd, std::span<const OptionScope> scopes,
   }
 }
 
-nlohmann::json LocalizerFlags::Given() const {
-  nlohmann::json out = nlohmann::json::object();
-  LocalizerOptions probe;
-  for (const std::string& name : switches_) {
-    const OptionSpec& spec = *FindLocalizerOption(name);
-    out[name] = !spec.Default().get<bool>();
-  }
-  for (const auto& [name, text] : text_) {
-    const OptionSpec& spec = *FindLocalizerOption(name);
-    const nlohmann::json value = ParseOptionText(spec, text, spec.Flag());
-    SetLocalizerOption(&probe, spec, value, spec.Flag());  // checked here, naming the flag
-    out[name] = value;
-  }
-  return out;
-}
-
 void LocalizerFlags::Apply(LocalizerOptions* options) const {
-  const nlohmann::json given = Given();  // named: items() of a temporary would dangle
-  for (const auto& [name, value] : given.items()) {
-    const OptionSpec& spec = *FindLocalizerOption(name);
-    SetLocalizerOption(options, spec, value, spec.Flag());
+  // In the table's order (exact_matching after approximate_from, as everywhere).
+  for (const OptionSpec& spec : LocalizerOptionTable()) {
+    if (switches_.count(spec.name)) {
+      SetLocalizerOption(options, spec, !spec.Default().get<bool>(), spec.Flag());
+    } else if (const auto it = text_.find(spec.name); it != text_.end()) {
+      SetLocalizerOption(options, spec, ParseOptionText(spec, it->second, spec.Flag()),
+                         spec.Flag());
+    }
   }
 }
 

@@ -20,9 +20,8 @@ class LocalizerFlags {
   // One flag per option of `scopes` not in `skip` (the command's own flags).
   void Add(CLI::App* cmd, std::span<const OptionScope> scopes,
            const std::set<std::string>& skip = {});
-  // The options given on the command line, by name (JSON values, checked).
-  nlohmann::json Given() const;
-  // Sets the given options on `options`; a bad value fails naming its flag.
+  // Sets the options given on the command line on `options`, in the table's
+  // order; a bad value fails naming its flag.
   void Apply(LocalizerOptions* options) const;
 
  private:

@@ -270,13 +270,13 @@ LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
   std::vector<Rigid3d> rig;
   for (const QueryPhoto& photo : photos) {
     if (request.deadline && Clock::now() >= *request.deadline) {
-      return PastDeadline(method, std::move(result),
-                          "the request's deadline passed before reading " + photo.name, start);
+      return EndedEarly(method, std::move(result),
+                        "the request's deadline passed before reading " + photo.name, start);
     }
     try {
       result.photos.push_back(MatchPhoto(photo, request));
     } catch (const DeadlinePassed& e) {
-      return PastDeadline(method, std::move(result), e.what(), start);
+      return EndedEarly(method, std::move(result), e.what(), start);
     }
     rig.push_back(photo.cam_from_rig);
     const ImageQueryTimes& t = result.photos.back().times;
@@ -313,8 +313,8 @@ LocalizerResult Localizer::LocalizeFeatures(const SiftFeatures& features, const 
   return LocalizePhotos(std::span(&photo, 1), request);
 }
 
-LocalizerResult Localizer::PastDeadline(const MethodInfo& method, LocalizerResult result,
-                                        const std::string& reason, Clock::time_point start) const {
+LocalizerResult Localizer::EndedEarly(const MethodInfo& method, LocalizerResult result,
+                                      const std::string& reason, Clock::time_point start) const {
   result.method = method.name;
   result.status = LocalizerStatus::kNoPose;
   result.reason = reason;
@@ -342,8 +342,8 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
   if (request.deadline) {
     const double left = std::chrono::duration<double>(*request.deadline - Clock::now()).count();
     if (left <= 0)
-      return PastDeadline(method, std::move(result), "the request's deadline passed before RANSAC",
-                          start);
+      return EndedEarly(method, std::move(result), "the request's deadline passed before RANSAC",
+                        start);
     if (options.ransac.max_seconds <= 0 || options.ransac.max_seconds > left) {
       options.ransac.max_seconds = left;
     }
@@ -351,7 +351,7 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
   if (request.ransac_progress) options.ransac.progress = request.ransac_progress;
   if (request.should_stop) {
     if (request.should_stop()) {
-      return PastDeadline(method, std::move(result), "stopped by the caller before RANSAC", start);
+      return EndedEarly(method, std::move(result), "stopped by the caller before RANSAC", start);
     }
     options.ransac.should_stop = request.should_stop;
   }

@@ -91,7 +91,7 @@ struct LocalizeRequest {
   std::optional<std::chrono::steady_clock::time_point> deadline;
   int threads = 0;           // this request's matching threads (0: the Localizer's image.threads)
   bool keep_images = false;  // keep each decoded photo in the result (overlays)
-  // Polled while RANSAC runs (about every 50 ms) and between stages: true
+  // Polled once before RANSAC and about every 50 ms while it runs: true
   // stops the request, whose result is then "no pose" ("stopped by the
   // caller"), e.g. Python's Ctrl-C.
   std::function<bool()> should_stop;
@@ -186,10 +186,11 @@ class Localizer {
   LocalizerResult Finish(const MethodInfo& method, LocalizerResult result,
                          const LocalizeRequest& request, std::string_view source,
                          std::chrono::steady_clock::time_point start) const;
-  // "No pose": the request's deadline passed (`reason` names the stage).
-  LocalizerResult PastDeadline(const MethodInfo& method, LocalizerResult result,
-                               const std::string& reason,
-                               std::chrono::steady_clock::time_point start) const;
+  // "No pose" before the request's end: its deadline passed or its caller
+  // stopped it (`reason` names the stage).
+  LocalizerResult EndedEarly(const MethodInfo& method, LocalizerResult result,
+                             const std::string& reason,
+                             std::chrono::steady_clock::time_point start) const;
 };
 
 }  // namespace linecloud

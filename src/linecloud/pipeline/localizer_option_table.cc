@@ -72,13 +72,9 @@ std::vector<OptionSpec> MakeTable() {
   std::vector<OptionSpec> t;
   // --- the map's: SIFT, matching, the index, threads ---
   {
-    OptionSpec s;
-    s.name = "features";
-    s.type = OptionType::kChoice;
-    s.scope = map;
-    s.help =
-        "SIFT extractor: colmap (COLMAP 3.8's CPU extractor's features, to the bit) or opencv "
-        "(OpenCV's SIFT, close to them)";
+    OptionSpec s = Spec("features", OptionType::kChoice, map,
+                        "SIFT extractor: colmap (COLMAP 3.8's CPU extractor's features, to the "
+                        "bit) or opencv (OpenCV's SIFT, close to them)");
     s.choices = {"colmap", "opencv"};
     s.get = [](const LocalizerOptions& o) {
       return json(SiftExtractorName(o.image.sift.extractor));
@@ -113,13 +109,9 @@ std::vector<OptionSpec> MakeTable() {
       "none is, as exact_matching)",
       0, kMaxInteger, [](LocalizerOptions& o) -> size_t& { return o.image.approximate_from; }));
   {
-    OptionSpec s;
-    s.name = "exact_matching";
-    s.type = OptionType::kBool;
-    s.scope = map;
-    s.help =
-        "Match exactly even on large maps (by default maps of approximate_from descriptors or "
-        "more use the approximate index)";
+    OptionSpec s = Spec("exact_matching", OptionType::kBool, map,
+                        "Match exactly even on large maps (by default maps of approximate_from "
+                        "descriptors or more use the approximate index)");
     s.get = [](const LocalizerOptions& o) { return json(o.image.approximate_from == 0); };
     s.set = [](LocalizerOptions& o, const json& v) {
       if (v.get<bool>()) {
@@ -428,10 +420,7 @@ void SetLocalizerOptions(LocalizerOptions* options, const json& fields,
     const OptionSpec* spec = FindLocalizerOption(key);
     if (!spec) {
       std::vector<std::string> known(other_keys.begin(), other_keys.end());
-      for (const OptionSpec& s : LocalizerOptionTable()) {
-        if (std::find(scopes.begin(), scopes.end(), s.scope) != scopes.end())
-          known.push_back(s.name);
-      }
+      for (const std::string& name : LocalizerOptionNames(scopes)) known.push_back(name);
       Fail("{}: unknown option {} (known: {})", where, Shown(json(key)), fmt::join(known, ", "));
     }
     if (std::find(scopes.begin(), scopes.end(), spec->scope) == scopes.end()) {
@@ -439,6 +428,14 @@ void SetLocalizerOptions(LocalizerOptions* options, const json& fields,
     }
     SetLocalizerOption(options, *spec, value, where);
   }
+}
+
+std::vector<std::string> LocalizerOptionNames(std::span<const OptionScope> scopes) {
+  std::vector<std::string> names;
+  for (const OptionSpec& s : LocalizerOptionTable()) {
+    if (std::find(scopes.begin(), scopes.end(), s.scope) != scopes.end()) names.push_back(s.name);
+  }
+  return names;
 }
 
 json LocalizerOptionsToJson(const LocalizerOptions& options) {

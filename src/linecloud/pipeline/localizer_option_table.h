@@ -58,6 +58,8 @@ struct OptionSpec {
 const std::vector<OptionSpec>& LocalizerOptionTable();
 // The option named `name`, or nullptr.
 const OptionSpec* FindLocalizerOption(std::string_view name);
+// The names of the options of `scopes`, in the table's order (error messages).
+std::vector<std::string> LocalizerOptionNames(std::span<const OptionScope> scopes);
 
 // Checks `value` (type, range, choices; errors "WHERE: NAME must be ...,
 // got ...") and sets it on `options`.

@@ -43,10 +43,7 @@ nlohmann::json OptionKwargs(const py::kwargs& kwargs, std::span<const OptionScop
     const bool mine = std::find(own.begin(), own.end(), name) != own.end();
     if (!mine && !spec) {
       std::vector<std::string> known(own.begin(), own.end());
-      for (const OptionSpec& s : LocalizerOptionTable()) {
-        if (std::find(scopes.begin(), scopes.end(), s.scope) != scopes.end())
-          known.push_back(s.name);
-      }
+      for (const std::string& n : LocalizerOptionNames(scopes)) known.push_back(n);
       throw py::type_error(fmt::format("{}: unexpected keyword argument '{}' (options: {})", where,
                                        name, fmt::join(known, ", ")));
     }
@@ -119,14 +116,12 @@ Request MakeRequest(const PyLocalizer& self, const py::kwargs& kwargs, const std
     r.request.gravity = JsonVector3(o["gravity"], where + ": gravity");
   }
   // The request-scope options on the Localizer's defaults (one table: the CLI's and the service's).
-  LocalizerOptions options = self.localizer->options();
-  bool any = false;
-  for (const auto& [key, value] : o.items()) {
-    if (std::find(own.begin(), own.end(), key) != own.end()) continue;
-    SetLocalizerOptions(&options, nlohmann::json{{key, value}}, kRequestScope, where);
-    any = true;
-  }
+  const bool any = std::any_of(o.items().begin(), o.items().end(), [&](const auto& item) {
+    return std::find(own.begin(), own.end(), item.key()) == own.end();
+  });
   if (any) {
+    LocalizerOptions options = self.localizer->options();
+    SetLocalizerOptions(&options, o, kRequestScope, where, own);
     options.localize.Check();  // combinations (min_iterations <= max_iterations) before any work
     r.request.options = options.localize;
   }

@@ -91,16 +91,17 @@ std::shared_ptr<const LoadedMap> MapRegistry::LoadMap(const std::string& id,
   m->stamp = MapStamp(path);
   const LineCloud cloud = ReadLineCloud(path);
   const std::string anchor_path = JoinPaths(maps_dir_, id + ".json");
+  const bool has_owner_file = FileExists(anchor_path);
   json owner_file;
   LocalizerOptions lo = defaults_;
-  if (FileExists(anchor_path)) {
+  if (has_owner_file) {
     owner_file = ParseRequestJson(ReadFilePrefix(anchor_path, 1 << 16), anchor_path);
     if (!owner_file.is_object()) Fail("{}: expected a JSON object", anchor_path);
     if (owner_file.contains("options"))
       lo = MapOptions(defaults_, owner_file["options"], anchor_path);
   }
   m->localizer = std::make_unique<Localizer>(cloud, lo, id);
-  if (FileExists(anchor_path)) {
+  if (has_owner_file) {
     if (owner_file.contains("geo_anchor")) {
       m->anchor = GeoAnchorFromJson(owner_file, anchor_path);
     }
