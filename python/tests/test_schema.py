@@ -219,7 +219,7 @@ def test_every_request_option_is_taken_and_checked_by_the_service(fountain, foun
                                            "set per request")
                 continue
             assert status == 200, (name, answer)
-            assert set(answer) <= {"success", "reason", "q", "t", "center", "num_matches",
+            assert set(answer) <= {"success", "reason", "method", "pose", "q", "t", "center", "num_matches",
                                    "num_inliers", "inlier_ratio", "uncertainty", "times_ms"}
             sent = json.dumps(dict(body, **{name: _bad(o)})).encode()
             status, answer = server.post("/v1/maps/fountain/localize", sent, "application/json")

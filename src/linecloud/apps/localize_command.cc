@@ -93,6 +93,7 @@ LocalizerOptions MakeLocalizerOptions(const LocalizeArgs& args) {
 
 // The photos of --image with their --camera strings and --rig poses.
 std::vector<QueryPhoto> ReadPhotos(const LocalizeArgs& args, const MethodInfo& method,
+                                   const std::optional<RigFile>& rig,
                                    std::vector<std::string>* bytes) {
   const size_t n = args.image_paths.size();
   if (args.cameras.empty()) Fail("--image needs --camera \"MODEL WIDTH HEIGHT PARAMS...\"");
@@ -100,20 +101,20 @@ std::vector<QueryPhoto> ReadPhotos(const LocalizeArgs& args, const MethodInfo& m
     Fail("{} photos but {} --camera strings (give one for all, or one per photo)", n,
          args.cameras.size());
   }
-  if (n > 1 && args.rig.empty())
-    Fail("{} photos need --rig RIG.json (their cam_from_rig poses)", n);
+  if (n > 1 && !rig) Fail("{} photos need --rig RIG.json (their cam_from_rig poses)", n);
   // The method before the rig's size (as before the Localizer): the more basic mistake first.
   if (n > 1 && !method.multi) {
     Fail("{} photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not {}", n,
          method.name);
   }
-  const std::vector<Rigid3d> rig = n > 1 ? ReadRigJson(args.rig) : std::vector<Rigid3d>(1);
-  if (rig.size() != n) Fail("{} photos but {} cam_from_rig poses in the rig", n, rig.size());
+  if (rig && rig->cam_from_rig.size() != n) {
+    Fail("{} photos but {} cam_from_rig poses in {}", n, rig->cam_from_rig.size(), args.rig);
+  }
   std::vector<QueryPhoto> photos(n);
   bytes->resize(n);
   for (size_t k = 0; k < n; ++k) {
     photos[k].camera = ParseCameraString(args.cameras[args.cameras.size() == 1 ? 0 : k]);
-    photos[k].cam_from_rig = rig[k];
+    if (rig) photos[k].cam_from_rig = rig->cam_from_rig[k];
     photos[k].name = args.image_paths[k];
   }
   for (size_t k = 0; k < n; ++k) {
@@ -122,6 +123,23 @@ std::vector<QueryPhoto> ReadPhotos(const LocalizeArgs& args, const MethodInfo& m
         std::span(reinterpret_cast<const uint8_t*>((*bytes)[k].data()), (*bytes)[k].size());
   }
   return photos;
+}
+
+// The request: --method, --gravity and what RIG.json adds (local points, their scale, gravity).
+LocalizeRequest MakeRequest(const LocalizeArgs& args, const std::optional<RigFile>& rig) {
+  LocalizeRequest request;
+  request.method = args.method;
+  request.keep_images = !args.overlay.empty();
+  if (!args.gravity.empty()) request.gravity = ParseDirection(args.gravity, "--gravity");
+  if (rig) {
+    if (rig->gravity && request.gravity) {
+      Fail("--gravity and {}'s gravity: give the rig's gravity once", args.rig);
+    }
+    if (rig->gravity) request.gravity = rig->gravity;
+    request.points_local = rig->points_local;
+    request.scale_known = rig->scale_known;
+  }
+  return request;
 }
 
 std::string FormatResult(const LocalizeArgs& args, const LocalizerResult& r) {
@@ -152,10 +170,12 @@ void RunLocalize(const LocalizeArgs& args) {
                                   ? Localizer(*cloud, options, args.map_path)
                                   : Localizer(*model, args.image_paths.empty() ? "" : args.database,
                                               options, args.model_dir);
-  LocalizeRequest request;
-  request.method = args.method;
-  request.keep_images = !args.overlay.empty();
-  if (!args.gravity.empty()) request.gravity = ParseDirection(args.gravity, "--gravity");
+  if (!args.rig.empty() && args.image_paths.empty()) {
+    Fail("--rig goes with --image (a QUERY.json has its own cam_from_rig and points_local)");
+  }
+  const std::optional<RigFile> rig =
+      args.rig.empty() ? std::nullopt : std::optional<RigFile>(ReadRigJson(args.rig));
+  LocalizeRequest request = MakeRequest(args, rig);
   bool progress_shown = false;
   if (!args.quiet) {
     request.progress = options.progress;
@@ -165,13 +185,12 @@ void RunLocalize(const LocalizeArgs& args) {
     };
   }
   std::vector<std::string> bytes;
-  const MethodInfo& method =
-      args.method.empty() ? localizer.DefaultMethod(std::max<size_t>(args.image_paths.size(), 1))
-                          : FindMethod(args.method);
+  const size_t n = std::max<size_t>(args.image_paths.size(), 1);
   const LocalizerResult r =
       args.image_paths.empty()
           ? localizer.LocalizeQuery(ReadQueryJson(args.query_path), request, args.query_path)
-          : localizer.LocalizePhotos(ReadPhotos(args, method, &bytes), request);
+          : localizer.LocalizePhotos(
+                ReadPhotos(args, localizer.RequestMethod(n, request), rig, &bytes), request);
   if (progress_shown) std::cerr << "\n";
   const std::string text = FormatResult(args, r);
   if (!args.overlay.empty()) {
@@ -209,8 +228,10 @@ void RegisterLocalizeCommand(CLI::App& app) {
                   "The photo's camera, \"MODEL WIDTH HEIGHT PARAMS...\" in COLMAP's order; one "
                   "for all photos or one per photo");
   cmd->add_option("--rig", args->rig,
-                  "Several photos: RIG.json {\"cam_from_rig\": [{\"q\": [w,x,y,z], \"t\": "
-                  "[x,y,z]}, ...]}, one pose per --image");
+                  "A device's frames: RIG.json {\"cam_from_rig\": [{\"q\": [w,x,y,z], \"t\": "
+                  "[x,y,z]}, ...] (one per --image), optional \"points_local\": [{\"frame\", "
+                  "\"keypoint\", \"xyz\"}, ...] (+l methods), \"scale_known\", \"gravity\"} "
+                  "(docs/formats.md)");
   cmd->add_option("--database", args->database,
                   "With --model and --image: the COLMAP database of the model (descriptors)");
   cmd->add_option("--gravity", args->gravity,

@@ -76,7 +76,10 @@ void RegisterServe(CLI::App& app) {
                   "Bodies of all requests being read or handled at once (then 503)")
       ->capture_default_str();
   cmd->add_option("--max-pixels", o->max_pixels,
-                  "Largest photo, from its header before decoding (then 413)")
+                  "A request's photos together, from their headers before decoding (then 413)")
+      ->capture_default_str();
+  cmd->add_option("--max-frames", o->max_frames,
+                  "A device's frames in one request, photos or feature sets (then 413)")
       ->capture_default_str();
   cmd->add_option("--memory-budget-mb", o->memory_budget_mb,
                   "SIFT's scale space of all requests together (a photo needing more alone: "
@@ -115,6 +118,10 @@ void RegisterBenchServe(CLI::App& app) {
   bench->add_option("--requests", load->requests, "Requests per level and body")
       ->capture_default_str();
   bench->add_flag("!--no-photos", load->photos, "Client features only");
+  bench->add_option("--rig", load->rig,
+                    "Also rig requests: RIG.json (cam_from_rig, points_local, gravity) of the "
+                    "--rig-photo frames");
+  bench->add_option("--rig-photo", load->rig_photos, "A frame of the rig (repeat; with --rig)");
   bench
       ->add_option("--max-features", load->max_features,
                    "The client's SIFT budget (COLMAP's cap: whole levels from the coarsest)")
@@ -139,26 +146,50 @@ void RegisterBenchServe(CLI::App& app) {
   });
 }
 
-// `linecloud features`: a client-features body.
+// `linecloud features`: a client-features body, of one photo or a device's frames.
+struct FeaturesArgs {
+  std::vector<std::string> images, cameras;
+  std::string rig, out;
+  std::string extractor = SiftExtractorName(SiftOptions{}.extractor);
+  int max_features = 8192;
+};
+
 void RegisterFeatures(CLI::App& app) {
-  auto features = std::make_shared<std::array<std::string, 4>>();
-  auto features_max = std::make_shared<int>(8192);
+  auto args = std::make_shared<FeaturesArgs>();
   CLI::App* fc = app.add_subcommand(
       "features",
-      "A photo's SIFT features as the JSON body of a client-features request to `serve`");
-  fc->add_option("--image", (*features)[0], "The photo (JPEG or PNG)")->required();
-  fc->add_option("--camera", (*features)[1], "\"MODEL W H PARAMS...\"")->required();
-  (*features)[2] = SiftExtractorName(SiftOptions{}.extractor);
-  fc->add_option("--features", (*features)[2], "colmap (COLMAP's own features) or opencv")
+      "A photo's SIFT features (or a device's frames', with --rig) as the JSON body of a "
+      "client-features request to `serve`");
+  fc->add_option("--image", args->images, "The photo (JPEG or PNG); repeat for a rig's frames")
+      ->required();
+  fc->add_option("--camera", args->cameras,
+                 "\"MODEL W H PARAMS...\": one for every photo, or one per --image")
+      ->required();
+  fc->add_option("--rig", args->rig,
+                 "Several frames: RIG.json (cam_from_rig, points_local, scale_known, gravity; "
+                 "docs/formats.md), written into the body with the frames");
+  fc->add_option("--features", args->extractor, "colmap (COLMAP's own features) or opencv")
       ->capture_default_str();
-  fc->add_option("--out", (*features)[3], "Output file")->required();
-  fc->add_option("--max-features", *features_max, "SIFT's cap (COLMAP's rule)")
+  fc->add_option("--out", args->out, "Output file")->required();
+  fc->add_option("--max-features", args->max_features, "SIFT's cap (COLMAP's rule)")
       ->capture_default_str();
-  fc->callback([features, features_max] {
-    const auto& [image, camera, extractor, out] = *features;
-    const std::string body = ClientFeaturesJson(
-        image, camera, ParseSiftExtractor(extractor, "--features"), *features_max);
-    WriteFileAtomically(out, [&](std::ostream& os) { os << body; });
+  fc->callback([args] {
+    const SiftExtractor extractor = ParseSiftExtractor(args->extractor, "--features");
+    std::vector<std::string> inputs = args->images;
+    if (!args->rig.empty()) inputs.push_back(args->rig);
+    RefuseOutputOverInputs(args->out, inputs, "--out");
+    if (args->images.size() > 1 && args->rig.empty()) {
+      Fail("{} photos need --rig RIG.json (their cam_from_rig poses)", args->images.size());
+    }
+    if (args->rig.empty() && args->cameras.size() != 1) {
+      Fail("one photo takes one --camera, got {}", args->cameras.size());
+    }
+    const std::string body =
+        args->rig.empty()
+            ? ClientFeaturesJson(args->images[0], args->cameras[0], extractor, args->max_features)
+            : ClientRigJson(args->images, args->cameras, ReadRigJson(args->rig), extractor,
+                            args->max_features);
+    WriteFileAtomically(args->out, [&](std::ostream& os) { os << body; });
   });
 }
 

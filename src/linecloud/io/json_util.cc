@@ -23,6 +23,12 @@ std::vector<double> Numbers(const nlohmann::json& j, size_t n, const std::string
 
 }  // namespace
 
+std::string ShownInMessage(const nlohmann::json& value) {
+  std::string text = value.dump(-1, ' ', false, nlohmann::json::error_handler_t::replace);
+  if (text.size() > 80) text = text.substr(0, 77) + "...";
+  return text;
+}
+
 nlohmann::json ReadJsonFile(const std::string& path) {
   const std::string text = ReadFileToString(path);
   const auto starts_with = [&](std::string_view magic) { return text.rfind(magic, 0) == 0; };

@@ -15,6 +15,10 @@ namespace linecloud {
 // Parses a JSON file; throws Error naming the path on read or syntax errors.
 nlohmann::json ReadJsonFile(const std::string& path);
 
+// A value or name as an error message shows what a client sent: JSON text
+// (escaped: no raw NUL, line break or invalid UTF-8), at most ~80 characters.
+std::string ShownInMessage(const nlohmann::json& value);
+
 // Field accessors: `where` names the file and field path in errors
 // ("problem.json: bearings[2]").
 Eigen::Vector3d JsonVector3(const nlohmann::json& j, const std::string& where);

@@ -3,6 +3,7 @@
 #include <charconv>
 #include <chrono>
 #include <cmath>
+#include <unordered_map>
 
 #include <fmt/format.h>
 
@@ -161,16 +162,41 @@ ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
 }
 
 Query CombineImageQueries(const std::vector<ImageQuery>& photos,
-                          const std::vector<Rigid3d>& cam_from_rig) {
+                          const std::vector<Rigid3d>& cam_from_rig,
+                          std::span<const LocalPoint> points_local) {
   if (photos.size() != cam_from_rig.size()) {
     Fail("{} photos but {} cam_from_rig poses in the rig", photos.size(), cam_from_rig.size());
+  }
+  // Per photo, keypoint -> its local point (the +l methods).
+  std::vector<std::unordered_map<int64_t, const LocalPoint*>> local(photos.size());
+  for (size_t i = 0; i < points_local.size(); ++i) {
+    const LocalPoint& p = points_local[i];
+    if (p.frame < 0 || static_cast<size_t>(p.frame) >= photos.size()) {
+      Fail("points_local[{}]: frame {} is not one of the {} photos", i, p.frame, photos.size());
+    }
+    const size_t keypoints = photos[p.frame].features.size();
+    if (p.keypoint < 0 || static_cast<size_t>(p.keypoint) >= keypoints) {
+      Fail("points_local[{}]: frame {} has {} keypoints, no keypoint {}", i, p.frame, keypoints,
+           p.keypoint);
+    }
+    if (!local[p.frame].emplace(p.keypoint, &p).second) {
+      Fail("points_local[{}]: frame {} keypoint {} has a local point already", i, p.frame,
+           p.keypoint);
+    }
   }
   Query q;
   q.cam_from_rig = cam_from_rig;
   for (size_t k = 0; k < photos.size(); ++k) {
-    q.cameras.push_back(photos[k].query.cameras.at(0));
-    for (QueryObservation o : photos[k].query.observations) {
+    const ImageQuery& photo = photos[k];
+    q.cameras.push_back(photo.query.cameras.at(0));
+    for (size_t i = 0; i < photo.query.observations.size(); ++i) {
+      QueryObservation o = photo.query.observations[i];
       o.camera = static_cast<int>(k);
+      if (!points_local.empty()) {
+        const auto it = local[k].find(static_cast<int64_t>(photo.matches.at(i).query));
+        if (it == local[k].end()) continue;
+        q.points_local.push_back(it->second->xyz);
+      }
       q.observations.push_back(o);
     }
   }

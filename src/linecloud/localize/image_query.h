@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -96,8 +97,11 @@ ImageQuery QueryFromImage(const std::string& image_path, const Camera& camera,
 
 // Several photos of a calibrated rig (or of a short trajectory whose relative
 // poses are known) as one query for the m- methods: camera k is photo k, with
-// cam_from_rig[k]. Throws Error when the counts differ.
+// cam_from_rig[k]. With `points_local` (the +l methods) only the matches of
+// keypoints with a local point are kept, each with its X̃. Throws Error when
+// the counts differ or a local point names a keypoint its photo lacks.
 Query CombineImageQueries(const std::vector<ImageQuery>& photos,
-                          const std::vector<Rigid3d>& cam_from_rig);
+                          const std::vector<Rigid3d>& cam_from_rig,
+                          std::span<const LocalPoint> points_local = {});
 
 }  // namespace linecloud

@@ -54,6 +54,16 @@ struct Query {
   std::optional<Eigen::Vector3d> gravity_map;    // +u: gravity direction, map frame
 };
 
+// A device's own 3D point for the +l methods (its tracking's local map): X̃ in
+// the rig frame, seen in photo `frame` at its keypoint `keypoint` (the index
+// in that photo's features, as given or as extracted with the map's SIFT
+// options, as `linecloud features` writes them).
+struct LocalPoint {
+  int frame = 0;
+  int64_t keypoint = 0;
+  Eigen::Vector3d xyz = Eigen::Vector3d::Zero();
+};
+
 // A traditional map: point coordinates by id.
 struct PointMap {
   std::unordered_map<uint64_t, Eigen::Vector3d> points;

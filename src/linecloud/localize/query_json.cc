@@ -112,19 +112,82 @@ Query ParseQueryJson(const nlohmann::json& j, const std::string& source) {
 
 Query ReadQueryJson(const std::string& path) { return ParseQueryJson(ReadJsonFile(path), path); }
 
-std::vector<Rigid3d> ReadRigJson(const std::string& path) {
-  const nlohmann::json j = ReadJsonFile(path);
+std::vector<LocalPoint> ParseLocalPointsJson(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_array()) {
+    Fail("{}: expected [{{\"frame\": k, \"keypoint\": i, \"xyz\": [x, y, z]}}, ...]", where);
+  }
+  std::vector<LocalPoint> points;
+  points.reserve(j.size());
+  for (size_t i = 0; i < j.size(); ++i) {
+    const std::string at = fmt::format("{}[{}]", where, i);
+    const nlohmann::json& e = j[i];
+    if (!e.is_object()) Fail("{}: expected {{\"frame\", \"keypoint\", \"xyz\"}}", at);
+    for (const auto& [key, value] : e.items()) {
+      if (key != "frame" && key != "keypoint" && key != "xyz") {
+        Fail("{}: unknown field {} (frame, keypoint, xyz)", at, ShownInMessage(key));
+      }
+    }
+    LocalPoint p;
+    for (const char* key : {"frame", "keypoint"}) {
+      if (!e.contains(key)) Fail("{}: field '{}' is missing", at, key);
+      if (!e[key].is_number_unsigned() || e[key].get<uint64_t>() > (uint64_t{1} << 31)) {
+        Fail("{}.{}: expected an index (0, 1, ...)", at, key);
+      }
+    }
+    p.frame = static_cast<int>(e["frame"].get<uint64_t>());
+    p.keypoint = static_cast<int64_t>(e["keypoint"].get<uint64_t>());
+    if (!e.contains("xyz")) Fail("{}: field 'xyz' is missing", at);
+    p.xyz = JsonVector3(e["xyz"], at + ".xyz");
+    if (!p.xyz.allFinite()) Fail("{}.xyz: not finite", at);
+    points.push_back(p);
+  }
+  return points;
+}
+
+nlohmann::json LocalPointsToJson(std::span<const LocalPoint> points) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const LocalPoint& p : points) {
+    j.push_back(
+        {{"frame", p.frame}, {"keypoint", p.keypoint}, {"xyz", {p.xyz.x(), p.xyz.y(), p.xyz.z()}}});
+  }
+  return j;
+}
+
+RigFile ParseRigJson(const nlohmann::json& j, const std::string& where) {
   if (!j.is_object() || !j.contains("cam_from_rig") || !j["cam_from_rig"].is_array() ||
       j["cam_from_rig"].empty()) {
     Fail("{}: expected {{\"cam_from_rig\": [{{\"q\": [w, x, y, z], \"t\": [x, y, z]}}, ...]}}",
-         path);
+         where);
   }
-  std::vector<Rigid3d> poses;
+  for (const auto& [key, value] : j.items()) {
+    if (key != "cam_from_rig" && key != "points_local" && key != "scale_known" &&
+        key != "gravity") {
+      Fail("{}: unknown field {} (cam_from_rig, points_local, scale_known, gravity)", where,
+           ShownInMessage(key));
+    }
+  }
+  RigFile rig;
   for (size_t i = 0; i < j["cam_from_rig"].size(); ++i) {
-    poses.push_back(JsonPose(j["cam_from_rig"][i], fmt::format("{}: cam_from_rig[{}]", path, i)));
+    rig.cam_from_rig.push_back(
+        JsonPose(j["cam_from_rig"][i], fmt::format("{}: cam_from_rig[{}]", where, i)));
   }
-  return poses;
+  if (j.contains("points_local")) {
+    rig.points_local = ParseLocalPointsJson(j["points_local"], where + ": points_local");
+  }
+  if (j.contains("scale_known")) {
+    if (!j["scale_known"].is_boolean()) Fail("{}: scale_known: expected true or false", where);
+    rig.scale_known = j["scale_known"].get<bool>();
+  }
+  if (j.contains("gravity")) {
+    rig.gravity = JsonVector3(j["gravity"], where + ": gravity");
+    if (!(rig.gravity->allFinite() && rig.gravity->norm() > 0)) {
+      Fail("{}: gravity must be a finite non-zero direction", where);
+    }
+  }
+  return rig;
 }
+
+RigFile ReadRigJson(const std::string& path) { return ParseRigJson(ReadJsonFile(path), path); }
 
 nlohmann::json QueryToJson(const Query& q) {
   nlohmann::json j;

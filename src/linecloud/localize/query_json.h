@@ -1,6 +1,7 @@
 // QUERY.json of `linecloud localize` (docs/formats.md) and its result JSON.
 #pragma once
 
+#include <optional>
 #include <span>
 #include <string>
 
@@ -21,9 +22,24 @@ Query ReadQueryJson(const std::string& path);
 
 nlohmann::json QueryToJson(const Query& query);
 
-// RIG.json: {"cam_from_rig": [{"q": [w, x, y, z], "t": [x, y, z]}, ...]}, one
-// pose per camera. Throws Error naming the file and the field.
-std::vector<Rigid3d> ReadRigJson(const std::string& path);
+// A rig's local points (+l methods): [{"frame": k, "keypoint": i, "xyz": [x,
+// y, z]}, ...] (LocalPoint). Throws Error naming `where`, the entry and the
+// field.
+std::vector<LocalPoint> ParseLocalPointsJson(const nlohmann::json& j, const std::string& where);
+nlohmann::json LocalPointsToJson(std::span<const LocalPoint> points);
+
+// RIG.json: what a device knows of its frames besides their photos —
+// {"cam_from_rig": [{"q": [w, x, y, z], "t": [x, y, z]}, ...] (one pose per
+// photo), "points_local"?: [...] (above), "scale_known"?: bool,
+// "gravity"?: [x, y, z] (rig frame)}. Throws Error naming the file and the field.
+struct RigFile {
+  std::vector<Rigid3d> cam_from_rig;
+  std::vector<LocalPoint> points_local;
+  std::optional<bool> scale_known;
+  std::optional<Eigen::Vector3d> gravity;
+};
+RigFile ParseRigJson(const nlohmann::json& j, const std::string& where);
+RigFile ReadRigJson(const std::string& path);
 
 // The pose and a summary first — {"method", "success", "reason" (failures),
 // "q", "t", "scale", "center", "num_correspondences", "num_inliers",

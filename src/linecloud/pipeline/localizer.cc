@@ -36,6 +36,24 @@ void CheckFeatures(const SiftFeatures& f, const Camera& camera, const std::strin
   }
 }
 
+// A request's local points before any photo is read: each on a photo of the
+// request, finite, on a keypoint the photo has when its features are given
+// (an extracted photo's keypoints are counted after SIFT).
+void CheckLocalPoints(std::span<const LocalPoint> points, std::span<const QueryPhoto> photos) {
+  for (size_t i = 0; i < points.size(); ++i) {
+    const LocalPoint& p = points[i];
+    if (p.frame < 0 || static_cast<size_t>(p.frame) >= photos.size()) {
+      Fail("points_local[{}]: frame {} is not one of the {} photos", i, p.frame, photos.size());
+    }
+    if (!p.xyz.allFinite()) Fail("points_local[{}]: xyz must be finite", i);
+    const SiftFeatures* f = photos[p.frame].features;
+    if (p.keypoint < 0 || (f && static_cast<size_t>(p.keypoint) >= f->size())) {
+      Fail("points_local[{}]: {} has {} keypoints, no keypoint {}", i, photos[p.frame].name,
+           f ? f->size() : 0, p.keypoint);
+    }
+  }
+}
+
 // A single photo of a request, its source still to be set.
 QueryPhoto OnePhoto(const Camera& camera, const std::string& name) {
   QueryPhoto photo;
@@ -198,18 +216,44 @@ const LocalizationMap& Localizer::map() const { return state_->map; }
 
 const LocalizerOptions& Localizer::options() const { return state_->options; }
 
-const MethodInfo& Localizer::DefaultMethod(size_t num_cameras) const {
-  const bool several = num_cameras > 1;
-  return FindMethod(lines() ? (several ? "m-p6L" : "p6L") : (several ? "m-p3P" : "p3P"));
+const MethodInfo& Localizer::DefaultMethod(size_t num_cameras, const LocalizeRequest& request,
+                                           const Query* query) const {
+  const bool local = !request.points_local.empty() || (query && !query->points_local.empty());
+  const bool query_gravity = request.gravity || (query && query->gravity_query);
+  const bool map_gravity = state_->gravity || (query && query->gravity_map);
+  return MethodFor({.lines = lines(),
+                    .several_cameras = num_cameras > 1,
+                    .local_points = local,
+                    .known_scale = local && request.scale_known.value_or(false),
+                    .gravity = query_gravity && map_gravity});
+}
+
+const MethodInfo& Localizer::RequestMethod(size_t num_cameras, const LocalizeRequest& request,
+                                           const Query* query) const {
+  const MethodInfo& m = request.method.empty() ? DefaultMethod(num_cameras, request, query)
+                                               : FindMethod(request.method);
+  if (!m.local_points && !request.points_local.empty()) {
+    Fail(
+        "points_local: {} does not use the query's own points (the +l methods do: m-P4L+l, "
+        "m-P3L+l+u, m-P3L+l+s, m-P2L+l+u+s)",
+        m.name);
+  }
+  if (m.local_points && request.scale_known && *request.scale_known != m.known_scale) {
+    Fail("scale_known is {} but {} {} the scale", *request.scale_known ? "true" : "false", m.name,
+         m.known_scale ? "takes the local points' as known" : "estimates");
+  }
+  return m;
 }
 
 LocalizerResult Localizer::LocalizeQuery(const Query& query, const LocalizeRequest& request,
                                          std::string_view source) const {
   const auto start = Clock::now();
+  if (!request.points_local.empty()) {
+    Fail("{}: a query file brings its own points_local (one per observation)", source);
+  }
   LocalizerResult result;
   result.query = query;
-  const MethodInfo& method =
-      request.method.empty() ? DefaultMethod(query.cameras.size()) : FindMethod(request.method);
+  const MethodInfo& method = RequestMethod(query.cameras.size(), request, &query);
   return Finish(method, std::move(result), request, source, start);
 }
 
@@ -259,12 +303,16 @@ LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
                                           const LocalizeRequest& request) const {
   const auto start = Clock::now();
   if (photos.empty()) Fail("no photo given");
-  const MethodInfo& method =
-      request.method.empty() ? DefaultMethod(photos.size()) : FindMethod(request.method);
+  const MethodInfo& method = RequestMethod(photos.size(), request);
   if (photos.size() > 1 && !method.multi) {
     Fail("{} photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not {}",
          photos.size(), method.name);
   }
+  if (method.local_points && request.points_local.empty()) {
+    Fail("{} localizes the photos' own 3D points: give points_local (frame, keypoint, xyz)",
+         method.name);
+  }
+  CheckLocalPoints(request.points_local, photos);
   CheckMethodAndMap(method, state_->map);  // before decoding and matching (seconds for nothing)
   LocalizerResult result;
   std::vector<Rigid3d> rig;
@@ -284,8 +332,9 @@ LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
     result.times.extract_ms += t.extract_ms;
     result.times.match_ms += t.match_ms;
   }
-  result.query =
-      photos.size() == 1 ? result.photos[0].query : CombineImageQueries(result.photos, rig);
+  result.query = photos.size() == 1 && request.points_local.empty()
+                     ? result.photos[0].query
+                     : CombineImageQueries(result.photos, rig, request.points_local);
   return Finish(method, std::move(result), request, photos[0].name, start);
 }
 

@@ -77,8 +77,16 @@ struct QueryPhoto {
 
 // Per-request settings; unset ones take the Localizer's defaults.
 struct LocalizeRequest {
-  std::string method;                      // empty: p6L / p3P, m-p6L / m-p3P for rigs
+  // Empty: the method that uses what the request brings (MethodFor): m- for
+  // several photos, +l with local points, +s when their scale is known, +u
+  // with gravity here and in the map (p6L / p3P for a photo alone).
+  std::string method;
   std::optional<Eigen::Vector3d> gravity;  // gravity direction in the query (rig) frame
+  // The device's own 3D points (the +l methods), in the rig frame, each on
+  // a keypoint of a photo; only matches on such keypoints are used. Their
+  // scale is metric (scale_known: +s) or not (the pose is then a Sim(3)).
+  std::vector<LocalPoint> points_local;
+  std::optional<bool> scale_known;
   // This request's RANSAC, refinement and success criteria (unset: the
   // Localizer's). Front ends start from Localizer::options().localize and set
   // the request-scope options of localizer_option_table.h on it.
@@ -151,8 +159,16 @@ class Localizer {
   // The options the Localizer was made with (the defaults of its requests).
   const LocalizerOptions& options() const;
   const LocalizationMap& map() const;
-  // The default method for `num_cameras` cameras on this map.
-  const MethodInfo& DefaultMethod(size_t num_cameras) const;
+  // The default method for `num_cameras` cameras on this map, with what the
+  // request (and a query file: its local points and gravity) brings.
+  const MethodInfo& DefaultMethod(size_t num_cameras, const LocalizeRequest& request = {},
+                                  const Query* query = nullptr) const;
+  // The request's method (its own, else DefaultMethod), checked against
+  // what the request brings: Error when local points are given to a method
+  // that does not use them, missing for one that needs them, or their
+  // scale_known contradicts the method's.
+  const MethodInfo& RequestMethod(size_t num_cameras, const LocalizeRequest& request,
+                                  const Query* query = nullptr) const;
 
   // Correspondences already made (QUERY.json).
   LocalizerResult LocalizeQuery(const Query& query, const LocalizeRequest& request = {},

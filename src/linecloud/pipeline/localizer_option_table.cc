@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "linecloud/io/json_util.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
@@ -250,16 +251,8 @@ std::string Number(double v) {
   return fmt::format("{}", v);
 }
 
-// A value or name as the error shows it: JSON-escaped (no raw NUL or line
-// break) and at most ~80 characters.
-std::string Shown(const json& value) {
-  std::string text = value.dump(-1, ' ', false, json::error_handler_t::replace);
-  if (text.size() > 80) text = text.substr(0, 77) + "...";
-  return text;
-}
-
 [[noreturn]] void Expected(const OptionSpec& spec, const json& value, std::string_view where) {
-  Fail("{}: {} must be {}, got {}", where, spec.name, spec.Describe(), Shown(value));
+  Fail("{}: {} must be {}, got {}", where, spec.name, spec.Describe(), ShownInMessage(value));
 }
 
 bool InRange(const OptionSpec& spec, double v) {
@@ -421,7 +414,8 @@ void SetLocalizerOptions(LocalizerOptions* options, const json& fields,
     if (!spec) {
       std::vector<std::string> known(other_keys.begin(), other_keys.end());
       for (const std::string& name : LocalizerOptionNames(scopes)) known.push_back(name);
-      Fail("{}: unknown option {} (known: {})", where, Shown(json(key)), fmt::join(known, ", "));
+      Fail("{}: unknown option {} (known: {})", where, ShownInMessage(json(key)),
+           fmt::join(known, ", "));
     }
     if (std::find(scopes.begin(), scopes.end(), spec->scope) == scopes.end()) {
       Fail("{}: '{}' is fixed when the map is loaded, not set per request", where, key);

@@ -94,11 +94,34 @@ struct Request {
   std::vector<Rigid3d> cam_from_rig;
 };
 
+// points_local: [{"frame", "keypoint", "xyz"}, ...] as the service takes it,
+// or columns {"frame": N, "keypoint": N, "xyz": N x 3} (numpy arrays).
+std::vector<LocalPoint> LocalPoints(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_object()) return ParseLocalPointsJson(j, where);
+  for (const char* key : {"frame", "keypoint", "xyz"}) {
+    if (!j.contains(key) || !j[key].is_array()) {
+      Fail("{}: columns need '{}' as an array (or give a list of {{frame, keypoint, xyz}})", where,
+           key);
+    }
+  }
+  const size_t n = j["frame"].size();
+  if (j["keypoint"].size() != n || j["xyz"].size() != n || j.size() != 3) {
+    Fail("{}: frame, keypoint and xyz must have one row per point (and nothing else)", where);
+  }
+  nlohmann::json rows = nlohmann::json::array();
+  for (size_t i = 0; i < n; ++i) {
+    rows.push_back(
+        {{"frame", j["frame"][i]}, {"keypoint", j["keypoint"][i]}, {"xyz", j["xyz"][i]}});
+  }
+  return ParseLocalPointsJson(rows, where);
+}
+
 Request MakeRequest(const PyLocalizer& self, const py::kwargs& kwargs, const std::string& where,
                     bool photos) {
-  static constexpr std::string_view kOwn[] = {"method", "gravity", "threads", "with_inliers",
-                                              "cam_from_rig"};
-  const std::span<const std::string_view> own(kOwn, photos ? 5 : 4);
+  static constexpr std::string_view kOwn[] = {"method",       "gravity",      "threads",
+                                              "with_inliers", "cam_from_rig", "points_local",
+                                              "scale_known"};
+  const std::span<const std::string_view> own(kOwn, photos ? 7 : 4);
   py::dict plain;
   py::object rig = py::none();
   for (const auto& [key, value] : kwargs) {
@@ -130,6 +153,10 @@ Request MakeRequest(const PyLocalizer& self, const py::kwargs& kwargs, const std
     r.request.threads = static_cast<int>(*v);
   }
   r.with_inliers = BoolOption(o, "with_inliers", where).value_or(true);
+  if (o.contains("points_local")) {
+    r.request.points_local = LocalPoints(o["points_local"], where + ": points_local");
+  }
+  r.request.scale_known = BoolOption(o, "scale_known", where);
   // Ctrl-C: the request polls Python's signal handlers while it runs without
   // the GIL (a handler that raises stops it; ResultToDict re-raises).
   r.request.should_stop = [] {
@@ -356,7 +383,9 @@ void BindLocalizer(py::module_& m) {
       .def("localize_image", &LocalizeImages, py::arg("image"), py::arg("camera"),
            "image: a path, the encoded file's bytes or a grey uint8 H x W array (or a list of "
            "them with cam_from_rig=[pose, ...] for a rig); camera: a camera dict (or one per "
-           "photo). Options: method, gravity, threads, with_inliers and every request-scope option "
+           "photo). points_local=[{frame, keypoint, xyz}, ...] (or columns) and scale_known for "
+           "the +l methods. Options: method, gravity, threads, with_inliers and every "
+           "request-scope option "
            "of linecloud.localizer_options() (threshold, seed, max_seconds, refine_focal, ...). "
            "Returns localize's result dict.")
       .def("localize_features", &LocalizeFeatures, py::arg("keypoints"), py::arg("descriptors"),

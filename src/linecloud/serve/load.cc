@@ -14,7 +14,9 @@
 
 #include "linecloud/features/image.h"
 #include "linecloud/features/sift.h"
+#include "linecloud/io/json_util.h"
 #include "linecloud/localize/image_query.h"
+#include "linecloud/localize/query_json.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/base64.h"
 #include "linecloud/util/file.h"
@@ -34,6 +36,7 @@ using Clock = std::chrono::steady_clock;
 struct Level {
   std::vector<double> ms;
   std::map<int, int> statuses;  // 0: no answer
+  int poses = 0;                // 200 answers with a pose
   double seconds = 0;
 };
 
@@ -58,6 +61,9 @@ Level Drive(int port, int clients, int requests, double max_seconds,
         std::lock_guard<std::mutex> lock(mutex);
         level.ms.push_back(ms);
         ++level.statuses[r ? r->status : 0];
+        if (r && r->status == 200 && r->body.find("\"success\":true") != std::string::npos) {
+          ++level.poses;
+        }
       }
     });
   }
@@ -75,7 +81,8 @@ json LevelJson(const std::string& kind, int clients, const Level& l) {
           {"per_second", l.seconds > 0 ? l.ms.size() / l.seconds : 0.0},
           {"p50_ms", Percentile(l.ms, 50)},
           {"p99_ms", Percentile(l.ms, 99)},
-          {"statuses", statuses}};
+          {"statuses", statuses},
+          {"poses", l.poses}};
 }
 
 // Requests an attacker would send without a proxy in front, each with a
@@ -228,8 +235,11 @@ std::string AttackMarkdown(const json& a) {
 
 }  // namespace
 
-std::string ClientFeaturesJson(const std::string& photo, const std::string& camera_text,
-                               SiftExtractor extractor, int max_features) {
+namespace {
+
+// One photo's {camera, keypoints, descriptors}.
+json FeaturesJson(const std::string& photo, const std::string& camera_text, SiftExtractor extractor,
+                  int max_features) {
   const Camera camera = ParseCameraString(camera_text);
   SiftOptions sift;
   sift.extractor = extractor;
@@ -245,8 +255,61 @@ std::string ClientFeaturesJson(const std::string& photo, const std::string& came
                 {"height", camera.height},
                 {"params", camera.params}}},
               {"keypoints", kp},
-              {"descriptors", Base64Encode(f.descriptors)}}
-      .dump();
+              {"descriptors", Base64Encode(f.descriptors)}};
+}
+
+// The multipart parts of a rig request: image[k], one camera, cam_from_rig[k] and the rig's fields.
+httplib::MultipartFormDataItems RigParts(const std::vector<std::string>& photos,
+                                         const std::string& camera, const RigFile& rig) {
+  httplib::MultipartFormDataItems parts = {{"camera", camera, "", ""}};
+  for (size_t k = 0; k < photos.size(); ++k) {
+    parts.push_back({fmt::format("image[{}]", k), photos[k], "photo.jpg", "image/jpeg"});
+    const Rigid3d& p = rig.cam_from_rig[k];
+    parts.push_back(
+        {fmt::format("cam_from_rig[{}]", k), PoseToJson(p.rotation, p.translation).dump(), "", ""});
+  }
+  if (!rig.points_local.empty()) {
+    parts.push_back({"points_local", LocalPointsToJson(rig.points_local).dump(), "", ""});
+  }
+  if (rig.scale_known)
+    parts.push_back({"scale_known", *rig.scale_known ? "true" : "false", "", ""});
+  if (rig.gravity) {
+    parts.push_back({"gravity",
+                     fmt::format("{},{},{}", rig.gravity->x(), rig.gravity->y(), rig.gravity->z()),
+                     "", ""});
+  }
+  return parts;
+}
+
+}  // namespace
+
+std::string ClientFeaturesJson(const std::string& photo, const std::string& camera_text,
+                               SiftExtractor extractor, int max_features) {
+  return FeaturesJson(photo, camera_text, extractor, max_features).dump();
+}
+
+std::string ClientRigJson(const std::vector<std::string>& photos,
+                          const std::vector<std::string>& cameras, const RigFile& rig,
+                          SiftExtractor extractor, int max_features) {
+  if (cameras.size() != 1 && cameras.size() != photos.size()) {
+    Fail("{} photos but {} cameras (give one for all, or one per photo)", photos.size(),
+         cameras.size());
+  }
+  if (rig.cam_from_rig.size() != photos.size()) {
+    Fail("{} photos but {} cam_from_rig poses in the rig", photos.size(), rig.cam_from_rig.size());
+  }
+  json body = {{"frames", json::array()}};
+  for (size_t k = 0; k < photos.size(); ++k) {
+    json frame =
+        FeaturesJson(photos[k], cameras[cameras.size() == 1 ? 0 : k], extractor, max_features);
+    const Rigid3d& p = rig.cam_from_rig[k];
+    frame["cam_from_rig"] = PoseToJson(p.rotation, p.translation);
+    body["frames"].push_back(std::move(frame));
+  }
+  if (!rig.points_local.empty()) body["points_local"] = LocalPointsToJson(rig.points_local);
+  if (rig.scale_known) body["scale_known"] = *rig.scale_known;
+  if (rig.gravity) body["gravity"] = {rig.gravity->x(), rig.gravity->y(), rig.gravity->z()};
+  return body.dump();
 }
 
 void LoadOptions::Check() const {
@@ -262,6 +325,31 @@ void LoadOptions::Check() const {
   }
   for (const int c : concurrency) {
     if (c < 1 || c > 256) Fail("bench serve: concurrency {} out of range [1, 256]", c);
+  }
+  if (rig.empty() != rig_photos.empty()) {
+    Fail("bench serve: --rig and --rig-photo go together (the frames' poses and photos)");
+  }
+}
+
+// Levels of rig requests: the frames' client features (JSON), then their photos (multipart).
+void RigLevels(int port, const LoadOptions& o, const std::string& path, json* report) {
+  const RigFile rig = ReadRigJson(o.rig);
+  const std::string features =
+      ClientRigJson(o.rig_photos, {o.camera}, rig, SiftOptions{}.extractor, o.max_features);
+  std::vector<std::string> photos;
+  for (const std::string& p : o.rig_photos) photos.push_back(ReadFileToString(p));
+  const httplib::MultipartFormDataItems parts = RigParts(photos, o.camera, rig);
+  (*report)["rig_frames"] = photos.size();
+  for (const bool as_photos : {false, true}) {
+    if (as_photos && !o.photos) continue;
+    for (const int c : o.concurrency) {
+      const Level l = Drive(port, c, o.requests, o.max_seconds, [&](httplib::Client& client) {
+        return as_photos ? client.Post(path.c_str(), parts)
+                         : client.Post(path.c_str(), features, "application/json");
+      });
+      (*report)["levels"].push_back(LevelJson(
+          fmt::format("rig of {} {}", photos.size(), as_photos ? "photos" : "features"), c, l));
+    }
   }
 }
 
@@ -298,6 +386,7 @@ json RunLoad(const LoadOptions& o) {
         report["levels"].push_back(LevelJson(photos ? "photo" : "features", c, l));
       }
     }
+    if (!o.rig.empty()) RigLevels(port, o, path, &report);
     if (o.leak_requests > 0) {
       const size_t before = ResidentBytes();
       const Level l =
@@ -325,15 +414,16 @@ std::string LoadMarkdown(const json& r) {
   std::string md = fmt::format(
       "bench serve: map {}, {} client features a request, {} workers, queue {}, {} hardware "
       "threads; client and server on 127.0.0.1\n\n| body | concurrency | requests | req/s | p50 ms "
-      "| p99 ms | statuses |\n"
-      "|---|---|---|---|---|---|---|\n",
+      "| p99 ms | statuses | poses |\n"
+      "|---|---|---|---|---|---|---|---|\n",
       r["map"].get<std::string>(), r["client_features"].get<size_t>(), r["workers"].get<int>(),
       r["queue"].get<int>(), r["hardware_threads"].get<unsigned>());
   for (const json& l : r["levels"]) {
-    md += fmt::format("| {} | {} | {} | {:.1f} | {:.0f} | {:.0f} | {} |\n",
+    md += fmt::format("| {} | {} | {} | {:.1f} | {:.0f} | {:.0f} | {} | {} |\n",
                       l["body"].get<std::string>(), l["concurrency"].get<int>(),
                       l["requests"].get<size_t>(), l["per_second"].get<double>(),
-                      l["p50_ms"].get<double>(), l["p99_ms"].get<double>(), l["statuses"].dump());
+                      l["p50_ms"].get<double>(), l["p99_ms"].get<double>(), l["statuses"].dump(),
+                      l["poses"].get<int>());
   }
   if (r.contains("leak_check")) {
     const json& k = r["leak_check"];

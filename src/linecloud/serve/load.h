@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "linecloud/features/sift.h"
+#include "linecloud/localize/query_json.h"
 #include "linecloud/serve/server.h"
 
 namespace linecloud {
@@ -37,6 +38,11 @@ struct LoadOptions {
   double attack_seconds = 0;
   int attackers = 4;
   int dribblers = 50;
+  // A device's frames (RIG.json's cam_from_rig, points_local, gravity; one
+  // photo per frame, all with `camera`): also levels of rig requests, as
+  // client features and as photos, at every concurrency.
+  std::string rig;
+  std::vector<std::string> rig_photos;
 
   void Check() const;
 };
@@ -51,6 +57,13 @@ nlohmann::json RunLoad(const LoadOptions& options);
 std::string ClientFeaturesJson(const std::string& photo, const std::string& camera,
                                SiftExtractor extractor = SiftExtractor::kColmap,
                                int max_features = 8192);
+// A device's frames: {"frames": [{camera, keypoints, descriptors,
+// cam_from_rig}, ...]} with the rig's points_local, scale_known and gravity
+// (RIG.json, localize/query_json.h). `cameras`: one for all photos, or one each.
+std::string ClientRigJson(const std::vector<std::string>& photos,
+                          const std::vector<std::string>& cameras, const RigFile& rig,
+                          SiftExtractor extractor = SiftExtractor::kColmap,
+                          int max_features = 8192);
 std::string LoadMarkdown(const nlohmann::json& report);
 
 }  // namespace linecloud

@@ -196,8 +196,10 @@ TEST(Serve, ClientFeaturesGiveTheTruePoseAndOnlyThePose) {
   std::set<std::string> keys;
   for (const auto& [k, v] : j.items()) keys.insert(k);
   EXPECT_EQ(keys,
-            (std::set<std::string>{"success", "q", "t", "center", "num_matches", "num_inliers",
-                                   "inlier_ratio", "uncertainty", "times_ms"}));
+            (std::set<std::string>{"success", "method", "pose", "q", "t", "center", "num_matches",
+                                   "num_inliers", "inlier_ratio", "uncertainty", "times_ms"}));
+  EXPECT_EQ(j["method"], "p6L");
+  EXPECT_EQ(j["pose"], "cam_from_world");
   // The access log: one JSON line, with the token's id, never the token.
   bool logged = false;
   for (const std::string& line : server.log()) {

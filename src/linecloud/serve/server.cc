@@ -35,6 +35,7 @@
 #include "linecloud/pipeline/localizer_result_json.h"
 #include "linecloud/serve/geo.h"
 #include "linecloud/serve/http.h"
+#include "linecloud/serve/localize_body.h"
 #include "linecloud/serve/map_registry.h"
 #include "linecloud/serve/metrics.h"
 #include "linecloud/serve/pools.h"
@@ -127,7 +128,8 @@ struct HttpError {
   throw HttpError{status, std::move(message), retry_after};
 }
 
-// The pose (cam_from_world) and its statistics. For the map's owner (an admin
+// The pose (cam_from_world, or rig_from_world for a device's frames; with
+// its scale for the Sim(3) methods) and its statistics. For the map's owner (an admin
 // token, `owner_map` given) also what the CLI's --overlay draws: the inliers'
 // and outliers' pixels in the photo and, per inlier, the segment where the pose
 // puts its map line (null when behind the camera). With the pose and the lines
@@ -139,7 +141,10 @@ json PoseJson(const LocalizerResult& r, const LocalizationMap* owner_map = nullp
   const Eigen::Quaterniond q = p.rotation.normalized();
   const size_t matches = r.query.observations.size();
   const json times = json(StageTimesToJson(r.times));
+  const MethodInfo& method = FindMethod(r.method);
   json j = {{"success", true},
+            {"method", r.method},
+            {"pose", method.multi ? "rig_from_world" : "cam_from_world"},
             {"q", {q.w(), q.x(), q.y(), q.z()}},
             {"t", {p.translation.x(), p.translation.y(), p.translation.z()}},
             {"center", {c.x(), c.y(), c.z()}},
@@ -150,6 +155,7 @@ json PoseJson(const LocalizerResult& r, const LocalizationMap* owner_map = nullp
              {{"rotation_deg", r.pose.uncertainty.rotation_deg},
               {"position", r.pose.uncertainty.position}}},
             {"times_ms", times}};
+  if (method.similarity()) j["scale"] = p.scale;
   if (owner_map && r.query.cameras.size() == 1) {
     const std::vector<OverlayMark> marks =
         OverlayMarks(r.query, r.pose, *owner_map,
@@ -216,24 +222,6 @@ bool IsLoopback(const std::string& host) {
   return false;
 }
 
-// A request's camera within what any real camera is (Camera::Check has made
-// sure it is well-formed): at most 1 000 000 pixels a side (2^63 was taken),
-// focal lengths 0.01-1000 times the larger side (a 0.06-176 degree field of
-// view; focal 1e308 kept RANSAC busy until the deadline).
-void CheckServedCamera(const Camera& camera, const std::string& where) {
-  constexpr uint64_t kMaxSide = 1'000'000;
-  if (camera.width > kMaxSide || camera.height > kMaxSide) {
-    Fail("{}: {}x{} pixels: at most {} a side", where, camera.width, camera.height, kMaxSide);
-  }
-  const double side = static_cast<double>(std::max(camera.width, camera.height));
-  for (const double f : {camera.FocalLengthX(), camera.FocalLengthY()}) {
-    if (!(f >= 0.01 * side && f <= 1000 * side)) {
-      Fail("{}: focal length {} is not 0.01-1000 times the image's larger side ({} px)", where, f,
-           side);
-    }
-  }
-}
-
 }  // namespace
 
 std::pair<std::string, int> ParseListen(const std::string& listen, const std::string& option) {
@@ -270,6 +258,7 @@ void ServeOptions::Check() const {
     Fail("serve: --body-budget-mb must be in [--max-body-mb, 1e6], got {}", body_budget_mb);
   }
   if (max_pixels < 1) Fail("serve: --max-pixels must be positive");
+  if (max_frames < 1 || max_frames > 64) Fail("serve: --max-frames must be in [1, 64]");
   localizer.Check();
   if (!(memory_budget_mb >= 64 && memory_budget_mb <= 1e7)) {
     Fail("serve: --memory-budget-mb must be in [64, 1e7], got {}", memory_budget_mb);
@@ -400,20 +389,18 @@ struct Server::Impl {
     }
   }
 
-  // A request's method, gravity and options (`fields`: the request-scope
-  // options of localizer_option_table.h, on the map's defaults); 400 naming
-  // the field when one is bad, unknown or the map's.
-  LocalizeRequest RequestOptions(const LoadedMap& map, const std::string& method,
-                                 const std::string& gravity, const json& fields,
+  // A request's method, rig fields and options (the request-scope options of
+  // localizer_option_table.h, on the map's defaults); 400 naming the field
+  // when one is bad, unknown or the map's, or the method does not fit what
+  // was sent.
+  LocalizeRequest RequestOptions(const LoadedMap& map, const LocalizeBody& body,
                                  Clock::time_point deadline, const std::string& where) {
     LocalizeRequest r;
     try {
-      r.method = method;
-      if (!method.empty()) FindMethod(method);
-      if (!gravity.empty()) r.gravity = ParseDirection(gravity, "gravity");
+      body.SetOn(&r);
       // null is "not set": the map's value (as Python's None), never the table's default.
       json set = json::object();
-      for (const auto& [key, value] : fields.items()) {
+      for (const auto& [key, value] : body.options.items()) {
         if (!value.is_null()) set[key] = value;
       }
       if (!set.empty()) {
@@ -427,6 +414,16 @@ struct Server::Impl {
         }
         r.options = o.localize;
       }
+      // The method and what it needs, before the photos are read (seconds for nothing).
+      const MethodInfo& method = map.localizer->RequestMethod(body.frames.size(), r);
+      if (body.frames.size() > 1 && !method.multi) {
+        Fail("{} frames make one generalized camera: use an m- method (m-p6L, ...), not {}",
+             body.frames.size(), method.name);
+      }
+      if (method.local_points && body.points_local.empty()) {
+        Fail("{} localizes the device's own 3D points: send points_local", method.name);
+      }
+      r.method = method.name;
     } catch (const Error& e) {
       Throw(400, e.what());
     }
@@ -438,8 +435,10 @@ struct Server::Impl {
     return r;
   }
 
-  void CheckPhotoHeader(const std::string& bytes, const Camera& camera, const std::string& name,
-                        const LoadedMap& map) {
+  // The photo's header (400 when it is none or differs from its camera, 413
+  // past the pixel cap or the memory budget); returns its pixel count.
+  uint64_t CheckPhotoHeader(const std::string& bytes, const Camera& camera, const std::string& name,
+                            const LoadedMap& map) {
     const std::span<const uint8_t> data(reinterpret_cast<const uint8_t*>(bytes.data()),
                                         bytes.size());
     ImageHeader header;
@@ -460,6 +459,7 @@ struct Server::Impl {
       Throw(400, e.what());
     }
     CheckPhotoMemory(header.width, header.height, name, map);
+    return header.width * header.height;
   }
 
   // 413 when SIFT's scale space for a photo this size (after downscaling
@@ -487,7 +487,7 @@ struct Server::Impl {
     metrics.Stage("total", r.times.total_ms);
   }
 
-  // POST /v1/maps/{id}/localize
+  // POST /v1/maps/{id}/localize: one photo or a device's frames (localize_body.h).
   json Localize(const HttpRequest& req, const std::string& id, json* log) {
     const auto token = Authorize(req);
     if (token) (*log)["token"] = token->id;
@@ -495,112 +495,45 @@ struct Server::Impl {
     (*log)["map"] = id;
     Throttle(token);
     const Clock::time_point deadline = Deadline();
-    std::function<LocalizerResult()> job;
     const std::string type = req.Header("Content-Type");
-    if (req.multipart) {
-      const auto part = [&](const std::string& name) {
-        const auto it = req.parts.find(name);
-        return it == req.parts.end() ? std::optional<std::string>() : it->second;
-      };
-      if (!part("image")) Throw(400, "multipart: the 'image' part is missing");
-      if (!part("camera")) Throw(400, "multipart: the 'camera' part is missing");
-      Camera camera;
-      try {
-        camera = ParseCameraString(*part("camera"), "camera part");
-        CheckServedCamera(camera, "camera");
-      } catch (const Error& e) {
-        Throw(400, std::string("camera: ") + e.what());
-      }
-      auto bytes = std::make_shared<std::string>(*part("image"));
-      CheckPhotoHeader(*bytes, camera, "image", *map);
-      // The other parts: request options, as text (a part that is none fails).
-      json fields = json::object();
-      for (const auto& [name, value] : req.parts) {
-        if (name == "image" || name == "camera" || name == "method" || name == "gravity") continue;
-        const OptionSpec* spec = FindLocalizerOption(name);
-        if (!spec || spec->scope != OptionScope::kRequest) {
-          fields[name] = value;  // RequestOptions names it (unknown, or the map's)
-          continue;
-        }
-        try {
-          fields[name] = ParseOptionText(*spec, value, "multipart");
-        } catch (const Error& e) {
-          Throw(400, e.what());
-        }
-      }
-      const LocalizeRequest r =
-          RequestOptions(*map, part("method").value_or(""), part("gravity").value_or(""), fields,
-                         deadline, "multipart");
-      job = [map, bytes, camera, r] {
-        return map->localizer->LocalizeEncodedImage(
-            std::span(reinterpret_cast<const uint8_t*>(bytes->data()), bytes->size()), camera, r,
-            "image");
-      };
-    } else if (type.rfind("application/json", 0) == 0) {
-      job = FeaturesJob(req.body, map, deadline);
-    } else {
+    if (!req.multipart && type.rfind("application/json", 0) != 0) {
       Throw(415, "send multipart/form-data (image + camera) or application/json (features)");
     }
-    const LocalizerResult r = RunBounded(std::move(job), deadline);
-    RecordStages(r);
-    (*log)["times_ms"] = json(StageTimesToJson(r.times));
-    (*log)["success"] = r.success();
-    return PoseJson(r, token && token->admin ? &map->localizer->map() : nullptr);
-  }
-
-  std::function<LocalizerResult()> FeaturesJob(const std::string& body,
-                                               std::shared_ptr<const LoadedMap> map,
-                                               Clock::time_point deadline) {
-    const json j = ParseBody(body, "body", deadline);
-    if (!j.is_object()) Throw(400, "body: expected a JSON object");
-    for (const char* key : {"camera", "keypoints", "descriptors"}) {
-      if (!j.contains(key)) Throw(400, fmt::format("body: field '{}' is missing", key));
-    }
-    auto features = std::make_shared<SiftFeatures>();
-    Camera camera;
-    std::string method, gravity;
+    auto body = std::make_shared<LocalizeBody>();
     try {
-      camera = CameraFromJson(j["camera"], "camera");
-      CheckServedCamera(camera, "camera");
-      if (!j["keypoints"].is_array()) Fail("keypoints: expected [[x, y], ...]");
-      for (size_t i = 0; i < j["keypoints"].size(); ++i) {
-        const json& k = j["keypoints"][i];
-        if (!k.is_array() || k.size() != 2 || !k[0].is_number() || !k[1].is_number()) {
-          Fail("keypoints[{}]: expected [x, y]", i);
-        }
-        features->keypoints.push_back({k[0].get<float>(), k[1].get<float>(), 0, 0});
-      }
-      if (!j["descriptors"].is_string()) Fail("descriptors: expected base64 of N x 128 bytes");
-      const std::string d = Base64Decode(j["descriptors"].get<std::string>(), "descriptors");
-      features->descriptors.assign(d.begin(), d.end());
-      if (j.contains("gravity")) {
-        const json& g = j["gravity"];
-        if (g.is_string()) {
-          gravity = g.get<std::string>();
-        } else if (g.is_array() && g.size() == 3 && g[0].is_number() && g[1].is_number() &&
-                   g[2].is_number()) {
-          gravity =
-              fmt::format("{},{},{}", g[0].get<double>(), g[1].get<double>(), g[2].get<double>());
-        } else {
-          Fail("gravity: expected [x, y, z] or \"x,y,z\"");
-        }
-      }
-      if (j.contains("method") && !j["method"].is_string()) Fail("method: expected a name");
-      method = j.value("method", "");
+      *body = req.multipart
+                  ? ReadMultipartBody(req.parts, options.max_frames)
+                  : ReadJsonBody(ParseBody(req.body, "body", deadline), options.max_frames);
+    } catch (const FramesOverLimit& e) {
+      Throw(413, e.what());
     } catch (const Error& e) {
       Throw(400, e.what());
     }
-    json fields = json::object();
-    for (const auto& [key, value] : j.items()) {
-      if (key != "camera" && key != "keypoints" && key != "descriptors" && key != "method" &&
-          key != "gravity") {
-        fields[key] = value;
-      }
-    }
-    const LocalizeRequest r = RequestOptions(*map, method, gravity, fields, deadline, "body");
-    return [map, features, camera, r] {
-      return map->localizer->LocalizeFeatures(*features, camera, r);
+    CheckFramePixels(*body, *map);
+    const LocalizeRequest r =
+        RequestOptions(*map, *body, deadline, req.multipart ? "multipart" : "body");
+    (*log)["frames"] = body->frames.size();
+    std::function<LocalizerResult()> job = [map, body, r] {
+      return map->localizer->LocalizePhotos(body->Photos(), r);
     };
+    const LocalizerResult result = RunBounded(std::move(job), deadline);
+    RecordStages(result);
+    (*log)["times_ms"] = json(StageTimesToJson(result.times));
+    (*log)["success"] = result.success();
+    return PoseJson(result, token && token->admin ? &map->localizer->map() : nullptr);
+  }
+
+  // Each photo's header (CheckPhotoHeader), and their pixels together within the cap (413).
+  void CheckFramePixels(const LocalizeBody& body, const LoadedMap& map) {
+    uint64_t pixels = 0;
+    for (const WireFrame& f : body.frames) {
+      if (!f.image.empty()) pixels += CheckPhotoHeader(f.image, f.camera, f.name, map);
+    }
+    if (pixels > options.max_pixels) {
+      Throw(413, fmt::format("{} frames of {} pixels together exceed this server's limit of {} "
+                             "pixels a request",
+                             body.frames.size(), pixels, options.max_pixels));
+    }
   }
 
   // A map route's caller and map (401 / 404 as Authorize and FindMap), logged.
@@ -761,7 +694,9 @@ struct Server::Impl {
       *image = GreyImageFromPixels(std::span(b, bytes->size()), static_cast<int>(camera.width),
                                    static_cast<int>(camera.height), channels, "imageBytes");
     }
-    const LocalizeRequest r = RequestOptions(*map, "", "", json::object(), deadline, "geopose");
+    LocalizeBody one;  // the map's method for one photo, its options
+    one.frames.resize(1);
+    const LocalizeRequest r = RequestOptions(*map, one, deadline, "geopose");
     const LocalizerResult result = RunBounded(
         [map, bytes, image, camera, r, encoded] {
           return encoded ? map->localizer->LocalizeEncodedImage(

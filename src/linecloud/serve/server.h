@@ -40,7 +40,8 @@ struct ServeOptions {
   // Bodies of all requests being read or handled at once (then 503 +
   // Retry-After): a slow client holds its announced length from its head on.
   double body_budget_mb = 256;
-  uint64_t max_pixels = 50'000'000;
+  uint64_t max_pixels = 50'000'000;  // a request's photos together
+  int max_frames = 8;                // a device's frames in one request
   // SIFT's scale space of all requests together, live and pooled (~320 bytes
   // per photo pixel after downscaling to 3 200 px: 550 MB for 1536 x 1024,
   // 3.6 GB at most). A photo needing more alone is refused (413); the others

@@ -70,6 +70,18 @@ const MethodInfo& FindMethod(std::string_view name) {
   Fail("unknown method '{}' (methods: {})", name, names);
 }
 
+const MethodInfo& MethodFor(const QueryTraits& t) {
+  const bool multi = t.several_cameras || t.local_points;
+  const bool known_scale = t.local_points && t.known_scale;
+  for (const MethodInfo& m : kMethods) {
+    if (m.lines == t.lines && m.multi == multi && m.local_points == t.local_points &&
+        m.known_scale == known_scale && m.gravity == t.gravity) {
+      return m;
+    }
+  }
+  Fail("no method for this query");  // unreachable: the table has every combination
+}
+
 void CheckSample(const MethodInfo& m, const MinimalSample& s, std::string_view source) {
   const size_t n = static_cast<size_t>(m.sample_size);
   const auto require = [&](const auto& field, const char* name, bool needed) {

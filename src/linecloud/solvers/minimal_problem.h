@@ -54,6 +54,19 @@ std::span<const MethodInfo> AllMethods();
 // Throws Error listing the valid names when `name` is unknown.
 const MethodInfo& FindMethod(std::string_view name);
 
+// What a query brings, naming the method that uses all of it (Speciale et
+// al., CVPR 2019, Table 1): several cameras of a rig (m-), the query's own 3D
+// points (+l, always a generalized camera: m-), their scale known (+s) and
+// gravity in both frames (+u).
+struct QueryTraits {
+  bool lines = true;  // the map holds lines (else points)
+  bool several_cameras = false;
+  bool local_points = false;
+  bool known_scale = false;  // only with local_points
+  bool gravity = false;
+};
+const MethodInfo& MethodFor(const QueryTraits& traits);
+
 // One minimal sample; fields a method does not use stay empty.
 struct MinimalSample {
   std::vector<Eigen::Vector3d> bearings;      // unit, camera frame

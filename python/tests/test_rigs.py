@@ -1,0 +1,347 @@
+"""[rigs]: a device's frames through `linecloud serve`, as a HoloLens or a phone with ARKit sends
+them: the frames' photos (or their features) with their relative poses from the device's tracking,
+optionally its gravity and its own 3D points (Speciale et al., CVPR 2019: the m- methods, +u, +l,
++s).
+
+Three held-out fountain-P11 photos (a map lifted without them) make a rig whose relative poses
+come from the ground truth with a device's noise (0.1 deg, 1 cm). Through a real HTTP client and a
+real `linecloud serve` process, each method the request implies must give a pose within 0.5 deg /
+5 cm of the truth, the same as `linecloud localize --image ... --rig RIG.json` and Python's
+Localizer to 1e-9; the local points are triangulated from the frames' own matches."""
+
+import base64
+import json
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import linecloud as lc
+from conftest import run_cli
+from test_schema import Served, _camera_text, _multipart
+
+FRAMES = ["0000.jpg", "0001.jpg", "0002.jpg"]
+
+
+# --- a COLMAP binary model without some images (the test's own held-out map) -------------------
+
+def _read_images(path: Path):
+    data = path.read_bytes()
+    (n,), at = struct.unpack_from("<Q", data, 0), 8
+    images = []
+    for _ in range(n):
+        image_id, *pose, camera_id = struct.unpack_from("<I7dI", data, at)
+        at += 64
+        end = data.index(b"\0", at)
+        name = data[at:end].decode()
+        at = end + 1
+        (m,) = struct.unpack_from("<Q", data, at)
+        at += 8
+        points = [list(struct.unpack_from("<ddq", data, at + 24 * i)) for i in range(m)]
+        at += 24 * m
+        images.append({"id": image_id, "pose": pose, "camera": camera_id, "name": name,
+                       "points": points})
+    return images
+
+
+def _read_points(path: Path):
+    data = path.read_bytes()
+    (n,), at = struct.unpack_from("<Q", data, 0), 8
+    points = []
+    for _ in range(n):
+        point_id, x, y, z, r, g, b, error, length = struct.unpack_from("<Q3d3BdQ", data, at)
+        at += 43 + 8
+        track = [struct.unpack_from("<II", data, at + 8 * i) for i in range(length)]
+        at += 8 * length
+        points.append({"id": point_id, "xyz": (x, y, z), "rgb": (r, g, b), "error": error,
+                       "track": track})
+    return points
+
+
+def _model_without(source: Path, names, out: Path):
+    """source's model with the images `names` removed, their observations dropped from the
+    tracks, and the points left with fewer than two observations dropped."""
+    images = _read_images(source / "images.bin")
+    dropped = {im["id"] for im in images if im["name"] in names}
+    assert len(dropped) == len(names), [im["name"] for im in images]
+    points = []
+    for p in _read_points(source / "points3D.bin"):
+        p["track"] = [t for t in p["track"] if t[0] not in dropped]
+        if len(p["track"]) >= 2:
+            points.append(p)
+    kept = {p["id"] for p in points}
+    out.mkdir(parents=True)
+    (out / "cameras.bin").write_bytes((source / "cameras.bin").read_bytes())
+    blob = struct.pack("<Q", len(images) - len(dropped))
+    for im in images:
+        if im["id"] in dropped:
+            continue
+        blob += struct.pack("<I7dI", im["id"], *im["pose"], im["camera"])
+        blob += im["name"].encode() + b"\0" + struct.pack("<Q", len(im["points"]))
+        for x, y, pid in im["points"]:
+            blob += struct.pack("<ddq", x, y, pid if pid in kept else -1)
+    (out / "images.bin").write_bytes(blob)
+    blob = struct.pack("<Q", len(points))
+    for p in points:
+        blob += struct.pack("<Q3d3BdQ", p["id"], *p["xyz"], *p["rgb"], p["error"], len(p["track"]))
+        blob += b"".join(struct.pack("<II", *t) for t in p["track"])
+    (out / "points3D.bin").write_bytes(blob)
+
+
+# --- poses ---------------------------------------------------------------------------------------
+
+def _rotation(q):
+    w, x, y, z = np.asarray(q, float) / np.linalg.norm(q)
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def _quaternion(r):
+    w = np.sqrt(max(0.0, 1 + np.trace(r))) / 2
+    x = np.copysign(np.sqrt(max(0.0, 1 + r[0, 0] - r[1, 1] - r[2, 2])) / 2, r[2, 1] - r[1, 2])
+    y = np.copysign(np.sqrt(max(0.0, 1 - r[0, 0] + r[1, 1] - r[2, 2])) / 2, r[0, 2] - r[2, 0])
+    z = np.copysign(np.sqrt(max(0.0, 1 - r[0, 0] - r[1, 1] + r[2, 2])) / 2, r[1, 0] - r[0, 1])
+    q = np.array([w, x, y, z])
+    return q / np.linalg.norm(q)
+
+
+def _axis_angle(v):
+    angle = np.linalg.norm(v)
+    if angle == 0:
+        return np.eye(3)
+    k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]]) / angle
+    return np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+
+
+def _errors(answer, truth_r, truth_t):
+    """Rotation (deg) and centre (m) errors of a rig_from_world answer."""
+    r = _rotation(answer["q"])
+    s = answer.get("scale", 1.0)
+    c = -r.T @ np.asarray(answer["t"]) / s
+    c_true = -truth_r.T @ truth_t
+    cos = np.clip((np.trace(r @ truth_r.T) - 1) / 2, -1, 1)
+    return np.degrees(np.arccos(cos)), np.linalg.norm(c - c_true)
+
+
+# --- the scene -----------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def rig(fountain, tmp_path_factory):
+    """The held-out map (served and as a file), the frames, their noisy rig, the truth."""
+    work = Path(fountain["model"]).parents[2]
+    prepared = json.loads((work / "prepared.json").read_text())
+    truth = {im["name"]: im for g in prepared["groups"] for im in g["images"]}
+    folder = tmp_path_factory.mktemp("rig")
+    # groups/g00/map is the aligned reconstruction without 0000 and 0001; 0002 leaves too.
+    _model_without(fountain["model"], ["0002.jpg"], folder / "model")
+    maps = folder / "maps"
+    maps.mkdir()
+    gravity_world = prepared["gravity_world"]
+    lc.lift(folder / "model", database=fountain["database"],
+            key_store=tmp_path_factory.mktemp("rig-keys")).write(maps / "fountain.lcm")
+    # The map's gravity from its owner (ID.json), for the +u methods.
+    (maps / "fountain.json").write_text(json.dumps({"options": {"map_gravity": gravity_world}}))
+    # The rig: frame 0's camera is the rig frame; the others' relative poses from the truth with
+    # a device's tracking noise (0.1 deg about a random axis, 1 cm in a random direction).
+    rng = np.random.default_rng(20261127)
+    world = [(_rotation(truth[n]["cam_from_world"]["q"]), np.asarray(truth[n]["cam_from_world"]["t"]))
+             for n in FRAMES]
+    r0, t0 = world[0]
+    cam_from_rig = []
+    for k, (r, t) in enumerate(world):
+        r_rel, t_rel = r @ r0.T, t - r @ r0.T @ t0
+        if k > 0:
+            axis = rng.normal(size=3)
+            r_rel = _axis_angle(np.radians(0.1) * axis / np.linalg.norm(axis)) @ r_rel
+            step = rng.normal(size=3)
+            t_rel = t_rel + 0.01 * step / np.linalg.norm(step)
+        cam_from_rig.append((r_rel, t_rel))
+    photos = [Path(fountain["photo"]).parent / n for n in FRAMES]
+    # Gravity in the rig frame: frame 0's measured direction (the work's, tilted by ~0.2 deg).
+    gravity = truth[FRAMES[0]]["gravity"]
+    # The frames' features as a client sends them (`linecloud features --rig`), once.
+    rig_path = folder / "plain-rig.json"
+    rig_path.write_text(json.dumps(_rig_json({"cam_from_rig": cam_from_rig})))
+    run_cli("features", *sum((["--image", p] for p in photos), []), "--camera",
+            _camera_text(fountain["camera"]), "--rig", rig_path, "--out", folder / "body.json")
+    features = json.loads((folder / "body.json").read_text())
+    return {"maps": maps, "map": maps / "fountain.lcm", "photos": photos, "features": features,
+            "camera": fountain["camera"], "cam_from_rig": cam_from_rig, "truth": (r0, t0),
+            "gravity": gravity, "map_gravity": gravity_world, "folder": folder}
+
+
+def _rig_json(rig, scale=1.0, **extra):
+    return dict({"cam_from_rig": [{"q": list(_quaternion(r)), "t": list(scale * t)}
+                                  for r, t in rig["cam_from_rig"]]}, **extra)
+
+
+@pytest.fixture(scope="module")
+def local_points(rig):
+    """The device's own 3D points: the frames' features (as `linecloud features` writes them)
+    matched frame to frame (mutual nearest neighbours, ratio 0.8) and triangulated with the
+    noisy rig poses; kept when in front of both cameras and within 2 px of both keypoints."""
+    frames = rig["features"]["frames"]
+    cam = rig["camera"]["params"]
+    k = np.array([[cam[0], 0, cam[2]], [0, cam[1], cam[3]], [0, 0, 1]])
+    feats = []
+    for f in frames:
+        d = np.frombuffer(base64.b64decode(f["descriptors"]), np.uint8).reshape(-1, 128)
+        feats.append((np.asarray(f["keypoints"], float), d.astype(np.float32)))
+    points, seen = [], set()
+    for a, b in [(0, 1), (1, 2), (0, 2)]:
+        (ka, da), (kb, db) = feats[a], feats[b]
+        dist = -2 * da @ db.T + (da * da).sum(1)[:, None] + (db * db).sum(1)[None, :]
+        best_b = np.argpartition(dist, 1, axis=1)[:, :2]
+        rows = np.arange(len(ka))[:, None]
+        best_b = np.take_along_axis(best_b, np.argsort(dist[rows, best_b], axis=1), axis=1)
+        best_a = np.argmin(dist, axis=0)
+        ra, ta = rig["cam_from_rig"][a]
+        rb, tb = rig["cam_from_rig"][b]
+        pa, pb = k @ np.hstack([ra, ta[:, None]]), k @ np.hstack([rb, tb[:, None]])
+        for i in range(len(ka)):
+            j, j2 = best_b[i]
+            if best_a[j] != i or dist[i, j] > 0.64 * dist[i, j2]:
+                continue
+            if (a, i) in seen or (b, j) in seen:
+                continue
+            # COLMAP's pixel convention: the top-left pixel's centre is (0.5, 0.5).
+            xa, xb = ka[i] - 0.5, kb[j] - 0.5
+            m = np.stack([xa[0] * pa[2] - pa[0], xa[1] * pa[2] - pa[1],
+                          xb[0] * pb[2] - pb[0], xb[1] * pb[2] - pb[1]])
+            x = np.linalg.svd(m)[2][-1]
+            if abs(x[3]) < 1e-12:
+                continue
+            x = x[:3] / x[3]
+            ok = True
+            for p, xy in ((pa, xa), (pb, xb)):
+                h = p @ np.append(x, 1)
+                ok &= h[2] > 0 and np.linalg.norm(h[:2] / h[2] - xy) < 2.0
+            if not ok:
+                continue
+            seen.update({(a, i), (b, j)})
+            points.append({"frame": a, "keypoint": int(i), "xyz": list(x)})
+            points.append({"frame": b, "keypoint": int(j), "xyz": list(x)})
+    assert len(points) > 500, len(points)
+    return points
+
+
+@pytest.fixture(scope="module")
+def server(rig):
+    """A real `linecloud serve` over the held-out map (its owner's ID.json: the map's gravity)."""
+    served = Served(rig["maps"])
+    yield served
+    served.close()
+
+
+@pytest.fixture(scope="module")
+def localizer(rig):
+    return lc.Localizer(rig["map"], map_gravity=rig["map_gravity"])
+
+
+def _http(server, parts_or_body, features=False):
+    if features:
+        return server.post("/v1/maps/fountain/localize", json.dumps(parts_or_body).encode(),
+                           "application/json")
+    return server.post("/v1/maps/fountain/localize", *_multipart(parts_or_body))
+
+
+def _parts(rig, rig_fields, scale=1.0):
+    parts = {"camera": _camera_text(rig["camera"])}
+    for k, photo in enumerate(rig["photos"]):
+        parts[f"image[{k}]"] = photo.read_bytes()
+        r, t = rig["cam_from_rig"][k]
+        parts[f"cam_from_rig[{k}]"] = json.dumps({"q": list(_quaternion(r)), "t": list(scale * t)})
+    for name, value in rig_fields.items():
+        parts[name] = value if isinstance(value, str) else json.dumps(value)
+    return parts
+
+
+def _cli(rig, rig_fields, name, scale=1.0):
+    path = rig["folder"] / f"{name}.json"
+    path.write_text(json.dumps(_rig_json(rig, scale, **rig_fields)))
+    return json.loads(run_cli("localize", "--map", rig["map"], *sum((["--image", p] for p in
+                                                                       rig["photos"]), []),
+                              "--camera", _camera_text(rig["camera"]), "--rig", path, "--quiet",
+                              "--map-gravity", ",".join(map(str, rig["map_gravity"]))))
+
+
+CASES = {
+    # what the device sends -> the method the server chooses
+    "m-p6L": lambda rig, pts: {},
+    "m-p4L+u": lambda rig, pts: {"gravity": rig["gravity"]},
+    "m-P3L+l+s": lambda rig, pts: {"points_local": pts, "scale_known": True},
+    "m-P4L+l": lambda rig, pts: {"points_local": pts, "scale_known": False},
+}
+# The unknown-scale device: its rig and points in its own units (metres x 0.37).
+SCALE = {"m-P4L+l": 0.37}
+
+
+@pytest.mark.parametrize("method", list(CASES))
+def test_a_devices_frames_over_http_give_the_true_pose(rig, local_points, server, localizer,
+                                                       method):
+    fields = CASES[method](rig, local_points)
+    scale = SCALE.get(method, 1.0)
+    if "points_local" in fields:
+        fields["points_local"] = [dict(p, xyz=list(scale * np.asarray(p["xyz"])))
+                                  for p in fields["points_local"]]
+    cli = _cli(rig, fields, method, scale)
+    assert cli["success"], cli
+    assert cli["method"] == method
+    answers = {}
+    # The photos as multipart parts, the method left to the server (keypoint indices of local
+    # points are the server's own SIFT's: `linecloud features`' with the map's options).
+    if method in ("m-p6L", "m-P3L+l+s"):
+        status, answers["http photos"] = _http(
+            server, _parts(rig, {k: v if k != "gravity" else ",".join(map(str, v))
+                                 for k, v in fields.items()}, scale))
+        assert status == 200, answers["http photos"]
+    # The frames' features as JSON (as `linecloud features --rig` writes them), the rig's fields
+    # beside them.
+    body = dict(json.loads(json.dumps(rig["features"])), **fields)
+    for frame, pose in zip(body["frames"], _rig_json(rig, scale)["cam_from_rig"]):
+        frame["cam_from_rig"] = pose
+    status, answers["http features"] = _http(server, body, features=True)
+    assert status == 200, answers["http features"]
+    # Python: one call, lists in (the frames' features: their photos' SIFT is the CLI's).
+    frames = rig["features"]["frames"]
+    answers["python"] = localizer.localize_features(
+        [np.asarray(f["keypoints"]) for f in frames],
+        [np.frombuffer(base64.b64decode(f["descriptors"]), np.uint8).reshape(-1, 128)
+         for f in frames],
+        rig["camera"], cam_from_rig=_rig_json(rig, scale)["cam_from_rig"], **fields)
+    for who, r in answers.items():
+        assert r["success"], (who, r)
+        assert r["method"] == method, (who, r["method"])
+        np.testing.assert_allclose(r["q"], cli["q"], rtol=0, atol=1e-9, err_msg=who)
+        np.testing.assert_allclose(r["t"], cli["t"], rtol=0, atol=1e-9, err_msg=who)
+    assert answers["http features"]["pose"] == "rig_from_world"
+    assert ("scale" in answers["http features"]) == (method == "m-P4L+l")
+    rotation_deg, centre_m = _errors(cli, *rig["truth"])
+    print(f"{method}: {cli['num_inliers']} inliers of {cli['num_correspondences']}, "
+          f"{rotation_deg:.3f} deg, {100 * centre_m:.1f} cm")
+    assert rotation_deg < 0.5 and centre_m < 0.05, (method, rotation_deg, centre_m)
+    if method == "m-P4L+l":
+        # X_local = s R X_world + t: the device's units are 0.37 of the map's metres.
+        assert abs(cli["scale"] / scale - 1) < 0.02, cli["scale"]
+
+
+def test_the_features_body_writer_carries_the_rigs_fields(rig, local_points):
+    fields = {"points_local": local_points[:10], "scale_known": True, "gravity": rig["gravity"]}
+    rig_path = rig["folder"] / "full-rig.json"
+    rig_path.write_text(json.dumps(_rig_json(rig, **fields)))
+    out = rig["folder"] / "full-body.json"
+    run_cli("features", *sum((["--image", p] for p in rig["photos"]), []), "--camera",
+            _camera_text(rig["camera"]), "--rig", rig_path, "--out", out)
+    body = json.loads(out.read_text())
+    assert set(body) == {"frames", "points_local", "scale_known", "gravity"}
+    assert body["points_local"] == fields["points_local"]
+    assert body["scale_known"] is True
+    np.testing.assert_allclose(body["gravity"], rig["gravity"], rtol=0, atol=1e-15)
+    for mine, plain, pose in zip(body["frames"], rig["features"]["frames"],
+                                 _rig_json(rig)["cam_from_rig"]):
+        assert mine["keypoints"] == plain["keypoints"]
+        assert mine["descriptors"] == plain["descriptors"]
+        np.testing.assert_allclose(mine["cam_from_rig"]["q"], pose["q"], rtol=0, atol=1e-15)
+        np.testing.assert_allclose(mine["cam_from_rig"]["t"], pose["t"], rtol=0, atol=1e-15)
