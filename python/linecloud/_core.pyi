@@ -24,6 +24,12 @@ class Pose(TypedDict, total=False):
     scale: float  # Sim3 methods only
 
 
+class LocalPoint(TypedDict):
+    frame: int     # the photo it is seen in
+    keypoint: int  # its keypoint there (as given, or as the map's SIFT finds them)
+    xyz: Sequence[float]  # the device's 3D point, rig frame
+
+
 class LineCloud:
     def __init__(self, lines: npt.ArrayLike, ids: npt.ArrayLike,
                  descriptors: npt.NDArray[np.uint8] | None = None) -> None: ...
@@ -77,7 +83,9 @@ class Localizer:
     def localize_image(self, image: _Image | Sequence[_Image], camera: Camera | Sequence[Camera],
                        *, method: str | None = None, gravity: Sequence[float] | None = None,
                        threads: int | None = None, with_inliers: bool = True,
-                       cam_from_rig: Sequence[Pose] | None = None, threshold: float | None = None,
+                       cam_from_rig: Sequence[Pose] | None = None,
+                       points_local: Sequence[LocalPoint] | dict[str, npt.ArrayLike] | None = None,
+                       scale_known: bool | None = None, threshold: float | None = None,
                        seed: int | None = None, confidence: float | None = None,
                        min_iterations: int | None = None, max_iterations: int | None = None,
                        max_seconds: float | None = None, uniform_sampling: bool | None = None,
@@ -91,10 +99,11 @@ class Localizer:
                           camera: Camera | Sequence[Camera], *, method: str | None = None,
                           gravity: Sequence[float] | None = None, threads: int | None = None,
                           with_inliers: bool = True, cam_from_rig: Sequence[Pose] | None = None,
-                          threshold: float | None = None, seed: int | None = None,
-                          confidence: float | None = None, min_iterations: int | None = None,
-                          max_iterations: int | None = None, max_seconds: float | None = None,
-                          uniform_sampling: bool | None = None,
+                          points_local: Sequence[LocalPoint] | dict[str, npt.ArrayLike] | None = None,
+                          scale_known: bool | None = None, threshold: float | None = None,
+                          seed: int | None = None, confidence: float | None = None,
+                          min_iterations: int | None = None, max_iterations: int | None = None,
+                          max_seconds: float | None = None, uniform_sampling: bool | None = None,
                           local_optimization: bool | None = None, refine: bool | None = None,
                           refine_focal: bool | None = None, min_inliers: int | None = None,
                           min_inlier_ratio: float | None = None,

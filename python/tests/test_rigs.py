@@ -345,3 +345,92 @@ def test_the_features_body_writer_carries_the_rigs_fields(rig, local_points):
         assert mine["descriptors"] == plain["descriptors"]
         np.testing.assert_allclose(mine["cam_from_rig"]["q"], pose["q"], rtol=0, atol=1e-15)
         np.testing.assert_allclose(mine["cam_from_rig"]["t"], pose["t"], rtol=0, atol=1e-15)
+
+
+def test_a_rig_request_that_is_wrong_is_refused_naming_the_part(rig, local_points, server):
+    """Bad rigs get 400 / 413 naming the part or field, before any photo is decoded."""
+    frames = rig["features"]["frames"]
+    poses = _rig_json(rig)["cam_from_rig"]
+
+    def body(**fields):
+        b = {"frames": [dict(f, cam_from_rig=p) for f, p in zip(frames, poses)]}
+        b.update(fields)
+        return b
+
+    def features(b):
+        status, answer = _http(server, b, features=True)
+        return status, answer.get("error", answer)
+
+    photo = rig["photos"][0].read_bytes()
+    camera = _camera_text(rig["camera"])
+    pose = json.dumps(poses[1])
+    cases = [
+        # multipart
+        (_http(server, {"image[1]": photo, "camera": camera, "cam_from_rig[1]": pose}),
+         400, "multipart: image[1] without image[0] (frames are image[0], image[1], ... in order)"),
+        (_http(server, {"image": photo, "image[0]": photo, "camera": camera}), 400,
+         "multipart: give 'image' (one photo) or image[0], image[1], ..."),
+        (_http(server, {"image[0]": photo, "image[1]": photo, "camera": camera,
+                        "cam_from_rig[0]": pose}), 400,
+         "multipart: the 'cam_from_rig[1]' part is missing"),
+        (_http(server, {"image[0]": photo, "camera[0]": camera, "camera[3]": camera}), 400,
+         "multipart: camera[3] has no image[3]"),
+        (_http(server, {"image[01]": photo, "camera": camera}), 400,
+         "multipart: part \"image[01]\": expected image[0], image[1], ..."),
+        (_http(server, {**{f"image[{k}]": b"x" for k in range(9)}, "camera": camera}), 413,
+         "9 frames: this server takes at most 8 in one request (serve --max-frames)"),
+        (_http(server, {"image[0]": photo, "camera": camera, "scale_known": "maybe"}), 400,
+         "scale_known: expected true or false, got \"maybe\""),
+        # JSON frames
+        (features(body(points_local=local_points[:20], method="m-p6L")), 400,
+         "points_local: m-p6L does not use the query's own points (the +l methods do: "),
+        (features(body(points_local=[{"frame": 3, "keypoint": 0, "xyz": [0, 0, 1]}])), 400,
+         "points_local[0]: frame 3 is not one of the 3 photos"),
+        (features(body(points_local=[{"frame": 0, "keypoint": 10 ** 6, "xyz": [0, 0, 1]}])), 400,
+         "points_local[0]: frames[0] has"),
+        (features(body(points_local=[{"frame": 0, "keypoint": 1, "xyz": [0, 0, 1], "w": 1}])),
+         400, "points_local[0]: unknown field \"w\" (frame, keypoint, xyz)"),
+        (features(body(points_local=local_points[:20], scale_known=True, method="m-P4L+l")), 400,
+         "scale_known is true but m-P4L+l estimates the scale"),
+        (features(body(method="m-P3L+l+s")), 400,
+         "m-P3L+l+s localizes the device's own 3D points: send points_local"),
+        (features(body(method="p6L")), 400,
+         "3 frames make one generalized camera: use an m- method (m-p6L, ...), not p6L"),
+        (features({"frames": [dict(f, cam_from_rig=p) for f, p in zip(frames, poses)][:2] +
+                   [{k: v for k, v in frames[2].items() if k != "cam_from_rig"}]}), 400,
+         "frames[2]: field 'cam_from_rig' is missing (the frame's pose in the rig)"),
+        (features(dict(body(), keypoints=[])), 400,
+         "body: 'keypoints' goes in each of 'frames', not beside them"),
+        (features({"frames": [dict(frames[0], extra=1)]}), 400,
+         "frames[0]: unknown field \"extra\""),
+        (features({"frames": [{"camera": rig["camera"], "keypoints": [[1, 1]],
+                               "descriptors": base64.b64encode(bytes(128)).decode(),
+                               "cam_from_rig": poses[0]}] * 9}), 413,
+         "9 frames: this server takes at most 8 in one request (serve --max-frames)"),
+        (features(body(gravity=[0, 0, 0])), 400, "gravity: expected a finite non-zero direction"),
+    ]
+    for (status, answer), want_status, want in cases:
+        message = answer.get("error", answer) if isinstance(answer, dict) else answer
+        assert status == want_status, (want, status, answer)
+        assert want in message, (want, message)
+
+
+def test_a_rigs_pixels_count_together(rig, tmp_path):
+    """--max-pixels bounds a request's photos together: two 1536 x 1024 frames (3.1 M pixels)
+    pass one at a time under a 3 M cap, and are refused (413) together."""
+    server = Served(rig["maps"], "--max-pixels", 3_000_000)
+    try:
+        camera = _camera_text(rig["camera"])
+        photos = [p.read_bytes() for p in rig["photos"][:2]]
+        poses = _rig_json(rig)["cam_from_rig"]
+        status, answer = _http(server, {"image[0]": photos[0], "image[1]": photos[1],
+                                        "camera": camera,
+                                        "cam_from_rig[0]": json.dumps(poses[0]),
+                                        "cam_from_rig[1]": json.dumps(poses[1])})
+        assert status == 413, answer
+        assert answer["error"] == ("2 frames of 3145728 pixels together exceed this server's "
+                                   "limit of 3000000 pixels a request"), answer
+        status, answer = _http(server, {"image": photos[0], "camera": camera})
+        assert status == 200 and answer["success"], answer
+    finally:
+        server.close()

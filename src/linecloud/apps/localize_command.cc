@@ -237,8 +237,10 @@ void RegisterLocalizeCommand(CLI::App& app) {
   cmd->add_option("--gravity", args->gravity,
                   "Gravity direction x,y,z in the query's (camera or rig) frame, for +u methods");
   cmd->add_option("--method", args->method,
-                  "One of the 16 methods, e.g. p6L, p3P, m-P3P+l (default: p6L with --map, p3P "
-                  "with --model)");
+                  "One of the 16 methods, e.g. p6L, p3P, m-P3P+l (default: the one that uses what "
+                  "is given: p6L with --map, p3P with --model; m- for several photos, +u with "
+                  "gravity here and in the map, +l with RIG.json's points_local, +s when "
+                  "scale_known)");
   constexpr OptionScope kAll[] = {OptionScope::kMap, OptionScope::kRequest};
   args->options.Add(cmd, kAll);
   cmd->add_flag("--inliers", args->with_inliers, "Also list the inlier observation indices");

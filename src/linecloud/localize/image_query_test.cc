@@ -9,6 +9,7 @@
 
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/testing/test_util.h"
+#include "linecloud/util/error.h"
 
 namespace linecloud {
 namespace {
@@ -130,6 +131,61 @@ TEST(ImageQuery, EightThreadsGiveWhatOneThreadGives) {
     EXPECT_EQ(one[j].result.query_from_world.translation,
               eight[j].result.query_from_world.translation);
   }
+}
+
+}  // namespace
+}  // namespace linecloud
+
+namespace linecloud {
+namespace {
+
+// A photo's query with `n` keypoints, keypoint i matched to map id 100 + i
+// for every i in `matched`.
+ImageQuery PhotoWithMatches(int n, const std::vector<int>& matched) {
+  ImageQuery q;
+  q.features.keypoints.resize(n);
+  q.query.cameras.push_back(Camera{});
+  for (const int i : matched) {
+    q.matches.push_back({i, i, 0.5f});
+    q.query.observations.push_back(
+        {0, Eigen::Vector2d(i, i), static_cast<uint64_t>(100 + i), std::nullopt, 0.5});
+  }
+  return q;
+}
+
+// [rigs] With a device's local points only the matches of keypoints that
+// carry one are kept, in order, each with its point; without them every match.
+TEST(ImageQuery, CombinedRigKeepsTheMatchesWithALocalPoint) {
+  const std::vector<ImageQuery> photos = {PhotoWithMatches(10, {1, 4, 7}),
+                                          PhotoWithMatches(5, {0, 2})};
+  const std::vector<Rigid3d> rig(2);
+  EXPECT_EQ(CombineImageQueries(photos, rig).observations.size(), 5u);
+  const std::vector<LocalPoint> points = {{.frame = 1, .keypoint = 2, .xyz = {1, 2, 3}},
+                                          {.frame = 0, .keypoint = 7, .xyz = {4, 5, 6}},
+                                          {.frame = 0, .keypoint = 9, .xyz = {7, 8, 9}}};
+  const Query q = CombineImageQueries(photos, rig, points);
+  ASSERT_EQ(q.observations.size(), 2u);
+  ASSERT_EQ(q.points_local.size(), 2u);
+  EXPECT_EQ(q.observations[0].id, 107u);
+  EXPECT_EQ(q.observations[0].camera, 0);
+  EXPECT_EQ(q.points_local[0], Eigen::Vector3d(4, 5, 6));
+  EXPECT_EQ(q.observations[1].id, 102u);
+  EXPECT_EQ(q.observations[1].camera, 1);
+  EXPECT_EQ(q.points_local[1], Eigen::Vector3d(1, 2, 3));
+  const auto error = [&](std::vector<LocalPoint> bad) {
+    try {
+      CombineImageQueries(photos, rig, bad);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(error({{.frame = 2, .keypoint = 0}}),
+            "points_local[0]: frame 2 is not one of the 2 photos");
+  EXPECT_EQ(error({{.frame = 1, .keypoint = 5}}),
+            "points_local[0]: frame 1 has 5 keypoints, no keypoint 5");
+  EXPECT_EQ(error({{.frame = 0, .keypoint = 3}, {.frame = 0, .keypoint = 3}}),
+            "points_local[1]: frame 0 keypoint 3 has a local point already");
 }
 
 }  // namespace

@@ -130,12 +130,13 @@ std::vector<LocalPoint> ParseLocalPointsJson(const nlohmann::json& j, const std:
     LocalPoint p;
     for (const char* key : {"frame", "keypoint"}) {
       if (!e.contains(key)) Fail("{}: field '{}' is missing", at, key);
-      if (!e[key].is_number_unsigned() || e[key].get<uint64_t>() > (uint64_t{1} << 31)) {
+      if (!e[key].is_number_integer() || e[key].get<int64_t>() < 0 ||
+          e[key].get<int64_t>() > (int64_t{1} << 31)) {
         Fail("{}.{}: expected an index (0, 1, ...)", at, key);
       }
     }
-    p.frame = static_cast<int>(e["frame"].get<uint64_t>());
-    p.keypoint = static_cast<int64_t>(e["keypoint"].get<uint64_t>());
+    p.frame = static_cast<int>(e["frame"].get<int64_t>());
+    p.keypoint = e["keypoint"].get<int64_t>();
     if (!e.contains("xyz")) Fail("{}: field 'xyz' is missing", at);
     p.xyz = JsonVector3(e["xyz"], at + ".xyz");
     if (!p.xyz.allFinite()) Fail("{}.xyz: not finite", at);

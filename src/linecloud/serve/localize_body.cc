@@ -26,15 +26,14 @@ bool IsRigField(std::string_view name) {
 }
 
 [[noreturn]] void TooManyFrames(size_t n, int max_frames) {
-  throw FramesOverLimit(fmt::format(
-      "{} frames: this server takes at most {} in one request (serve --max-frames)", n,
-      max_frames));
+  throw FramesOverLimit(
+      fmt::format("{} frames: this server takes at most {} in one request (serve --max-frames)", n,
+                  max_frames));
 }
 
 Eigen::Vector3d GravityFromJson(const json& g) {
   if (g.is_string()) return ParseDirection(g.get<std::string>(), "gravity");
-  if (g.is_array() && g.size() == 3 && g[0].is_number() && g[1].is_number() &&
-      g[2].is_number()) {
+  if (g.is_array() && g.size() == 3 && g[0].is_number() && g[1].is_number() && g[2].is_number()) {
     const Eigen::Vector3d v(g[0].get<double>(), g[1].get<double>(), g[2].get<double>());
     if (v.allFinite() && v.norm() > 0) return v;
   }
@@ -57,7 +56,7 @@ std::optional<size_t> IndexedPart(const std::string& name, std::string_view pref
   if (digits.empty() || digits.size() > 4 ||
       !std::all_of(digits.begin(), digits.end(), [](unsigned char c) { return std::isdigit(c); }) ||
       (digits.size() > 1 && digits[0] == '0')) {
-    Fail("multipart: part '{}': expected {}[0], {}[1], ...", ShownInMessage(json(name)), prefix,
+    Fail("multipart: part {}: expected {}[0], {}[1], ...", ShownInMessage(json(name)), prefix,
          prefix);
   }
   return std::stoul(digits);
@@ -96,7 +95,8 @@ void ReadRigFields(const json& j, LocalizeBody* body) {
     if (!j["method"].is_string()) Fail("method: expected a name");
     body->method = j["method"].get<std::string>();
   }
-  if (j.contains("gravity") && !j["gravity"].is_null()) body->gravity = GravityFromJson(j["gravity"]);
+  if (j.contains("gravity") && !j["gravity"].is_null())
+    body->gravity = GravityFromJson(j["gravity"]);
   if (j.contains("points_local")) {
     body->points_local = ParseLocalPointsJson(j["points_local"], "points_local");
   }
@@ -173,13 +173,10 @@ LocalizeBody ReadMultipartBody(const std::map<std::string, std::string>& parts, 
   if (!rig && !part("image")) Fail("multipart: the 'image' part is missing");
   const size_t n = rig ? images.size() : 1;
   if (rig && images.rbegin()->first != n - 1) {
-    Fail("multipart: image[{}] is missing (frames are numbered 0 to {})",
-         [&] {
-           size_t k = 0;
-           while (images.count(k)) ++k;
-           return k;
-         }(),
-         n - 1);
+    size_t missing = 0;
+    while (images.count(missing)) ++missing;
+    Fail("multipart: image[{}] without image[{}] (frames are image[0], image[1], ... in order)",
+         images.rbegin()->first, missing);
   }
   for (const auto& [label, indexed] : {std::pair{"camera", &cameras}, {"cam_from_rig", &poses}}) {
     for (const auto& [k, value] : *indexed) {
@@ -197,7 +194,8 @@ LocalizeBody ReadMultipartBody(const std::map<std::string, std::string>& parts, 
     f.name = rig ? fmt::format("image[{}]", k) : "image";
     f.image = rig ? *images.at(k) : *part("image");
     const std::string camera_part = cameras.empty() ? "camera" : fmt::format("camera[{}]", k);
-    const std::string* camera = cameras.empty() ? part("camera") : (cameras.count(k) ? cameras.at(k) : nullptr);
+    const std::string* camera =
+        cameras.empty() ? part("camera") : (cameras.count(k) ? cameras.at(k) : nullptr);
     if (!camera) Fail("multipart: the '{}' part is missing", camera_part);
     f.camera = ParseCameraString(*camera, camera_part + " part");
     CheckServedCamera(f.camera, camera_part);
@@ -205,9 +203,10 @@ LocalizeBody ReadMultipartBody(const std::map<std::string, std::string>& parts, 
       f.cam_from_rig = JsonPose(ParseRequestJson(*poses.at(k), fmt::format("cam_from_rig[{}]", k)),
                                 fmt::format("cam_from_rig[{}]", k));
     } else if (n > 1) {
-      Fail("multipart: the 'cam_from_rig[{}]' part is missing ({{\"q\": [w, x, y, z], \"t\": "
-           "[x, y, z]}}: frame {} in the rig)",
-           k, k);
+      Fail(
+          "multipart: the 'cam_from_rig[{}]' part is missing ({{\"q\": [w, x, y, z], \"t\": "
+          "[x, y, z]}}: frame {} in the rig)",
+          k, k);
     }
   }
   if (const std::string* m = part("method")) body.method = *m;
@@ -247,7 +246,8 @@ LocalizeBody ReadJsonBody(const json& j, int max_frames) {
       const std::string where = fmt::format("frames[{}]", k);
       ReadFeatures(frames[k], where, &body.frames[k]);
       for (const auto& [key, value] : frames[k].items()) {
-        if (key != "camera" && key != "keypoints" && key != "descriptors" && key != "cam_from_rig") {
+        if (key != "camera" && key != "keypoints" && key != "descriptors" &&
+            key != "cam_from_rig") {
           Fail("{}: unknown field {} (camera, keypoints, descriptors, cam_from_rig)", where,
                ShownInMessage(json(key)));
         }

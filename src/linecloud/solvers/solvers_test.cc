@@ -5,6 +5,9 @@
 #include <iostream>
 #include <random>
 
+#include <set>
+#include <string_view>
+
 #include <gtest/gtest.h>
 
 #include "linecloud/solvers/m_p4l_l.h"
@@ -155,6 +158,36 @@ TEST(MinimalProblem, CheckSampleNamesTheField) {
   inst.sample.points[0].x() = std::nan("");
   EXPECT_THROW(CheckSample(m, inst.sample, "problem.json"), Error);
   EXPECT_THROW(FindMethod("p5P"), Error);
+}
+
+// [rigs] The method a query implies, by the paper's names: every combination
+// of map, cameras, local points, their scale and gravity names one method,
+// and each of the 16 is reached.
+TEST(MinimalProblem, MethodForNamesTheMethodThatUsesWhatTheQueryBrings) {
+  EXPECT_EQ(MethodFor({}).name, "p6L");
+  EXPECT_EQ(MethodFor({.gravity = true}).name, "p4L+u");
+  EXPECT_EQ(MethodFor({.several_cameras = true}).name, "m-p6L");
+  EXPECT_EQ(MethodFor({.several_cameras = true, .gravity = true}).name, "m-p4L+u");
+  EXPECT_EQ(MethodFor({.local_points = true}).name, "m-P4L+l");  // one camera: a rig of one
+  EXPECT_EQ(MethodFor({.local_points = true, .known_scale = true}).name, "m-P3L+l+s");
+  EXPECT_EQ(MethodFor({.local_points = true, .gravity = true}).name, "m-P3L+l+u");
+  EXPECT_EQ(MethodFor({.local_points = true, .known_scale = true, .gravity = true}).name,
+            "m-P2L+l+u+s");
+  EXPECT_EQ(MethodFor({.known_scale = true}).name, "p6L");  // a scale without points: nothing
+  EXPECT_EQ(MethodFor({.lines = false, .several_cameras = true, .local_points = true}).name,
+            "m-P3P+l");
+  std::set<std::string_view> reached;
+  for (const bool lines : {false, true}) {
+    for (int bits = 0; bits < 16; ++bits) {
+      reached.insert(MethodFor({.lines = lines,
+                                .several_cameras = (bits & 1) != 0,
+                                .local_points = (bits & 2) != 0,
+                                .known_scale = (bits & 4) != 0,
+                                .gravity = (bits & 8) != 0})
+                         .name);
+    }
+  }
+  EXPECT_EQ(reached.size(), AllMethods().size());
 }
 
 }  // namespace
