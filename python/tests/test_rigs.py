@@ -139,7 +139,11 @@ def rig(fountain, tmp_path_factory):
     maps = folder / "maps"
     maps.mkdir()
     gravity_world = prepared["gravity_world"]
-    lc.lift(folder / "model", database=fountain["database"],
+    # A fixed key (the same lines, index and matches on every run).
+    key = folder / "rig.key"
+    key.write_text("# the rig test's fixed key\ndirections sphere\n" + "27" * 32 + "\n")
+    key.chmod(0o600)
+    lc.lift(folder / "model", database=fountain["database"], key_file=key,
             key_store=tmp_path_factory.mktemp("rig-keys")).write(maps / "fountain.lcm")
     # The map's gravity from its owner (ID.json), for the +u methods.
     (maps / "fountain.json").write_text(json.dumps({"options": {"map_gravity": gravity_world}}))
@@ -185,10 +189,11 @@ def local_points(rig):
     frames = rig["features"]["frames"]
     cam = rig["camera"]["params"]
     k = np.array([[cam[0], 0, cam[2]], [0, cam[1], cam[3]], [0, 0, 1]])
+    # The first 4 000 keypoints of each frame (a device's local map is sparser than SIFT).
     feats = []
     for f in frames:
         d = np.frombuffer(base64.b64decode(f["descriptors"]), np.uint8).reshape(-1, 128)
-        feats.append((np.asarray(f["keypoints"], float), d.astype(np.float32)))
+        feats.append((np.asarray(f["keypoints"], float)[:4000], d[:4000].astype(np.float32)))
     points, seen = [], set()
     for a, b in [(0, 1), (1, 2), (0, 2)]:
         (ka, da), (kb, db) = feats[a], feats[b]
@@ -200,29 +205,26 @@ def local_points(rig):
         ra, ta = rig["cam_from_rig"][a]
         rb, tb = rig["cam_from_rig"][b]
         pa, pb = k @ np.hstack([ra, ta[:, None]]), k @ np.hstack([rb, tb[:, None]])
-        for i in range(len(ka)):
-            j, j2 = best_b[i]
-            if best_a[j] != i or dist[i, j] > 0.64 * dist[i, j2]:
+        i = np.arange(len(ka))
+        j, j2 = best_b[:, 0], best_b[:, 1]
+        keep = (best_a[j] == i) & (dist[i, j] <= 0.64 * dist[i, j2])
+        i, j = i[keep], j[keep]
+        # COLMAP's pixel convention: the top-left pixel's centre is (0.5, 0.5).
+        xa, xb = ka[i] - 0.5, kb[j] - 0.5
+        m = np.stack([xa[:, :1] * pa[2] - pa[0], xa[:, 1:] * pa[2] - pa[1],
+                      xb[:, :1] * pb[2] - pb[0], xb[:, 1:] * pb[2] - pb[1]], axis=1)
+        x = np.linalg.svd(m)[2][:, -1]
+        x = x[:, :3] / x[:, 3:]
+        ok = np.ones(len(x), bool)
+        for p, xy in ((pa, xa), (pb, xb)):
+            h = np.hstack([x, np.ones((len(x), 1))]) @ p.T
+            ok &= (h[:, 2] > 0) & (np.linalg.norm(h[:, :2] / h[:, 2:] - xy, axis=1) < 2.0)
+        for ia, jb, xyz in zip(i[ok], j[ok], x[ok]):
+            if (a, ia) in seen or (b, jb) in seen:
                 continue
-            if (a, i) in seen or (b, j) in seen:
-                continue
-            # COLMAP's pixel convention: the top-left pixel's centre is (0.5, 0.5).
-            xa, xb = ka[i] - 0.5, kb[j] - 0.5
-            m = np.stack([xa[0] * pa[2] - pa[0], xa[1] * pa[2] - pa[1],
-                          xb[0] * pb[2] - pb[0], xb[1] * pb[2] - pb[1]])
-            x = np.linalg.svd(m)[2][-1]
-            if abs(x[3]) < 1e-12:
-                continue
-            x = x[:3] / x[3]
-            ok = True
-            for p, xy in ((pa, xa), (pb, xb)):
-                h = p @ np.append(x, 1)
-                ok &= h[2] > 0 and np.linalg.norm(h[:2] / h[2] - xy) < 2.0
-            if not ok:
-                continue
-            seen.update({(a, i), (b, j)})
-            points.append({"frame": a, "keypoint": int(i), "xyz": list(x)})
-            points.append({"frame": b, "keypoint": int(j), "xyz": list(x)})
+            seen.update({(a, ia), (b, jb)})
+            points.append({"frame": a, "keypoint": int(ia), "xyz": xyz.tolist()})
+            points.append({"frame": b, "keypoint": int(jb), "xyz": xyz.tolist()})
     assert len(points) > 500, len(points)
     return points
 
