@@ -275,9 +275,12 @@ CASES = {
     "m-p4L+u": lambda rig, pts: {"gravity": rig["gravity"]},
     "m-P3L+l+s": lambda rig, pts: {"points_local": pts, "scale_known": True},
     "m-P4L+l": lambda rig, pts: {"points_local": pts, "scale_known": False},
+    "m-P3L+l+u": lambda rig, pts: {"points_local": pts, "gravity": rig["gravity"]},
+    "m-P2L+l+u+s": lambda rig, pts: {"points_local": pts, "scale_known": True,
+                                     "gravity": rig["gravity"]},
 }
-# The unknown-scale device: its rig and points in its own units (metres x 0.37).
-SCALE = {"m-P4L+l": 0.37}
+# The unknown-scale devices: their rig and points in their own units (metres x 0.37).
+SCALE = {"m-P4L+l": 0.37, "m-P3L+l+u": 0.37}
 
 
 @pytest.mark.parametrize("method", list(CASES))
@@ -319,12 +322,12 @@ def test_a_devices_frames_over_http_give_the_true_pose(rig, local_points, server
         np.testing.assert_allclose(r["q"], cli["q"], rtol=0, atol=1e-9, err_msg=who)
         np.testing.assert_allclose(r["t"], cli["t"], rtol=0, atol=1e-9, err_msg=who)
     assert answers["http features"]["pose"] == "rig_from_world"
-    assert ("scale" in answers["http features"]) == (method == "m-P4L+l")
+    assert ("scale" in answers["http features"]) == (method in SCALE)
     rotation_deg, centre_m = _errors(cli, *rig["truth"])
     print(f"{method}: {cli['num_inliers']} inliers of {cli['num_correspondences']}, "
           f"{rotation_deg:.3f} deg, {100 * centre_m:.1f} cm")
     assert rotation_deg < 0.5 and centre_m < 0.05, (method, rotation_deg, centre_m)
-    if method == "m-P4L+l":
+    if method in SCALE:
         # X_local = s R X_world + t: the device's units are 0.37 of the map's metres.
         assert abs(cli["scale"] / scale - 1) < 0.02, cli["scale"]
 
