@@ -374,3 +374,52 @@ def test_python_and_the_cli_share_the_index_cache(fountain, fountain_map, tmp_pa
     # And the other way round: a second Python Localizer reads it too.
     assert lc.Localizer(path).localize_image(fountain["photo"], fountain["camera"])["q"] == ours["q"]
     assert cached[0].stat().st_mtime_ns == stamp
+
+
+def test_null_is_the_maps_value_and_the_memory_estimate_uses_the_maps_sift(fountain, fountain_map,
+                                                                             tmp_path):
+    """A request field set to null is "not set": the map owner's value (ID.json), never the
+    table's default. And a photo's SIFT memory is estimated with the map's max_image_size: under a
+    64 MB budget a 1536 x 1024 photo (~500 MB of scale space at 3 200 px) is refused, and taken when
+    the map's owner downscales its photos to 400 px."""
+    camera = fountain["camera"]
+    photo = fountain["photo"].read_bytes()
+    for max_image_size, budget, want in [(None, 64, 413), (400, 64, 200)]:
+        maps = tmp_path / f"maps-{max_image_size}"
+        maps.mkdir()
+        (maps / "fountain.lcm").symlink_to(fountain_map / "fountain.lcm")
+        options = {"min_inliers": 100000}
+        if max_image_size:
+            options["max_image_size"] = max_image_size
+        (maps / "fountain.json").write_text(json.dumps({"options": options}))
+        server = Served(maps, "--memory-budget-mb", budget)
+        try:
+            parts = {"image": photo, "camera": _camera_text(camera)}
+            status, answer = server.post("/v1/maps/fountain/localize", *_multipart(parts))
+            assert status == want, answer
+            if want == 413:
+                assert answer["error"].startswith("image: SIFT on a 1536x1024 photo needs "), answer
+                continue
+            # The owner's min_inliers (100 000) holds: no pose, and null keeps it.
+            assert not answer["success"] and "(option min_inliers)" in answer["reason"], answer
+            for sent in ({"min_inliers": None}, {}):
+                body = json.loads(run_cli_features(fountain, tmp_path))
+                body.update(sent)
+                status, answer = server.post("/v1/maps/fountain/localize",
+                                             json.dumps(body).encode(), "application/json")
+                assert status == 200 and not answer["success"], answer
+                assert "(option min_inliers)" in answer["reason"], answer
+            body["min_inliers"] = 30  # and a value replaces it
+            status, answer = server.post("/v1/maps/fountain/localize", json.dumps(body).encode(),
+                                         "application/json")
+            assert status == 200 and answer["success"], answer
+        finally:
+            server.close()
+
+
+def run_cli_features(fountain, tmp_path):
+    out = tmp_path / "features.json"
+    if not out.exists():
+        run_cli("features", "--image", fountain["photo"], "--camera",
+                _camera_text(fountain["camera"]), "--out", out)
+    return out.read_text()
