@@ -57,7 +57,6 @@ struct LocalizeBody {
   std::optional<bool> scale_known;
   nlohmann::json options = nlohmann::json::object();  // request-option fields, as sent
 
-  bool has_images() const { return !frames.empty() && !frames[0].image.empty(); }
   // The frames as the Localizer takes them (pointing into this body).
   std::vector<QueryPhoto> Photos() const;
   // The rig fields on a request (method, gravity, local points, their scale).

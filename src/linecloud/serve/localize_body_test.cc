@@ -86,7 +86,6 @@ TEST(LocalizeBody, MultipartFramesInOrderWithTheirPoses) {
   EXPECT_EQ(b.scale_known, false);
   EXPECT_EQ(b.points_local.size(), 1u);
   EXPECT_EQ(b.options, (json{{"seed", 7}}));
-  EXPECT_TRUE(b.has_images());
 }
 
 TEST(LocalizeBody, WhatAStrangerSendsIsRefusedNamingThePart) {
