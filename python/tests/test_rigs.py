@@ -386,6 +386,13 @@ def test_a_rig_request_that_is_wrong_is_refused_naming_the_part(rig, local_point
          "9 frames: this server takes at most 8 in one request (serve --max-frames)"),
         (_http(server, {"image[0]": photo, "camera": camera, "scale_known": "maybe"}), 400,
          "scale_known: expected true or false, got \"maybe\""),
+        (_http(server, {"image[0]": b"", "image[1]": photo, "camera": camera,
+                        "cam_from_rig[0]": pose, "cam_from_rig[1]": pose}), 400,
+         "image[0]: an empty part, not a photo"),
+        (_http(server, {"image": b"", "camera": camera}), 400, "image: an empty part, not a photo"),
+        (_http(server, {"image[0]": photo, "camera": camera, "cam_from_rig[0]": pose,
+                        "method": "p6L"}), 400,
+         "image[0] has a cam_from_rig: a photo in a rig needs an m- method"),
         # JSON frames
         (features(body(points_local=local_points[:20], method="m-p6L")), 400,
          "points_local: m-p6L does not use the query's own points (the +l methods do: "),
@@ -398,9 +405,9 @@ def test_a_rig_request_that_is_wrong_is_refused_naming_the_part(rig, local_point
         (features(body(points_local=local_points[:20], scale_known=True, method="m-P4L+l")), 400,
          "scale_known is true but m-P4L+l estimates the scale"),
         (features(body(method="m-P3L+l+s")), 400,
-         "m-P3L+l+s localizes the device's own 3D points: send points_local"),
+         "m-P3L+l+s localizes the photos' own 3D points: give points_local (frame, keypoint, xyz)"),
         (features(body(method="p6L")), 400,
-         "3 frames make one generalized camera: use an m- method (m-p6L, ...), not p6L"),
+         "3 photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not p6L"),
         (features({"frames": [dict(f, cam_from_rig=p) for f, p in zip(frames, poses)][:2] +
                    [{k: v for k, v in frames[2].items() if k != "cam_from_rig"}]}), 400,
          "frames[2]: field 'cam_from_rig' is missing (the frame's pose in the rig)"),
@@ -413,6 +420,8 @@ def test_a_rig_request_that_is_wrong_is_refused_naming_the_part(rig, local_point
                                "cam_from_rig": poses[0]}] * 9}), 413,
          "9 frames: this server takes at most 8 in one request (serve --max-frames)"),
         (features(body(gravity=[0, 0, 0])), 400, "gravity: expected a finite non-zero direction"),
+        (features(body(scale_known=True)), 400,
+         "scale_known is the scale of the local points: it goes with points_local"),
     ]
     for (status, answer), want_status, want in cases:
         message = answer.get("error", answer) if isinstance(answer, dict) else answer
@@ -439,3 +448,21 @@ def test_a_rigs_pixels_count_together(rig, tmp_path):
         assert status == 200 and answer["success"], answer
     finally:
         server.close()
+
+
+def test_one_frame_in_a_rig_gives_the_rigs_pose(rig, server, localizer):
+    """A device's one frame with its cam_from_rig (frame 1 of the rig alone) is a rig of one: the
+    answer is rig_from_world (m-p6L), not the camera's pose with its rig pose dropped."""
+    pose = _rig_json(rig)["cam_from_rig"][1]
+    status, answer = _http(server, {"image[0]": rig["photos"][1].read_bytes(),
+                                    "camera": _camera_text(rig["camera"]),
+                                    "cam_from_rig[0]": json.dumps(pose)})
+    assert status == 200 and answer["success"], answer
+    assert (answer["method"], answer["pose"]) == ("m-p6L", "rig_from_world")
+    rotation_deg, centre_m = _errors(answer, *rig["truth"])
+    assert rotation_deg < 0.5 and centre_m < 0.05, (rotation_deg, centre_m)
+    # A +u method on a map without gravity says so (not a field name of the query file).
+    with pytest.raises(ValueError, match=r"m-p4L\+u needs the map's gravity direction, which "
+                                         r"this map has none of"):
+        lc.Localizer(rig["map"]).localize_image(rig["photos"][0], rig["camera"], method="m-p4L+u",
+                                                gravity=rig["gravity"])

@@ -185,12 +185,14 @@ void RunLocalize(const LocalizeArgs& args) {
     };
   }
   std::vector<std::string> bytes;
-  const size_t n = std::max<size_t>(args.image_paths.size(), 1);
+  // A rig: several photos, or one placed in a rig by RIG.json.
+  const bool is_rig = args.image_paths.size() > 1 ||
+                      (rig && !rig->cam_from_rig.empty() && !rig->cam_from_rig[0].IsIdentity());
   const LocalizerResult r =
       args.image_paths.empty()
           ? localizer.LocalizeQuery(ReadQueryJson(args.query_path), request, args.query_path)
           : localizer.LocalizePhotos(
-                ReadPhotos(args, localizer.RequestMethod(n, request), rig, &bytes), request);
+                ReadPhotos(args, localizer.RequestMethod(is_rig, request), rig, &bytes), request);
   if (progress_shown) std::cerr << "\n";
   const std::string text = FormatResult(args, r);
   if (!args.overlay.empty()) {

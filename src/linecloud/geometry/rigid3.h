@@ -29,6 +29,9 @@ struct Rigid3d {
   // The target frame's origin expressed in the source frame, -R^T t (for
   // cam_from_world: the camera centre in world coordinates).
   Eigen::Vector3d Center() const { return -(rotation.inverse() * translation); }
+
+  // Exactly the identity (a rig's reference camera), whatever the quaternion's sign.
+  bool IsIdentity() const { return translation.isZero(0) && rotation.vec().isZero(0); }
 };
 
 inline Eigen::Vector3d operator*(const Rigid3d& t, const Eigen::Vector3d& x) {

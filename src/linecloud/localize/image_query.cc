@@ -98,8 +98,10 @@ Eigen::Vector3d ParseDirection(const std::string& text, const std::string& optio
     }
     start = end + 1;
   }
-  if (!(v.norm() > 0)) Fail("{} '{}': a direction cannot be zero", option, text);
-  return v.normalized();
+  // Scaled first: a direction of huge (or tiny) numbers has no finite norm.
+  const double scale = v.cwiseAbs().maxCoeff();
+  if (!(scale > 0)) Fail("{} '{}': a direction cannot be zero", option, text);
+  return (v / scale).normalized();
 }
 
 ImageLimits PhotoLimits(const Camera& camera, const ImageQueryOptions& options) {

@@ -181,7 +181,7 @@ RigFile ParseRigJson(const nlohmann::json& j, const std::string& where) {
   }
   if (j.contains("gravity")) {
     rig.gravity = JsonVector3(j["gravity"], where + ": gravity");
-    if (!(rig.gravity->allFinite() && rig.gravity->norm() > 0)) {
+    if (!(rig.gravity->allFinite() && rig.gravity->cwiseAbs().maxCoeff() > 0)) {
       Fail("{}: gravity must be a finite non-zero direction", where);
     }
   }

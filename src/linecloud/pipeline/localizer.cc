@@ -64,6 +64,10 @@ QueryPhoto OnePhoto(const Camera& camera, const std::string& name) {
 
 }  // namespace
 
+bool IsRig(std::span<const QueryPhoto> photos) {
+  return photos.size() > 1 || (photos.size() == 1 && !photos[0].cam_from_rig.IsIdentity());
+}
+
 struct Localizer::State {
   std::string source;
   LocalizationMap map;
@@ -216,33 +220,68 @@ const LocalizationMap& Localizer::map() const { return state_->map; }
 
 const LocalizerOptions& Localizer::options() const { return state_->options; }
 
-const MethodInfo& Localizer::DefaultMethod(size_t num_cameras, const LocalizeRequest& request,
+const MethodInfo& Localizer::DefaultMethod(bool rig, const LocalizeRequest& request,
                                            const Query* query) const {
   const bool local = !request.points_local.empty() || (query && !query->points_local.empty());
   const bool query_gravity = request.gravity || (query && query->gravity_query);
   const bool map_gravity = state_->gravity || (query && query->gravity_map);
   return MethodFor({.lines = lines(),
-                    .several_cameras = num_cameras > 1,
+                    .several_cameras = rig,
                     .local_points = local,
                     .known_scale = local && request.scale_known.value_or(false),
                     .gravity = query_gravity && map_gravity});
 }
 
-const MethodInfo& Localizer::RequestMethod(size_t num_cameras, const LocalizeRequest& request,
+const MethodInfo& Localizer::RequestMethod(bool rig, const LocalizeRequest& request,
                                            const Query* query) const {
-  const MethodInfo& m = request.method.empty() ? DefaultMethod(num_cameras, request, query)
-                                               : FindMethod(request.method);
+  const MethodInfo& m =
+      request.method.empty() ? DefaultMethod(rig, request, query) : FindMethod(request.method);
   if (!m.local_points && !request.points_local.empty()) {
     Fail(
         "points_local: {} does not use the query's own points (the +l methods do: m-P4L+l, "
         "m-P3L+l+u, m-P3L+l+s, m-P2L+l+u+s)",
         m.name);
   }
+  if (request.scale_known && request.points_local.empty() &&
+      !(query && !query->points_local.empty())) {
+    Fail("scale_known is the scale of the local points: it goes with points_local");
+  }
   if (m.local_points && request.scale_known && *request.scale_known != m.known_scale) {
     Fail("scale_known is {} but {} {} the scale", *request.scale_known ? "true" : "false", m.name,
          m.known_scale ? "takes the local points' as known" : "estimates");
   }
+  if (m.gravity && !request.gravity && !(query && query->gravity_query)) {
+    Fail("{} needs the gravity direction in the query's frame (gravity)", m.name);
+  }
+  if (m.gravity && !state_->gravity && !(query && query->gravity_map)) {
+    Fail(
+        "{} needs the map's gravity direction, which this map has none of (lift --gravity, or "
+        "the map option map_gravity)",
+        m.name);
+  }
   return m;
+}
+
+const MethodInfo& Localizer::PhotosMethod(std::span<const QueryPhoto> photos,
+                                          const LocalizeRequest& request) const {
+  if (photos.empty()) Fail("no photo given");
+  const bool rig = IsRig(photos);
+  const MethodInfo& method = RequestMethod(rig, request);
+  if (rig && !method.multi) {
+    if (photos.size() > 1) {
+      Fail("{} photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not {}",
+           photos.size(), method.name);
+    }
+    Fail("{} has a cam_from_rig: a photo in a rig needs an m- method (m-p6L, m-p3P, ...), not {}",
+         photos[0].name, method.name);
+  }
+  if (method.local_points && request.points_local.empty()) {
+    Fail("{} localizes the photos' own 3D points: give points_local (frame, keypoint, xyz)",
+         method.name);
+  }
+  CheckLocalPoints(request.points_local, photos);
+  CheckMethodAndMap(method, state_->map);
+  return method;
 }
 
 LocalizerResult Localizer::LocalizeQuery(const Query& query, const LocalizeRequest& request,
@@ -253,7 +292,10 @@ LocalizerResult Localizer::LocalizeQuery(const Query& query, const LocalizeReque
   }
   LocalizerResult result;
   result.query = query;
-  const MethodInfo& method = RequestMethod(query.cameras.size(), request, &query);
+  const bool rig =
+      query.cameras.size() > 1 || std::any_of(query.cam_from_rig.begin(), query.cam_from_rig.end(),
+                                              [](const Rigid3d& p) { return !p.IsIdentity(); });
+  const MethodInfo& method = RequestMethod(rig, request, &query);
   return Finish(method, std::move(result), request, source, start);
 }
 
@@ -302,18 +344,8 @@ ImageQuery Localizer::MatchPhoto(const QueryPhoto& photo, const LocalizeRequest&
 LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
                                           const LocalizeRequest& request) const {
   const auto start = Clock::now();
-  if (photos.empty()) Fail("no photo given");
-  const MethodInfo& method = RequestMethod(photos.size(), request);
-  if (photos.size() > 1 && !method.multi) {
-    Fail("{} photos make one generalized camera: use an m- method (m-p6L, m-p3P, ...), not {}",
-         photos.size(), method.name);
-  }
-  if (method.local_points && request.points_local.empty()) {
-    Fail("{} localizes the photos' own 3D points: give points_local (frame, keypoint, xyz)",
-         method.name);
-  }
-  CheckLocalPoints(request.points_local, photos);
-  CheckMethodAndMap(method, state_->map);  // before decoding and matching (seconds for nothing)
+  // Before decoding and matching (seconds for nothing).
+  const MethodInfo& method = PhotosMethod(photos, request);
   LocalizerResult result;
   std::vector<Rigid3d> rig;
   for (const QueryPhoto& photo : photos) {
@@ -332,7 +364,7 @@ LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
     result.times.extract_ms += t.extract_ms;
     result.times.match_ms += t.match_ms;
   }
-  result.query = photos.size() == 1 && request.points_local.empty()
+  result.query = !IsRig(photos) && request.points_local.empty()
                      ? result.photos[0].query
                      : CombineImageQueries(result.photos, rig, request.points_local);
   return Finish(method, std::move(result), request, photos[0].name, start);
@@ -380,10 +412,11 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
   // Gravity: the request's for the query frame (a query file's own wins), the
   // map's from the .lcm or the options.
   if (request.gravity && !query.gravity_query) {
-    if (!(request.gravity->allFinite() && request.gravity->norm() > 0)) {
+    const Eigen::Vector3d& g = *request.gravity;
+    if (!(g.allFinite() && g.cwiseAbs().maxCoeff() > 0)) {
       Fail("gravity must be a finite non-zero direction x,y,z");
     }
-    query.gravity_query = request.gravity->normalized();
+    query.gravity_query = (g / g.cwiseAbs().maxCoeff()).normalized();  // no overflow for 1e308
   }
   if (!query.gravity_map && state_->gravity) query.gravity_map = state_->gravity;
   LocalizeOptions options = request.options.value_or(state_->options.localize);

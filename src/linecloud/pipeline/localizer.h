@@ -75,6 +75,10 @@ struct QueryPhoto {
   std::string name = "photo";  // names the photo in errors
 };
 
+// Whether photos make a rig (the m- methods): several, or one with a
+// cam_from_rig other than the identity.
+bool IsRig(std::span<const QueryPhoto> photos);
+
 // Per-request settings; unset ones take the Localizer's defaults.
 struct LocalizeRequest {
   // Empty: the method that uses what the request brings (MethodFor): m- for
@@ -159,16 +163,22 @@ class Localizer {
   // The options the Localizer was made with (the defaults of its requests).
   const LocalizerOptions& options() const;
   const LocalizationMap& map() const;
-  // The default method for `num_cameras` cameras on this map, with what the
-  // request (and a query file: its local points and gravity) brings.
-  const MethodInfo& DefaultMethod(size_t num_cameras, const LocalizeRequest& request = {},
+  // The default method on this map for a query that is a rig (several
+  // cameras, or one placed in a rig) or not, with what the request (and a
+  // query file: its local points and gravity) brings.
+  const MethodInfo& DefaultMethod(bool rig, const LocalizeRequest& request = {},
                                   const Query* query = nullptr) const;
   // The request's method (its own, else DefaultMethod), checked against
   // what the request brings: Error when local points are given to a method
-  // that does not use them, missing for one that needs them, or their
-  // scale_known contradicts the method's.
-  const MethodInfo& RequestMethod(size_t num_cameras, const LocalizeRequest& request,
+  // that does not use them, their scale_known contradicts the method's or
+  // comes without them, or a +u method lacks the query's or the map's gravity.
+  const MethodInfo& RequestMethod(bool rig, const LocalizeRequest& request,
                                   const Query* query = nullptr) const;
+  // RequestMethod for photos, with what photos add: a rig needs an m-
+  // method, an +l method local points. What LocalizePhotos checks before
+  // reading any photo (a service checks it before queueing the request).
+  const MethodInfo& PhotosMethod(std::span<const QueryPhoto> photos,
+                                 const LocalizeRequest& request) const;
 
   // Correspondences already made (QUERY.json).
   LocalizerResult LocalizeQuery(const Query& query, const LocalizeRequest& request = {},

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 
 #include <fmt/format.h>
 
@@ -35,7 +36,8 @@ Eigen::Vector3d GravityFromJson(const json& g) {
   if (g.is_string()) return ParseDirection(g.get<std::string>(), "gravity");
   if (g.is_array() && g.size() == 3 && g[0].is_number() && g[1].is_number() && g[2].is_number()) {
     const Eigen::Vector3d v(g[0].get<double>(), g[1].get<double>(), g[2].get<double>());
-    if (v.allFinite() && v.norm() > 0) return v;
+    // Scaled first: a direction of huge (or tiny) numbers has no finite norm.
+    if (v.allFinite() && v.cwiseAbs().maxCoeff() > 0) return v / v.cwiseAbs().maxCoeff();
   }
   Fail("gravity: expected a finite non-zero direction [x, y, z] or \"x,y,z\"");
 }
@@ -193,6 +195,7 @@ LocalizeBody ReadMultipartBody(const std::map<std::string, std::string>& parts, 
     WireFrame& f = body.frames[k];
     f.name = rig ? fmt::format("image[{}]", k) : "image";
     f.image = rig ? *images.at(k) : *part("image");
+    if (f.image.empty()) Fail("{}: an empty part, not a photo", f.name);
     const std::string camera_part = cameras.empty() ? "camera" : fmt::format("camera[{}]", k);
     const std::string* camera =
         cameras.empty() ? part("camera") : (cameras.count(k) ? cameras.at(k) : nullptr);

@@ -43,7 +43,7 @@ void CheckServedCamera(const Camera& camera, const std::string& where);
 
 struct WireFrame {
   std::string name;   // the part or field it came in ("image", "image[1]", "frames[2]")
-  std::string image;  // the encoded photo (multipart); empty for features
+  std::string image;  // the encoded photo (multipart, never empty); empty for features
   SiftFeatures features;
   Camera camera;
   Rigid3d cam_from_rig;

@@ -415,15 +415,7 @@ struct Server::Impl {
         r.options = o.localize;
       }
       // The method and what it needs, before the photos are read (seconds for nothing).
-      const MethodInfo& method = map.localizer->RequestMethod(body.frames.size(), r);
-      if (body.frames.size() > 1 && !method.multi) {
-        Fail("{} frames make one generalized camera: use an m- method (m-p6L, ...), not {}",
-             body.frames.size(), method.name);
-      }
-      if (method.local_points && body.points_local.empty()) {
-        Fail("{} localizes the device's own 3D points: send points_local", method.name);
-      }
-      r.method = method.name;
+      r.method = map.localizer->PhotosMethod(body.Photos(), r).name;
     } catch (const Error& e) {
       Throw(400, e.what());
     }

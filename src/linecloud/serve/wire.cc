@@ -47,7 +47,12 @@ nlohmann::json ParseRequestJson(std::string_view body, std::string_view what) {
   try {
     return nlohmann::json::parse(body);
   } catch (const nlohmann::json::exception& e) {
-    Fail("{}: not JSON ({})", what, e.what());
+    // The parser's own words without its library's tag ("[json.exception.parse_error.101] ").
+    std::string_view message = e.what();
+    if (message.rfind("[json.exception.", 0) == 0 && message.find("] ") != std::string_view::npos) {
+      message.remove_prefix(message.find("] ") + 2);
+    }
+    Fail("{}: not JSON ({})", what, message);
   }
 }
 
