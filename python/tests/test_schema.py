@@ -344,12 +344,20 @@ def test_ctrl_c_stops_a_long_localization(demo):
     import time
     query = json.loads(sorted((demo / "queries").glob("*.json"))[0].read_text())
     localizer = lc.Localizer(demo / "map.lcm")
+    # Python's own Ctrl-C handler, whatever the runner inherited: a shell's background job
+    # starts with SIGINT ignored, and Python then installs none (the call below ran for hours).
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
     start = time.monotonic()
     timer.start()
-    with pytest.raises(KeyboardInterrupt):
-        localizer.localize_query(query, method="p6L", min_iterations=10_000_000,
-                                 max_iterations=10_000_000, uniform_sampling=True)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            # max_seconds: a signal that never comes fails the test in 30 s, never hangs it.
+            localizer.localize_query(query, method="p6L", min_iterations=10_000_000,
+                                     max_iterations=10_000_000, uniform_sampling=True,
+                                     max_seconds=30)
+    finally:
+        signal.signal(signal.SIGINT, previous)
     elapsed = time.monotonic() - start
     timer.join()
     assert 0.5 <= elapsed < 3, elapsed
