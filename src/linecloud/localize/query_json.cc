@@ -46,6 +46,13 @@ Camera CameraFromJson(const nlohmann::json& j, const std::string& where) {
   return camera;
 }
 
+nlohmann::json CameraToJson(const Camera& camera) {
+  return {{"model", std::string(CameraModelName(camera.model_id))},
+          {"width", camera.width},
+          {"height", camera.height},
+          {"params", camera.params}};
+}
+
 Query ParseQueryJson(const nlohmann::json& j, const std::string& source) {
   if (!j.is_object()) Fail("{}: expected a JSON object", source);
   Query q;
@@ -194,10 +201,7 @@ nlohmann::json QueryToJson(const Query& q) {
   nlohmann::json j;
   j["cameras"] = nlohmann::json::array();
   for (const Camera& c : q.cameras) {
-    j["cameras"].push_back({{"model", std::string(CameraModelName(c.model_id))},
-                            {"width", c.width},
-                            {"height", c.height},
-                            {"params", c.params}});
+    j["cameras"].push_back(CameraToJson(c));
   }
   if (!q.cam_from_rig.empty()) {
     j["cam_from_rig"] = nlohmann::json::array();

@@ -15,6 +15,7 @@ namespace linecloud {
 // A camera dict {"model", "width", "height", "params"} (COLMAP's model names
 // and parameter order); throws Error naming `where` and the field.
 Camera CameraFromJson(const nlohmann::json& j, const std::string& where);
+nlohmann::json CameraToJson(const Camera& camera);
 
 // Throws Error naming `source` and the field on any malformed entry.
 Query ParseQueryJson(const nlohmann::json& j, const std::string& source);

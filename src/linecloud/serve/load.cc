@@ -249,11 +249,7 @@ json FeaturesJson(const std::string& photo, const std::string& camera_text, Sift
       sift);
   json kp = json::array();
   for (const SiftKeypoint& k : f.keypoints) kp.push_back({k.x, k.y});
-  return json{{"camera",
-               {{"model", std::string(CameraModelName(camera.model_id))},
-                {"width", camera.width},
-                {"height", camera.height},
-                {"params", camera.params}}},
+  return json{{"camera", CameraToJson(camera)},
               {"keypoints", kp},
               {"descriptors", Base64Encode(f.descriptors)}};
 }
