@@ -18,6 +18,7 @@ come out byte for byte as scripts/data.sha256 lists them. Images are re-encoded 
 size, EuRoC's PNG frames as JPEG), so their bytes depend on the JPEG library; get_data.sh checks
 them by count, size and pixels instead.
 """
+import importlib.util
 import os
 import shutil
 import sys
@@ -65,24 +66,20 @@ def read_image(path):
     return image
 
 
+def _load_pose_module():
+    """The package's pose conversions (python/linecloud/pose.py: numpy only, no compiled module)."""
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "python", "linecloud", "pose.py")
+    spec = importlib.util.spec_from_file_location("linecloud_pose", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def rotation_to_quaternion(R):
-    """(w, x, y, z) of a rotation matrix, w >= 0 (Shepperd's method)."""
-    trace = np.trace(R)
-    if trace > 0:
-        s = 2.0 * np.sqrt(trace + 1.0)
-        q = [0.25 * s, (R[2, 1] - R[1, 2]) / s, (R[0, 2] - R[2, 0]) / s, (R[1, 0] - R[0, 1]) / s]
-    else:
-        i = int(np.argmax(np.diag(R)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(1.0 + R[i, i] - R[j, j] - R[k, k])
-        q = [0.0] * 4
-        q[0] = (R[k, j] - R[j, k]) / s
-        q[1 + i] = 0.25 * s
-        q[1 + j] = (R[j, i] + R[i, j]) / s
-        q[1 + k] = (R[k, i] + R[i, k]) / s
-    q = np.array(q)
-    q /= np.linalg.norm(q)
-    return q if q[0] >= 0 else -q
+    """(w, x, y, z), w >= 0, of the rotation nearest R (Shepperd's method, then normalised: the
+    laser-scan rotations are stored to 6 digits)."""
+    q = _load_pose_module()._quaternion_from_matrix(R)
+    return q / np.linalg.norm(q)
 
 
 def read_strecha_camera(path):
