@@ -25,6 +25,7 @@ from ._core import (
     localizer_options,
     methods,
     read_colmap_model,
+    set_log_sink,
     solve,
 )
 
@@ -53,5 +54,6 @@ __all__ = [
     "localizer_options",
     "methods",
     "read_colmap_model",
+    "set_log_sink",
     "solve",
 ]

@@ -1,7 +1,7 @@
 """Type stubs of linecloud._core (the compiled module)."""
 
 from os import PathLike
-from typing import Any, BinaryIO, Literal, Sequence, TypedDict, Union
+from typing import Any, BinaryIO, Callable, Literal, Sequence, TypedDict, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -60,6 +60,9 @@ def lift(model_dir: _Path, database: _Path | None = None, out: _Path | None = No
 
 
 def read_colmap_model(path: _Path) -> dict[str, Any]: ...
+
+
+def set_log_sink(sink: Callable[[Literal["progress", "warning"], str], None] | None) -> None: ...
 
 
 _Image = Union[_Path, bytes, bytearray, memoryview, BinaryIO, npt.NDArray[np.uint8]]

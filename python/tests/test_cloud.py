@@ -2,6 +2,7 @@
 
 import json
 import os
+import sys
 
 import numpy as np
 import pytest
@@ -93,6 +94,36 @@ def test_lift_follows_the_key_store_rules(demo, tmp_path, key_store):
     # A different store: a different key, different lines.
     other = lc.lift(demo / "model", key_store=tmp_path / "other-store")
     assert not np.allclose(other.lines[:, :3], cloud.lines[:, :3])
+
+
+def test_warnings_go_to_the_log_sink(demo, tmp_path, capfd, monkeypatch):
+    key = tmp_path / "shared.key"
+    lc.lift(demo / "model", key_store=tmp_path / "store", key_file=key)
+    os.chmod(key, 0o644)
+    said = []
+    lc.set_log_sink(lambda level, line: said.append((level, line)))
+    try:
+        lc.lift(demo / "model", key_store=tmp_path / "store", key_file=key, allow_shared_key=True)
+    finally:
+        lc.set_log_sink(None)
+    # (the key is read by the key store's check and by the lifting: one warning each time)
+    assert said and set(said) == {("warning", f"{key} is readable by other users; run chmod 600 on it")}
+    assert capfd.readouterr().err == ""
+    # A sink that raises does not stop the work (its exception is reported as unraisable); None
+    # put the default back (stderr).
+    unraisable = []
+    monkeypatch.setattr(sys, "unraisablehook", unraisable.append)
+    lc.set_log_sink(lambda level, line: 1 / 0)
+    try:
+        cloud = lc.lift(demo / "model", key_store=tmp_path / "store", key_file=key, allow_shared_key=True)
+    finally:
+        lc.set_log_sink(None)
+    assert len(cloud) > 0
+    assert unraisable and all(u.exc_type is ZeroDivisionError for u in unraisable)
+    lc.lift(demo / "model", key_store=tmp_path / "store", key_file=key, allow_shared_key=True)
+    assert f"warning: {key} is readable by other users" in capfd.readouterr().err
+    with pytest.raises(TypeError, match="callable"):
+        lc.set_log_sink("stderr")
 
 
 def test_read_colmap_model(demo):

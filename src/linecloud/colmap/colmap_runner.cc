@@ -1,3 +1,4 @@
+#include "linecloud/util/log.h"
 #include "linecloud/colmap/colmap_runner.h"
 
 #include <fcntl.h>
@@ -164,8 +165,8 @@ Reconstruction ReconstructDataset(const EvalDataset& dataset, const std::string&
   if (CacheValid(stamp, fingerprint)) {
     Reconstruction model = LargestModel(sparse);
     if (!model.images.empty()) {
-      fmt::print("[eval] COLMAP: reusing the cached reconstruction in {} ({} images, {} points)\n",
-                 sparse, model.images.size(), model.points3D.size());
+      LogProgress("[eval] COLMAP: reusing the cached reconstruction in {} ({} images, {} points)",
+                  sparse, model.images.size(), model.points3D.size());
       return model;
     }
   }
@@ -185,9 +186,8 @@ Reconstruction ReconstructDataset(const EvalDataset& dataset, const std::string&
     WriteFileAtomically(list, [&](std::ostream& out) {
       for (const std::string& n : names) out << n << "\n";
     });
-    fmt::print("[eval] COLMAP feature extraction: camera {} ({}), {} images ...\n", camera_id,
-               CameraModelName(camera.model_id), names.size());
-    std::fflush(stdout);
+    LogProgress("[eval] COLMAP feature extraction: camera {} ({}), {} images ...", camera_id,
+                CameraModelName(camera.model_id), names.size());
     RunColmapCommand(
         {options.executable,
          "feature_extractor",
@@ -215,17 +215,15 @@ Reconstruction ReconstructDataset(const EvalDataset& dataset, const std::string&
          options.accurate_features ? "1" : "0"},
         JoinPaths(colmap_dir, fmt::format("feature_extractor_camera{}.log", camera_id)), options);
   }
-  fmt::print("[eval]   done in {:.0f} s; exhaustive matching of {} images ...\n", SecondsSince(t0),
-             dataset.images.size());
-  std::fflush(stdout);
+  LogProgress("[eval]   done in {:.0f} s; exhaustive matching of {} images ...", SecondsSince(t0),
+              dataset.images.size());
   t0 = std::chrono::steady_clock::now();
   RunColmapCommand(
       {options.executable, "exhaustive_matcher", "--database_path", database,
        "--SiftMatching.use_gpu", "0", "--SiftMatching.num_threads", ThreadsArg(options),
        "--SiftMatching.guided_matching", options.accurate_features ? "1" : "0"},
       JoinPaths(colmap_dir, "exhaustive_matcher.log"), options);
-  fmt::print("[eval]   done in {:.0f} s; mapping (intrinsics fixed) ...\n", SecondsSince(t0));
-  std::fflush(stdout);
+  LogProgress("[eval]   done in {:.0f} s; mapping (intrinsics fixed) ...", SecondsSince(t0));
   t0 = std::chrono::steady_clock::now();
   RunColmapCommand(
       {options.executable, "mapper", "--database_path", database, "--image_path", images_dir,
@@ -236,8 +234,8 @@ Reconstruction ReconstructDataset(const EvalDataset& dataset, const std::string&
   Reconstruction model = LargestModel(sparse);
   if (model.images.empty())
     Fail("COLMAP's mapper reconstructed nothing (log {})", JoinPaths(colmap_dir, "mapper.log"));
-  fmt::print("[eval]   done in {:.0f} s: {} of {} images, {} points\n", SecondsSince(t0),
-             model.images.size(), dataset.images.size(), model.points3D.size());
+  LogProgress("[eval]   done in {:.0f} s: {} of {} images, {} points", SecondsSince(t0),
+              model.images.size(), dataset.images.size(), model.points3D.size());
   WriteStamp(stamp, fingerprint);
   return model;
 }

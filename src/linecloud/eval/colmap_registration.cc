@@ -1,3 +1,4 @@
+#include "linecloud/util/log.h"
 #include "linecloud/eval/colmap_registration.h"
 
 #include <sqlite3.h>
@@ -291,9 +292,8 @@ ojson RunColmapRegistration(const ColmapRegistrationOptions& o) {
     const GroupRegistration r = RegisterGroup(o.work_dir, g, JoinPaths(work.dataset_dir, "images"),
                                               JoinPaths(o.out_dir, g.name), colmap);
     for (const EvalImage& im : g.images) images.push_back(ImageRow(g, im, r, ours));
-    fmt::print("[eval colmap] group {}: {} images, match {:.1f} s, register {:.1f} s\n", g.name,
-               g.images.size(), r.match_s, r.register_s);
-    std::fflush(stdout);
+    LogProgress("[eval colmap] group {}: {} images, match {:.1f} s, register {:.1f} s", g.name,
+                g.images.size(), r.match_s, r.register_s);
   }
   const ojson report = {{"dataset", work.dataset},
                         {"colmap_version", ColmapVersion(o.work_dir)},

@@ -1,3 +1,4 @@
+#include "linecloud/util/log.h"
 #include "linecloud/eval/direct_matching.h"
 
 #include <algorithm>
@@ -252,9 +253,8 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
     if (g.has_rig && g.images.size() >= 2 && !options.rig_methods.empty()) {
       LocalizeRig(work, g, map, photos, options, &tallies, &per_rig);
     }
-    fmt::print("[eval] direct matching, group {} ({:.1f} s)\n", g.name,
-               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-    std::fflush(stdout);
+    LogProgress("[eval] direct matching, group {} ({:.1f} s)", g.name,
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   }
   json methods = json::object();
   for (auto& [name, t] : tallies) {

@@ -1,3 +1,4 @@
+#include "linecloud/util/log.h"
 #include "linecloud/eval/eval_prepare.h"
 
 #include <algorithm>
@@ -285,9 +286,9 @@ void SetUnits(const EvalDataset& dataset, Reconstruction* full_ptr, EvalWork* wo
     TransformReconstruction(gt_from_rec, &full);
     work.units = "metres";
     const auto& g = work.reconstruction["ground_truth"];
-    fmt::print(
+    LogProgress(
         "[eval] reconstruction vs ground truth (similarity on {} map cameras): max {:.3f}° / "
-        "{:.4f} m\n",
+        "{:.4f} m",
         g["aligned_on"].get<int>(), g["max_rotation_deg"].get<double>(),
         g["max_position_m"].get<double>());
   } else if (dataset.sensors && dataset.sensors->body_from_cam.size() >= 2) {
@@ -298,8 +299,8 @@ void SetUnits(const EvalDataset& dataset, Reconstruction* full_ptr, EvalWork* wo
     work.units = "metres";
     work.reconstruction["metric_scale"] = {
         {"source", "calibrated stereo baseline"}, {"pairs", pairs}, {"scale", s}};
-    fmt::print("[eval] metric scale from the calibrated stereo baseline ({} pairs): {:.5f}\n",
-               pairs, s);
+    LogProgress("[eval] metric scale from the calibrated stereo baseline ({} pairs): {:.5f}", pairs,
+                s);
   } else {
     work.units = "reconstruction units";
   }
@@ -453,9 +454,9 @@ void AttachLocalStructure(const EvalDataset& dataset, const EvalPrepareOptions& 
         worst_deg = std::max(worst_deg, local_rel.angularDistance(true_rel) * kDeg);
       }
       if (!calibrated_rig && worst_deg > kMaxLocalRigErrorDeg) {
-        fmt::print(
+        LogProgress(
             "[eval] group {}: its own reconstruction puts the cameras {:.1f}° off the ground "
-            "truth's relative rotations (more than {}°); m- and +l methods skip it\n",
+            "truth's relative rotations (more than {}°); m- and +l methods skip it",
             group.name, worst_deg, kMaxLocalRigErrorDeg);
         local_baseline = 0;
       }
@@ -490,9 +491,9 @@ void AttachLocalStructure(const EvalDataset& dataset, const EvalPrepareOptions& 
       }
     }
     if (!group.has_rig && !all) {
-      fmt::print(
+      LogProgress(
           "[eval] group {}: COLMAP could not reconstruct the group on its own; m- methods skip "
-          "it\n",
+          "it",
           group.name);
     }
   }
@@ -503,10 +504,10 @@ void AttachLocalStructure(const EvalDataset& dataset, const EvalPrepareOptions& 
 EvalWork PrepareEvaluation(const EvalPrepareOptions& options) {
   options.Check();
   const EvalDataset dataset = ReadEvalDataset(options.dataset_dir);
-  fmt::print("[eval] dataset {}: {} images, {} cameras, {} query groups{}{}\n", dataset.name,
-             dataset.images.size(), dataset.cameras.size(), dataset.query_groups.size(),
-             dataset.ground_truth.empty() ? "" : ", ground truth",
-             dataset.sensors ? ", rig + IMU" : "");
+  LogProgress("[eval] dataset {}: {} images, {} cameras, {} query groups{}{}", dataset.name,
+              dataset.images.size(), dataset.cameras.size(), dataset.query_groups.size(),
+              dataset.ground_truth.empty() ? "" : ", ground truth",
+              dataset.sensors ? ", rig + IMU" : "");
   CreateDirectories(options.work_dir);
   const std::string colmap_dir = JoinPaths(options.work_dir, "colmap");
   Reconstruction full = ReconstructDataset(dataset, colmap_dir, options.colmap);
@@ -527,8 +528,8 @@ EvalWork PrepareEvaluation(const EvalPrepareOptions& options) {
                          {"unregistered", unregistered},
                          {"mean_track_length", full.MeanTrackLength()}};
   if (!unregistered.empty()) {
-    fmt::print("[eval] warning: COLMAP did not register {} image(s): {}\n", unregistered.size(),
-               fmt::format("{}", fmt::join(unregistered, " ")));
+    LogProgress("[eval] warning: COLMAP did not register {} image(s): {}", unregistered.size(),
+                fmt::format("{}", fmt::join(unregistered, " ")));
   }
 
   SetUnits(dataset, &full, &work);
@@ -552,8 +553,8 @@ EvalWork PrepareEvaluation(const EvalPrepareOptions& options) {
       if (FindImage(full, n)) registered.push_back(n);
     }
     if (registered.empty()) {
-      fmt::print("[eval] group {} ({}): no image registered, skipped\n", group.name,
-                 fmt::join(names, " "));
+      LogProgress("[eval] group {} ({}): no image registered, skipped", group.name,
+                  fmt::join(names, " "));
       continue;
     }
     const Reconstruction map = MapWithoutImages(full, names);
@@ -576,19 +577,18 @@ EvalWork PrepareEvaluation(const EvalPrepareOptions& options) {
       corr += static_cast<int>(im.correspondences.size());
       for (const auto& c : im.correspondences) local_pts += c.point_local.has_value();
     }
-    fmt::print(
+    LogProgress(
         "[eval] group {} ({}): map {} images / {} points, {} correspondences, {} with local "
-        "points{} ({:.1f} s)\n",
+        "points{} ({:.1f} s)",
         group.name, fmt::join(registered, " "), map.images.size(), map.points3D.size(), corr,
         local_pts, group.has_rig ? ", rig from " + group.rig_source : "",
         std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-    std::fflush(stdout);
     work.groups.push_back(std::move(group));
   }
   if (work.groups.empty()) Fail("{}: no query group could be prepared", options.dataset_dir);
   const std::string out = JoinPaths(options.work_dir, "prepared.json");
   WriteFileAtomically(out, [&](std::ostream& o) { o << EvalWorkToJson(work).dump(1) << "\n"; });
-  fmt::print("[eval] wrote {}\n", out);
+  LogProgress("[eval] wrote {}", out);
   return work;
 }
 

@@ -1,3 +1,4 @@
+#include "linecloud/util/log.h"
 #include "linecloud/eval/eval_run.h"
 
 #include <algorithm>
@@ -573,15 +574,14 @@ RecordsByMethod RunPaperProtocol(const EvalInputs& in, const EvalRunOptions& opt
     const auto t0 = std::chrono::steady_clock::now();
     std::vector<QueryRecord> records = RunMethod(in.work, *m, maps, options);
     json mr = MethodReport(records);
-    fmt::print(
+    LogProgress(
         "[eval] {:<12} {:>3} queries, {:>3} localized, median {:.3f}° / {:.4f}, {:>6.1f} "
         "iterations, "
-        "inliers {:.0f} %, reprojection {:.2f} px ({:.1f} s)\n",
+        "inliers {:.0f} %, reprojection {:.2f} px ({:.1f} s)",
         m->name, mr["queries"].get<int>(), mr["localized"].get<int>(),
         mr["median_rotation_deg"].get<double>(), mr["median_translation"].get<double>(),
         mr["mean_iterations"].get<double>(), 100 * mr["inlier_ratio"].get<double>(),
         mr["reprojection_px"]["refined"].get<double>(), SecondsSince(t0));
-    std::fflush(stdout);
     (*report)["methods"][std::string(m->name)] = mr;
     all_records[std::string(m->name)] = std::move(records);
   }
@@ -592,7 +592,7 @@ RecordsByMethod RunPaperProtocol(const EvalInputs& in, const EvalRunOptions& opt
 void RunDirectMatchingStage(const EvalInputs& in, const EvalRunOptions& options, json* report) {
   if (!options.direct_matching) return;
   if (!FileExists(JoinPaths(options.work_dir, "colmap/database.db"))) {
-    fmt::print("[eval] direct matching skipped: {} has no COLMAP database\n", options.work_dir);
+    LogProgress("[eval] direct matching skipped: {} has no COLMAP database", options.work_dir);
     return;
   }
   DirectMatchingOptions dm;
@@ -666,9 +666,8 @@ void RunDensitySweep(const EvalInputs& in, const EvalRunOptions& options,
       rot[std::string(m->name)].push_back(Median(r));
       pos[std::string(m->name)].push_back(Median(t));
     }
-    fmt::print("[eval] map density: {:.0f} % of the points dropped ({:.1f} s)\n", 100 * drop,
-               SecondsSince(t0));
-    std::fflush(stdout);
+    LogProgress("[eval] map density: {:.0f} % of the points dropped ({:.1f} s)", 100 * drop,
+                SecondsSince(t0));
   }
   std::vector<PlotSeries> series;
   for (const MethodInfo* m : in.methods) {
@@ -723,8 +722,7 @@ void RunNoiseSweep(const EvalInputs& in, const EvalRunOptions& options, json* re
       rot[std::string(m->name)].push_back(s.median_rotation_deg[1]);
       pos[std::string(m->name)].push_back(s.median_position[1] / scene.extent);
     }
-    fmt::print("[eval] synthetic noise {} px ({:.1f} s)\n", noise, SecondsSince(t0));
-    std::fflush(stdout);
+    LogProgress("[eval] synthetic noise {} px ({:.1f} s)", noise, SecondsSince(t0));
   }
   std::vector<PlotSeries> series;
   for (const MethodInfo* m : in.methods) {
@@ -747,7 +745,7 @@ void WriteReports(const EvalWork& work, const EvalRunOptions& options, const jso
                       [&](std::ostream& o) { o << report.dump(1) << "\n"; });
   const std::string md = ReportMarkdown(work, options, report);
   WriteFileAtomically(JoinPaths(options.out_dir, "report.md"), [&](std::ostream& o) { o << md; });
-  fmt::print("[eval] wrote {}/report.json, report.md and PNG plots\n", options.out_dir);
+  LogProgress("[eval] wrote {}/report.json, report.md and PNG plots", options.out_dir);
 }
 
 }  // namespace

@@ -1,3 +1,4 @@
+#include "linecloud/util/log.h"
 #include "linecloud/eval/key_sweep.h"
 
 #include <algorithm>
@@ -123,10 +124,9 @@ ojson RunKeySweep(const KeySweepOptions& options) {
       }
       int wrong_so_far = 0;
       for (const auto& [name, t] : tallies) wrong_so_far += t.wrong;
-      fmt::print("[keys] {} key {}: {:.1f} s, {} wrong successes so far\n", work.dataset, k,
-                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
-                 wrong_so_far);
-      std::fflush(stdout);
+      LogProgress("[keys] {} key {}: {:.1f} s, {} wrong successes so far", work.dataset, k,
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
+                  wrong_so_far);
     }
   }
   ojson methods = ojson::object();

@@ -1,3 +1,4 @@
+#include "linecloud/util/log.h"
 #include "linecloud/eval/match_scores.h"
 
 #include <algorithm>
@@ -105,9 +106,8 @@ ojson RunMatchScores(const MatchScoreOptions& options) {
                              {"matches", m.size()},
                              {"inliers", inliers},
                              {"inlier_ratio", m.empty() ? 0.0 : double(inliers) / m.size()}});
-        fmt::print("[scores] {} {}: {} matches, {} inliers\n", work.dataset, im.name, m.size(),
-                   inliers);
-        std::fflush(stdout);
+        LogProgress("[scores] {} {}: {} matches, {} inliers", work.dataset, im.name, m.size(),
+                    inliers);
         all_images.push_back(std::move(m));
       }
     }

@@ -1,6 +1,8 @@
 #include "linecloud/io/json_util.h"
 
+#include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
@@ -29,6 +31,32 @@ std::string ShownInMessage(const nlohmann::json& value) {
   return text;
 }
 
+nlohmann::json ParseJsonUniqueKeys(std::string_view text, const std::string& where) {
+  using Event = nlohmann::json::parse_event_t;
+  std::vector<std::vector<std::string>> open_objects;  // the keys seen in each open object
+  std::optional<std::string> twice;
+  const nlohmann::json::parser_callback_t seen = [&](int, Event event, nlohmann::json& parsed) {
+    if (event == Event::object_start) {
+      open_objects.emplace_back();
+    } else if (event == Event::object_end) {
+      open_objects.pop_back();
+    } else if (event == Event::key && !twice) {
+      std::vector<std::string>& keys = open_objects.back();
+      const std::string& key = parsed.get_ref<const std::string&>();
+      // Request objects have a handful of keys: a scan beats a set.
+      if (std::find(keys.begin(), keys.end(), key) != keys.end()) {
+        twice = key;
+      } else {
+        keys.push_back(key);
+      }
+    }
+    return true;
+  };
+  nlohmann::json j = nlohmann::json::parse(text, seen);
+  if (twice) Fail("{}: the key {} appears twice in one object", where, ShownInMessage(*twice));
+  return j;
+}
+
 nlohmann::json ReadJsonFile(const std::string& path) {
   const std::string text = ReadFileToString(path);
   const auto starts_with = [&](std::string_view magic) { return text.rfind(magic, 0) == 0; };
@@ -40,7 +68,7 @@ nlohmann::json ReadJsonFile(const std::string& path) {
         path);
   }
   try {
-    return nlohmann::json::parse(text);
+    return ParseJsonUniqueKeys(text, path);
   } catch (const nlohmann::json::parse_error& e) {
     Fail("{}: invalid JSON at byte {}", path, e.byte);
   } catch (const nlohmann::json::exception& e) {

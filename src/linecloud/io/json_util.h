@@ -2,6 +2,7 @@
 #pragma once
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <Eigen/Core>
@@ -12,8 +13,14 @@
 
 namespace linecloud {
 
-// Parses a JSON file; throws Error naming the path on read or syntax errors.
+// Parses a JSON file; throws Error naming the path on read or syntax errors and on an object
+// with a key twice.
 nlohmann::json ReadJsonFile(const std::string& path);
+
+// Parses JSON text like nlohmann::json::parse (its exceptions on a syntax error), but refuses an
+// object that has a key twice with an Error naming `where` and the key. (The parser would keep the
+// last value: {"max_seconds": 1, "max_seconds": 900} would mean 900 here and 1 to another reader.)
+nlohmann::json ParseJsonUniqueKeys(std::string_view text, const std::string& where);
 
 // A value or name as an error message shows what a client sent: JSON text
 // (escaped: no raw NUL, line break or invalid UTF-8), at most ~80 characters.

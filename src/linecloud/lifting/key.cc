@@ -1,3 +1,4 @@
+#include "linecloud/util/log.h"
 #include "linecloud/lifting/key.h"
 
 #include <fcntl.h>
@@ -7,7 +8,6 @@
 
 #include <cerrno>
 #include <cstring>
-#include <iostream>
 #include <string_view>
 
 #include "linecloud/util/error.h"
@@ -105,7 +105,7 @@ LiftingKey ReadKeyFile(const std::string& path, bool allow_shared) {
           "pass --allow-shared-key",
           path, st.st_mode & 0777);
     }
-    std::cerr << "warning: " << path << " is readable by other users; run chmod 600 on it\n";
+    LogWarning("{} is readable by other users; run chmod 600 on it", path);
   }
   const std::string text = ReadFileToString(path);
   TextLines lines(text, path);

@@ -1,3 +1,4 @@
+#include "linecloud/util/log.h"
 #include "linecloud/lifting/key_store.h"
 
 #include <fcntl.h>
@@ -14,7 +15,6 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <iostream>
 #include <limits>
 
 #include "linecloud/util/error.h"
@@ -228,8 +228,9 @@ KeyStore::Lock::Lock(const std::string& dir) {
           path, timeout);
     }
     if (!told && waited >= 1.0) {
-      std::cerr << "waiting for the key store's lock " << path
-                << ", held by another process (giving up after " << timeout << " s)\n";
+      LogWarning(
+          "waiting for the key store's lock {}, held by another process (giving up after {:g} s)",
+          path, timeout);
       told = true;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(20));
@@ -286,7 +287,7 @@ std::optional<KeyStoreMatch> KeyStore::Find(std::span<const uint64_t> elements,
         unreadable.front(), dir_);
   }
   for (const std::string& why : unreadable) {
-    std::cerr << "warning: key store entry skipped: " << why << "\n";
+    LogWarning("key store entry skipped: {}", why);
   }
   if (matches.empty()) return std::nullopt;
   if (matches.size() > 1) {

@@ -15,6 +15,7 @@
 #include "linecloud/privacy/two_key_attack.h"
 #include "linecloud/testing/test_util.h"
 #include "linecloud/util/error.h"
+#include "linecloud/util/log.h"
 
 namespace linecloud {
 namespace {
@@ -275,7 +276,17 @@ TEST(LiftingKey, FileRoundTripPermissionsAndErrors) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("readable by other users"), std::string::npos);
   }
-  EXPECT_EQ(ReadKeyFile(tmp.Path("legacy"), /*allow_shared=*/true).bytes(), key.bytes());
+  {
+    // Allowed, it warns through the log sink (named file, nothing on the console).
+    std::vector<std::pair<LogLevel, std::string>> said;
+    ScopedLogSink sink(
+        [&](LogLevel level, std::string_view line) { said.emplace_back(level, line); });
+    EXPECT_EQ(ReadKeyFile(tmp.Path("legacy"), /*allow_shared=*/true).bytes(), key.bytes());
+    ASSERT_EQ(said.size(), 1u);
+    EXPECT_EQ(said[0].first, LogLevel::kWarning);
+    EXPECT_EQ(said[0].second,
+              tmp.Path("legacy") + " is readable by other users; run chmod 600 on it");
+  }
   std::ofstream(tmp.Path("badset")) << "directions cube\n" << ToHex(key.bytes()) << "\n";
   ::chmod(tmp.Path("badset").c_str(), 0600);
   EXPECT_THROW(ReadKeyFile(tmp.Path("badset")), Error);

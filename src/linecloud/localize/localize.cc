@@ -511,6 +511,14 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
         fmt::format("stopped by the caller after {} RANSAC iterations", ransac.stats.iterations);
     return result;
   }
+  if (std::string_view(ransac.stats.stop_reason) == "max_seconds" &&
+      ransac.stats.uniform_iterations < options.ransac.min_iterations) {
+    // A pose from fewer draws than the floor is not trusted, whatever its inliers.
+    result.failure = fmt::format(
+        "RANSAC's time budget of {:g} s ran out after {} iterations, before min_iterations ({})",
+        options.ransac.max_seconds, ransac.stats.iterations, options.ransac.min_iterations);
+    return result;
+  }
   if (!ransac.success) {
     result.failure = fmt::format("RANSAC found no pose in {} iterations (stopped by {})",
                                  ransac.stats.iterations, ransac.stats.stop_reason);

@@ -311,6 +311,29 @@ TEST(LocalizeSuccess, OnlyPosesTheDataSupport) {
   }
 }
 
+// A time budget that stops RANSAC before its floor of draws gives no pose, even on clean data
+// where the first sample already fits: min_iterations is the least evidence a pose needs.
+TEST(LocalizeSuccess, ABudgetThatEndsBeforeMinIterationsGivesNoPose) {
+  const SceneFixture& f = Scene();
+  const MethodInfo& method = FindMethod("p3P");
+  const SceneQuery q = SceneQueriesForMethod(f.scene, method, {})[0];
+  LocalizeOptions options;
+  options.ransac.seed = 3;
+  options.ransac.min_iterations = 1000000;
+  options.ransac.max_iterations = 10000000;
+  options.ransac.max_seconds = 0.01;
+  const LocalizeResult r = Localize(method, q.query, LocalizationMap(f.points), options);
+  EXPECT_FALSE(r.success);
+  EXPECT_STREQ(r.stats.stop_reason, "max_seconds");
+  EXPECT_LT(r.stats.iterations, 1000000);
+  EXPECT_NE(r.failure.find("RANSAC's time budget of 0.01 s ran out after"), std::string::npos)
+      << r.failure;
+  EXPECT_NE(r.failure.find("before min_iterations (1000000)"), std::string::npos) << r.failure;
+  // The same budget with the default floor: the pose.
+  options.ransac.min_iterations = 10;
+  EXPECT_TRUE(Localize(method, q.query, LocalizationMap(f.points), options).success);
+}
+
 // [accept] Facades, posters and walls: every point on one plane. There the
 // focal length and the distance trade off, so the focal length that fits the
 // inliers best is arbitrary and the calibration check must not refuse; with

@@ -1,7 +1,10 @@
 #include "linecloud/localize/query_json.h"
 
+#include <fstream>
+
 #include <gtest/gtest.h>
 
+#include "linecloud/io/json_util.h"
 #include "linecloud/testing/test_util.h"
 
 namespace linecloud {
@@ -51,6 +54,15 @@ TEST(QueryJson, ErrorsNameTheField) {
               j["cameras"][0]["params"] = {500, 320};
             }).find("cameras[0]"),
             std::string::npos);
+  // A field the camera does not have is refused (it would be ignored); COLMAP's and pycolmap's
+  // identity fields are not.
+  EXPECT_EQ(error([](auto& j) { j["cameras"][0]["focal_length"] = 600; }),
+            "q.json: cameras[0]: unknown field \"focal_length\" (model, width, height, params)");
+  EXPECT_EQ(error([](auto& j) {
+              j["cameras"][0]["camera_id"] = 3;
+              j["cameras"][0]["has_prior_focal_length"] = true;
+            }),
+            "");
   EXPECT_NE(error([](auto& j) { j["observations"][1].erase("xy"); }).find("observations[1]"),
             std::string::npos);
   EXPECT_NE(error([](auto& j) {
@@ -90,6 +102,25 @@ TEST(QueryJson, ErrorsNameTheField) {
   EXPECT_NE(
       error([](auto& j) { j["observations"][1]["ratio"] = "good"; }).find("observations[1].ratio"),
       std::string::npos);
+}
+
+TEST(Json, AKeyTwiceInOneObjectIsRefusedNamingItAndTheSource) {
+  EXPECT_EQ(
+      testing::ErrorOf([] { ParseJsonUniqueKeys(R"({"a": 1, "b": {"a": 2}, "a": 3})", "body"); }),
+      "body: the key \"a\" appears twice in one object");
+  EXPECT_EQ(testing::ErrorOf([] {
+              ParseJsonUniqueKeys(R"({"frames": [{"camera": {}, "camera": {}}]})", "body");
+            }),
+            "body: the key \"camera\" appears twice in one object");
+  // The same key in sibling or nested objects is fine, and the value is what the parser gives.
+  const nlohmann::json j =
+      ParseJsonUniqueKeys(R"([{"a": 1}, {"a": 2, "b": {"a": [{"a": 3}]}}])", "x");
+  EXPECT_EQ(j, nlohmann::json::parse(R"([{"a": 1}, {"a": 2, "b": {"a": [{"a": 3}]}}])"));
+  EXPECT_THROW(ParseJsonUniqueKeys(R"({"a": )", "x"), nlohmann::json::parse_error);
+  testing::TempDir tmp;
+  std::ofstream(tmp.Path("q.json")) << R"({"cameras": [], "cameras": []})";
+  EXPECT_EQ(testing::ErrorOf([&] { ReadJsonFile(tmp.Path("q.json")); }),
+            tmp.Path("q.json") + ": the key \"cameras\" appears twice in one object");
 }
 
 }  // namespace

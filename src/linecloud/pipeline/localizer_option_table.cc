@@ -180,9 +180,11 @@ std::vector<OptionSpec> MakeTable() {
   t.push_back(
       Integer<int>("max_iterations", req, "RANSAC iteration cap", 1, 10000000,
                    [](LocalizerOptions& o) -> int& { return o.localize.ransac.max_iterations; }));
-  t.push_back(Number("max_seconds", req, "RANSAC time budget in seconds (0: none)", 0, 86400, false,
-                     false,
-                     [](LocalizerOptions& o) -> double& { return o.localize.ransac.max_seconds; }));
+  t.push_back(Number(
+      "max_seconds", req,
+      "RANSAC time budget in seconds (0: none); a run it stops before min_iterations gives no pose",
+      0, 86400, false, false,
+      [](LocalizerOptions& o) -> double& { return o.localize.ransac.max_seconds; }));
   {
     OptionSpec s =
         Bool("uniform_sampling", req,

@@ -5,15 +5,55 @@
 // errno: FileNotFoundError, PermissionError, ...); every other bad input
 // raises ValueError with the library's message (which names the file, field
 // or argument); a wrong Python type raises TypeError.
+//
+// Progress and warnings (util/log.h) go to stdout / stderr unless set_log_sink hands them to a
+// Python callable.
+#include <memory>
 #include <string>
+#include <utility>
 
 #include <pybind11/pybind11.h>
 
 #include "linecloud/python/bindings.h"
 #include "linecloud/util/error.h"
+#include "linecloud/util/log.h"
 #include "linecloud/version.h"
 
 namespace py = pybind11;
+
+namespace {
+
+// The library's log sink as a Python callable sink(level, line): called with the GIL taken (the
+// library calls it from threads that released it); an exception it raises is reported as
+// unraisable and the work goes on. None restores the default (stdout / stderr).
+void SetLogSink(py::object sink) {
+  linecloud::LogSink cpp;
+  if (!sink.is_none()) {
+    if (!PyCallable_Check(sink.ptr())) {
+      throw py::type_error("set_log_sink: sink must be a callable sink(level, line) or None");
+    }
+    std::shared_ptr<py::object> held(new py::object(std::move(sink)), [](py::object* object) {
+      py::gil_scoped_acquire gil;
+      delete object;
+    });
+    cpp = [held](linecloud::LogLevel level, std::string_view line) {
+      py::gil_scoped_acquire gil;
+      try {
+        (*held)(std::string(linecloud::LogLevelName(level)), std::string(line));
+      } catch (py::error_already_set& error) {
+        error.discard_as_unraisable("linecloud's log sink");
+      }
+    };
+  }
+  linecloud::LogSink previous;
+  {
+    // Another thread may be inside the sink waiting for the GIL: let it finish.
+    py::gil_scoped_release release;
+    previous = linecloud::SetLogSink(std::move(cpp));
+  }
+}
+
+}  // namespace
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "linecloud: privacy-preserving image-based localization (Speciale et al., CVPR 2019)";
@@ -31,6 +71,12 @@ PYBIND11_MODULE(_core, m) {
       PyErr_SetString(PyExc_ValueError, e.what());
     }
   });
+  m.def("set_log_sink", &SetLogSink, py::arg("sink"),
+        "Where the library's progress lines and warnings go: sink(level, line) with level "
+        "'progress' or 'warning'; `lambda level, line: None` silences them; None restores the "
+        "default (progress to stdout, warnings to stderr). One sink for the process.");
+  // The sink holds a Python object: drop it before the interpreter goes.
+  py::module_::import("atexit").attr("register")(py::cpp_function([] { SetLogSink(py::none()); }));
   linecloud::python::BindLineCloud(m);
   linecloud::python::BindLocalizer(m);
   linecloud::python::BindEstimation(m);

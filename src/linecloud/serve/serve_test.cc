@@ -520,8 +520,15 @@ TEST(Serve, BusyAndLateRequests) {
       httplib::Client c = server.Client();
       first_status = c.Post("/v1/maps/synth/localize", form)->status;
     });
-    std::this_thread::sleep_for(std::chrono::milliseconds(150));
+    // The first request holds the one worker once it is in flight (a fixed sleep was not
+    // always enough on a loaded machine).
     httplib::Client c = server.Client();
+    for (int i = 0; i < 500; ++i) {
+      const auto m = c.Get("/metrics");
+      if (m && m->body.find("linecloud_in_flight 1\n") != std::string::npos) break;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
     const auto busy = c.Post("/v1/maps/synth/localize", form);
     first.join();
     ASSERT_TRUE(busy);

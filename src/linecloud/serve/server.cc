@@ -382,11 +382,18 @@ struct Server::Impl {
     if (result.wait_until(deadline) != std::future_status::ready) {
       Throw(504, fmt::format("no answer within the {} s deadline", options.request_seconds));
     }
+    LocalizerResult answer;
     try {
-      return result.get();
+      answer = result.get();
     } catch (const Error& e) {
       Throw(400, e.what());
     }
+    // The job saw the deadline pass first (it stopped between stages): the same answer as above.
+    if (answer.deadline_passed) {
+      Throw(504, fmt::format("no answer within the {} s deadline ({})", options.request_seconds,
+                             answer.reason));
+    }
+    return answer;
   }
 
   // A request's method, rig fields and options (the request-scope options of

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 
+#include "linecloud/io/json_util.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud {
@@ -45,7 +46,7 @@ nlohmann::json ParseRequestJson(std::string_view body, std::string_view what) {
          kMaxRequestJsonValues);
   }
   try {
-    return nlohmann::json::parse(body);
+    return ParseJsonUniqueKeys(body, std::string(what));
   } catch (const nlohmann::json::exception& e) {
     // The parser's own words without its library's tag ("[json.exception.parse_error.101] ").
     std::string_view message = e.what();
