@@ -47,7 +47,7 @@ void SetLogSink(py::object sink) {
   }
   linecloud::LogSink previous;
   {
-    // Another thread may be inside the sink waiting for the GIL: let it finish.
+    // The sink's lock is never held while Python runs, but keep the GIL free while taking it.
     py::gil_scoped_release release;
     previous = linecloud::SetLogSink(std::move(cpp));
   }

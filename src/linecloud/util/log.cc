@@ -42,10 +42,18 @@ LogSink SilentLog() {
 }
 
 void Log(LogLevel level, std::string_view line) {
-  std::lock_guard<std::mutex> lock(SinkMutex());
-  if (CurrentSink()) {
-    CurrentSink()(level, line);
+  LogSink sink;
+  {
+    std::lock_guard<std::mutex> lock(SinkMutex());
+    sink = CurrentSink();
+  }
+  // Called outside the lock: a sink that waits for something (Python's GIL) held by a thread
+  // about to log or to change the sink cannot deadlock with it.
+  if (sink) {
+    sink(level, line);
   } else {
+    static std::mutex default_mutex;  // whole lines on the console
+    std::lock_guard<std::mutex> lock(default_mutex);
     DefaultSink(level, line);
   }
 }

@@ -5,7 +5,8 @@
 // By default progress goes to stdout and warnings to stderr, each as one line. A caller redirects
 // both with SetLogSink (the Python module hands them to a Python callable; a test collects them)
 // and silences them with SetLogSink(SilentLog()). The sink is process-wide, like COLMAP's glog; it
-// is called from any thread, one call at a time.
+// is called from any thread, possibly from several at once (a sink that collects locks; Python's
+// is serialised by the GIL). The default sink writes whole lines.
 #pragma once
 
 #include <fmt/format.h>
