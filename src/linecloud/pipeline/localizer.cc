@@ -351,13 +351,12 @@ LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
   for (const QueryPhoto& photo : photos) {
     if (request.deadline && Clock::now() >= *request.deadline) {
       return EndedEarly(method, std::move(result),
-                        "the request's deadline passed before reading " + photo.name, start,
-                        /*deadline_passed=*/true);
+                        "the request's deadline passed before reading " + photo.name, start);
     }
     try {
       result.photos.push_back(MatchPhoto(photo, request));
     } catch (const DeadlinePassed& e) {
-      return EndedEarly(method, std::move(result), e.what(), start, /*deadline_passed=*/true);
+      return EndedEarly(method, std::move(result), e.what(), start);
     }
     rig.push_back(photo.cam_from_rig);
     const ImageQueryTimes& t = result.photos.back().times;
@@ -396,11 +395,9 @@ LocalizerResult Localizer::LocalizeFeatures(const SiftFeatures& features, const 
 }
 
 LocalizerResult Localizer::EndedEarly(const MethodInfo& method, LocalizerResult result,
-                                      const std::string& reason, Clock::time_point start,
-                                      bool deadline_passed) const {
+                                      const std::string& reason, Clock::time_point start) const {
   result.method = method.name;
   result.status = LocalizerStatus::kNoPose;
-  result.deadline_passed = deadline_passed;
   result.reason = reason;
   result.pose.failure = result.reason;
   result.times.total_ms = MsSince(start);
@@ -428,7 +425,7 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
     const double left = std::chrono::duration<double>(*request.deadline - Clock::now()).count();
     if (left <= 0)
       return EndedEarly(method, std::move(result), "the request's deadline passed before RANSAC",
-                        start, /*deadline_passed=*/true);
+                        start);
     if (options.ransac.max_seconds <= 0 || options.ransac.max_seconds > left) {
       options.ransac.max_seconds = left;
     }
@@ -451,10 +448,6 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
   }
   result.status = result.pose.success ? LocalizerStatus::kSuccess : LocalizerStatus::kNoPose;
   result.reason = result.pose.failure;
-  // RANSAC's budget was the time left before the deadline, and it ran out.
-  result.deadline_passed = !result.pose.success && request.deadline &&
-                           std::string_view(result.pose.stats.stop_reason) == "max_seconds" &&
-                           Clock::now() >= *request.deadline;
   result.times.prepare_ms = result.pose.prepare_ms;
   result.times.ransac_ms = result.pose.stats.ransac_ms;
   result.times.refine_ms = result.pose.refine_ms;

@@ -131,8 +131,6 @@ struct StageTimes {
 struct LocalizerResult {
   LocalizerStatus status = LocalizerStatus::kNoPose;
   std::string reason;  // why there is no pose
-  // No pose because the request's deadline passed first (a service answers 504, not 200).
-  bool deadline_passed = false;
   std::string method;
   LocalizeResult pose;  // the pose (cam_from_world / rig_from_world), inliers, statistics
   Query query;          // the correspondences localized (photos: one per match)
@@ -217,8 +215,8 @@ class Localizer {
   // "No pose" before the request's end: its deadline passed or its caller
   // stopped it (`reason` names the stage).
   LocalizerResult EndedEarly(const MethodInfo& method, LocalizerResult result,
-                             const std::string& reason, std::chrono::steady_clock::time_point start,
-                             bool deadline_passed = false) const;
+                             const std::string& reason,
+                             std::chrono::steady_clock::time_point start) const;
 };
 
 }  // namespace linecloud

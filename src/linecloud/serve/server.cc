@@ -388,8 +388,9 @@ struct Server::Impl {
     } catch (const Error& e) {
       Throw(400, e.what());
     }
-    // The job saw the deadline pass first (it stopped between stages): the same answer as above.
-    if (answer.deadline_passed) {
+    // No pose and the deadline gone: the job saw it pass first (SIFT's memory wait, RANSAC's
+    // budget cut to it, a stage skipped) — the same answer as above, not a 200 "no pose".
+    if (!answer.success() && Clock::now() >= deadline) {
       Throw(504, fmt::format("no answer within the {} s deadline ({})", options.request_seconds,
                              answer.reason));
     }
