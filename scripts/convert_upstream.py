@@ -18,6 +18,7 @@ come out byte for byte as scripts/data.sha256 lists them. Images are re-encoded 
 size, EuRoC's PNG frames as JPEG), so their bytes depend on the JPEG library; get_data.sh checks
 them by count, size and pixels instead.
 """
+import functools
 import importlib.util
 import os
 import shutil
@@ -66,6 +67,7 @@ def read_image(path):
     return image
 
 
+@functools.cache
 def _load_pose_module():
     """The package's pose conversions (python/linecloud/pose.py: numpy only, no compiled module)."""
     path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "python", "linecloud", "pose.py")

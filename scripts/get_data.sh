@@ -68,11 +68,13 @@ sparse_clone() {  # sparse_clone OWNER/NAME DEST PATH...: a shallow clone of onl
   git -C "$dest" sparse-checkout set --no-cone "$@"
 }
 
+[ $upstream -eq 0 ] || [ -z "$from" ] || { echo "error: --from and --upstream exclude each other" >&2; exit 2; }
+[ $upstream -eq 1 ] || [ -n "$from" ] || { echo "error: --from SOURCE or --upstream is required (see --help)" >&2; exit 2; }
+to="${to:-${LINECLOUD_DATA:-$repo/data}}"
+mkdir -p "$to"
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
 if [ $upstream -eq 1 ]; then
-  [ -z "$from" ] || { echo "error: --from and --upstream exclude each other" >&2; exit 2; }
-  to="${to:-${LINECLOUD_DATA:-$repo/data}}"
-  tmp=$(mktemp -d)
-  trap 'rm -rf "$tmp"' EXIT
   if [ -z "$checkouts" ]; then
     checkouts="$tmp/upstream"
     strecha=/Benchmarking_Camera_Calibration_2008
@@ -85,18 +87,12 @@ if [ $upstream -eq 1 ]; then
   (cd "$checkouts" && sha256sum --quiet --strict -c "$repo/scripts/data-upstream.sha256") ||
     { echo "error: $checkouts: the upstream files above are missing or differ from scripts/data-upstream.sha256" >&2; exit 1; }
   echo "converting into $to"
-  mkdir -p "$to"
   python=/usr/bin/python3; [ -x "$python" ] || python=python3
   "$python" "$repo/scripts/convert_upstream.py" "$checkouts" "$to"
   verify "$to" converted
   report
   exit
 fi
-[ -n "$from" ] || { echo "error: --from SOURCE or --upstream is required (see --help)" >&2; exit 2; }
-to="${to:-${LINECLOUD_DATA:-$repo/data}}"
-mkdir -p "$to"
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
 case "$from" in
   http://*|https://*)
     echo "fetching $from"

@@ -45,12 +45,9 @@ void SetLogSink(py::object sink) {
       }
     };
   }
-  linecloud::LogSink previous;
-  {
-    // The sink's lock is never held while Python runs, but keep the GIL free while taking it.
-    py::gil_scoped_release release;
-    previous = linecloud::SetLogSink(std::move(cpp));
-  }
+  // The sink's lock is never held while a sink runs, so it is taken with the GIL held; the sink
+  // replaced is dropped here, its Python object with the GIL.
+  linecloud::SetLogSink(std::move(cpp));
 }
 
 }  // namespace
