@@ -515,8 +515,10 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
       ransac.stats.uniform_iterations < options.ransac.min_iterations) {
     // A pose from fewer draws than the floor is not trusted, whatever its inliers.
     result.failure = fmt::format(
-        "RANSAC's time budget of {:g} s ran out after {} iterations, before min_iterations ({})",
-        options.ransac.max_seconds, ransac.stats.iterations, options.ransac.min_iterations);
+        "RANSAC's time budget of {:g} s ran out after {} uniform draws ({} iterations in all), "
+        "before min_iterations ({})",
+        options.ransac.max_seconds, ransac.stats.uniform_iterations, ransac.stats.iterations,
+        options.ransac.min_iterations);
     return result;
   }
   if (!ransac.success) {

@@ -497,6 +497,13 @@ TEST(Serve, ReloadReadsTheTokensAgain) {
   server.server().Reload();
   EXPECT_EQ(c.Get("/v1/maps/synth", Bearer("carol-secret"))->status, 200);
   EXPECT_TRUE(server.LogContains("tokens not reloaded")) << "a broken file is said, not obeyed";
+  // A key twice (an outsider's file: "admin" false then true gave an admin) is refused, named.
+  WriteFileAtomically(f.tmp.Path("tokens.json"), [](std::ostream& os) {
+    os << R"({"tokens": [{"id": "mallory", "sha256": "00", "maps": ["synth"], "admin": false,
+              "admin": true}]})";
+  });
+  EXPECT_EQ(testing::ErrorOf([&] { TokenStore::Read(f.tmp.Path("tokens.json")); }),
+            f.tmp.Path("tokens.json") + ": the key \"admin\" appears twice in one object");
 }
 
 // A worker busy and no queue: 503 with Retry-After; a deadline shorter than
@@ -677,6 +684,13 @@ TEST(Serve, FountainPhotoThroughEveryRoute) {
            {"imageBytes", Base64Encode(std::vector<uint8_t>(photo.begin(), photo.end()))},
            {"params",
             {{"model", "PINHOLE"}, {"modelParams", {1379.74, 1382.08, 760.095, 503.155}}}}}}}}}};
+  // A camera field OSCP does not have (a distortion) would be dropped: refused, named.
+  json with_k1 = req;
+  with_k1["sensorReadings"]["cameraReadings"][0]["params"]["k1"] = 0.5;
+  r = c.Post("/geopose", with_k1.dump(), "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400) << r->body;
+  EXPECT_NE(r->body.find(R"(params: unknown field \"k1\")"), std::string::npos) << r->body;
   r = c.Post("/geopose", req.dump(), "application/json");
   ASSERT_TRUE(r);
   ASSERT_EQ(r->status, 200) << r->body;

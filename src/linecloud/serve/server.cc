@@ -28,6 +28,7 @@
 #include "linecloud/features/sift.h"
 #include "linecloud/features/sift_scale_space.h"
 #include "linecloud/io/ply.h"
+#include "linecloud/io/json_util.h"
 #include "linecloud/localize/image_query.h"
 #include "linecloud/localize/query_json.h"
 #include "linecloud/pipeline/localizer.h"
@@ -585,8 +586,8 @@ struct Server::Impl {
     const auto [token, map] = RequestMap(req, id, log);
     const std::string path = OwnerFile(token, *map, ".audit.json");
     try {
-      return json::parse(ReadFilePrefix(path, 1 << 22));
-    } catch (const json::exception& e) {
+      return ParseJsonUniqueKeys(ReadFilePrefix(path, 1 << 22), map->id + ".audit.json");
+    } catch (const std::exception& e) {
       Throw(500, fmt::format("{}: not JSON ({})", map->id + ".audit.json", e.what()));
     }
   }
@@ -660,6 +661,16 @@ struct Server::Impl {
       const json& p = c["params"];
       if (!p.contains("model") || !p["model"].is_string() || !p.contains("modelParams")) {
         Fail("params: 'model' (a COLMAP camera name) and 'modelParams' are required");
+      }
+      // A distortion or size given here would be dropped: refused, like a camera's other fields.
+      for (const auto& [key, value] : p.items()) {
+        if (key != "model" && key != "modelParams" && key != "minMaxDepth" &&
+            key != "minMaxDisparity") {
+          Fail(
+              "params: unknown field {} (model, modelParams; OSCP's minMaxDepth and "
+              "minMaxDisparity are accepted and not used)",
+              ShownInMessage(key));
+        }
       }
       camera = CameraFromJson({{"model", p["model"]},
                                {"width", c["size"][0]},

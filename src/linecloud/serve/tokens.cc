@@ -11,6 +11,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "linecloud/io/json_util.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
@@ -45,7 +46,7 @@ TokenStore TokenStore::Read(const std::string& path) {
   if (sodium_init() < 0) Fail("libsodium could not be initialised");
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(ReadFilePrefix(path, 1 << 20));
+    j = ParseJsonUniqueKeys(ReadFilePrefix(path, 1 << 20), path);  // "admin" twice: refused
   } catch (const nlohmann::json::exception& e) {
     Fail("{}: not JSON ({})", path, e.what());
   }
