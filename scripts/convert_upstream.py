@@ -200,6 +200,13 @@ def main():
     if len(sys.argv) != 3:
         fail("usage: convert_upstream.py SRC OUT (see the docstring)")
     src, out = sys.argv[1], sys.argv[2]
+    try:
+        convert(src, out)
+    except OSError as e:  # e.g. a file where a folder of the layout goes
+        fail(f"{e.filename or out}: {e.strerror}")
+
+
+def convert(src, out):
     for scene in STRECHA:
         print(f"  strecha/{scene}", flush=True)
         strecha_scene(src, out, scene)
