@@ -154,7 +154,9 @@ TEST(Hostile, ConsoleFilesAreCompressedAndRevalidated) {
   Maps m;
   fs::create_directories(m.tmp.Path("web"));
   std::ofstream(m.tmp.Path("web/app.js")) << "const x = 1;\n";
-  const std::string gz("\x1f\x8b compressed stand-in", 24);
+  // The gzip magic, then text (sizeof - 1: the bytes without the literal's NUL).
+  constexpr char kGz[] = "\x1f\x8b compressed stand-in";
+  const std::string gz(kGz, sizeof kGz - 1);
   std::ofstream(m.tmp.Path("web/app.js.gz"), std::ios::binary) << gz;
   std::ofstream(m.tmp.Path("web/index.html")) << "<!doctype html>";
   Served s(m.tmp, {"--web", m.tmp.Path("web")});
