@@ -3,7 +3,7 @@
 // the .lcm and COLMAP formats, the 16 pose estimators with RANSAC and
 // refinement, and seeded synthetic queries. Link linecloud::core.
 // linecloud::features adds linecloud/pipeline/localizer.h (a map loaded once,
-// photos, features and queries answered) and linecloud/localize/image_query.h,
+// photos, features and queries answered) and linecloud/pipeline/image_query.h,
 // linecloud::privacy the attacks and the audit (linecloud/privacy/*.h).
 #pragma once
 

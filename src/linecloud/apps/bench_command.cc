@@ -272,15 +272,7 @@ void RegisterBenchAttack(CLI::App* bench) {
   a->callback([attack] {
     AttackBenchOptions o = *attack;
     o.progress = [](const std::string& s) { std::cerr << "bench attack: " << s << "\n"; };
-    std::cout << "| lines | threads | seconds | µs per line | within 0.5 % / 1 % / 2 % of the "
-                 "diagonal |\n|---|---|---|---|---|\n";
-    for (const auto& r : RunAttackBench(o)) {
-      std::cout << fmt::format(
-          "| {} | {} | {:.1f} | {:.0f} | {:.1f} % / {:.1f} % / {:.1f} % |\n",
-          r["lines"].get<size_t>(), r["threads"].get<int>(), r["seconds"].get<double>(),
-          r["us_per_line"].get<double>(), 100 * r["within_0.5_percent"].get<double>(),
-          100 * r["within_1_percent"].get<double>(), 100 * r["within_2_percent"].get<double>());
-    }
+    std::cout << AttackBenchMarkdown(RunAttackBench(o));
   });
 }
 

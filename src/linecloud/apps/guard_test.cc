@@ -27,7 +27,7 @@
 #include "linecloud/lifting/key.h"
 #include "linecloud/lifting/key_store.h"
 #include "linecloud/lifting/line_cloud.h"
-#include "linecloud/localize/image_query.h"
+#include "linecloud/pipeline/image_query.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/synthetic/localization_instances.h"
 #include "linecloud/testing/test_util.h"

@@ -6,7 +6,7 @@
 #include "linecloud/util/file.h"
 #include "linecloud/io/lift_model.h"
 #include "linecloud/lifting/key.h"
-#include "linecloud/localize/image_query.h"
+#include "linecloud/pipeline/image_query.h"
 #include "linecloud/privacy/map_lifting.h"
 
 namespace linecloud {

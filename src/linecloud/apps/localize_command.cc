@@ -13,7 +13,7 @@
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/io/ply.h"
-#include "linecloud/localize/image_query.h"
+#include "linecloud/pipeline/image_query.h"
 #include "linecloud/localize/localize.h"
 #include "linecloud/localize/query_json.h"
 #include "linecloud/pipeline/localizer.h"

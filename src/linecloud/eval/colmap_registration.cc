@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <numbers>
+#include <optional>
 
 #include <fmt/format.h>
 
@@ -91,19 +92,18 @@ Reconstruction ReadRegistered(const std::string& dir) {
 }
 
 // linecloud's figures for an image from an `eval run` report (direct matching).
-ojson OursFor(const nlohmann::json& ours, const std::string& image) {
-  if (ours.is_null()) return nullptr;
-  const nlohmann::json& dm = ours["direct_matching"];
-  for (const nlohmann::json& row : dm["per_query"]) {
-    if (row["image"] != image) continue;
+ojson OursFor(const DirectMatchingReport* ours, const std::string& image) {
+  if (!ours) return nullptr;
+  for (const DirectMatchingPhoto& row : ours->per_query) {
+    if (row.image != image) continue;
     ojson j;
     for (const char* method : {"p6L", "p3P"}) {
-      if (!row.contains(method)) continue;
-      const double ms = row["extract_ms"].get<double>() + row["match_ms"].get<double>() +
-                        dm["methods"][method]["mean_ms"]["ransac"].get<double>() +
-                        dm["methods"][method]["mean_ms"]["refine"].get<double>();
-      j[method] = {{"rotation_deg", row[method]["rotation_deg"]},
-                   {"translation", row[method]["translation"]},
+      const DirectMatchingAttempt* a = FindIn(row.methods, method);
+      const DirectMatchingSummary* m = FindIn(ours->methods, method);
+      if (!a || !m) continue;
+      const double ms = row.extract_ms + row.match_ms + m->mean_ms.ransac + m->mean_ms.refine;
+      j[method] = {{"rotation_deg", a->rotation_deg},
+                   {"translation", a->translation},
                    {"seconds", ms / 1000}};
     }
     return j;
@@ -210,7 +210,7 @@ GroupRegistration RegisterGroup(const std::string& work_dir, const EvalGroup& g,
 
 // One image's row: COLMAP's error and time, linecloud's beside.
 ojson ImageRow(const EvalGroup& g, const EvalImage& im, const GroupRegistration& r,
-               const nlohmann::json& ours) {
+               const DirectMatchingReport* ours) {
   const double shared = (r.match_s + r.register_s) / g.images.size();
   ojson c = {{"extract_s", r.extract_s.at(im.name)},
              {"match_s", r.match_s / g.images.size()},
@@ -280,9 +280,11 @@ void ColmapRegistrationOptions::Check() const {
 ojson RunColmapRegistration(const ColmapRegistrationOptions& o) {
   o.Check();
   const EvalWork work = ReadPreparedWork(o.work_dir);
-  const nlohmann::json ours = o.ours.empty() ? nlohmann::json(nullptr) : ReadJsonFile(o.ours);
-  if (!ours.is_null() && !ours.contains("direct_matching")) {
-    Fail("{}: no direct_matching section (run eval run without --no-direct-matching)", o.ours);
+  std::optional<DirectMatchingReport> ours;
+  if (!o.ours.empty()) {
+    ours = ReadEvalReport(o.ours).direct_matching;
+    if (!ours)
+      Fail("{}: no direct_matching section (run eval run without --no-direct-matching)", o.ours);
   }
   CreateDirectories(o.out_dir);
   ColmapOptions colmap = o.colmap;
@@ -291,7 +293,8 @@ ojson RunColmapRegistration(const ColmapRegistrationOptions& o) {
   for (const EvalGroup& g : work.groups) {
     const GroupRegistration r = RegisterGroup(o.work_dir, g, JoinPaths(work.dataset_dir, "images"),
                                               JoinPaths(o.out_dir, g.name), colmap);
-    for (const EvalImage& im : g.images) images.push_back(ImageRow(g, im, r, ours));
+    for (const EvalImage& im : g.images)
+      images.push_back(ImageRow(g, im, r, ours ? &*ours : nullptr));
     LogProgress("[eval colmap] group {}: {} images, match {:.1f} s, register {:.1f} s", g.name,
                 g.images.size(), r.match_s, r.register_s);
   }

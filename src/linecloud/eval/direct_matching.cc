@@ -20,8 +20,6 @@
 namespace linecloud {
 namespace {
 
-using json = nlohmann::json;
-
 // A group's map as `localize --image` answers it: one Localizer on its lines,
 // which matches the photos to the map's descriptors (ids are point ids: the
 // lines are the owner's view, keyed by point id), and one on its points,
@@ -134,7 +132,7 @@ struct Tally {
 // row. `extract_ms` / `match_ms`: the query's photos' stage times.
 void LocalizeQuery(const MethodInfo& method, const Query& query, const GroupMap& map,
                    const Sim3d& truth, double extract_ms, double match_ms, std::string_view source,
-                   const DirectMatchingOptions& options, Tally* t, json* row) {
+                   const DirectMatchingOptions& options, Tally* t, DirectMatchingAttempt* row) {
   double rot = 180, trans = 1e9;
   std::string failure;
   if (query.observations.size() >= static_cast<size_t>(method.sample_size)) {
@@ -146,14 +144,15 @@ void LocalizeQuery(const MethodInfo& method, const Query& query, const GroupMap&
     t->scoring_ms += r.stats.scoring_ms;
     t->lo_ms += r.stats.lo_ms;
     t->iterations += r.stats.iterations;
-    (*row)["ransac_ms"] = r.stats.ransac_ms;
-    (*row)["iterations"] = r.stats.iterations;
-    (*row)["uniform_iterations"] = r.stats.uniform_iterations;
-    (*row)["inliers"] = r.inliers.size();
-    (*row)["success"] = r.success;
-    if (!r.camera_inliers.empty()) (*row)["camera_inliers"] = r.camera_inliers;
-    (*row)["stop_reason"] = r.stats.stop_reason;
-    if (r.has_pose) (*row)["sigma_px"] = r.uncertainty.sigma_px;
+    row->attempted = true;
+    row->ransac_ms = r.stats.ransac_ms;
+    row->iterations = r.stats.iterations;
+    row->uniform_iterations = r.stats.uniform_iterations;
+    row->inliers = static_cast<int>(r.inliers.size());
+    row->success = r.success;
+    row->camera_inliers.assign(r.camera_inliers.begin(), r.camera_inliers.end());
+    row->stop_reason = r.stats.stop_reason;
+    if (r.has_pose) row->sigma_px = r.uncertainty.sigma_px;
     t->refine_ms += r.refine_ms;
     failure = r.failure;
     if (r.success) {
@@ -169,9 +168,9 @@ void LocalizeQuery(const MethodInfo& method, const Query& query, const GroupMap&
   t->rotation.push_back(rot);
   t->translation.push_back(trans);
   t->localized += rot <= options.max_rotation_deg && trans <= options.max_translation;
-  (*row)["rotation_deg"] = rot;
-  (*row)["translation"] = trans;
-  if (!failure.empty()) (*row)["failure"] = failure;
+  row->rotation_deg = rot;
+  row->translation = trans;
+  row->failure = failure;
 }
 
 // The group's photos as one generalized camera, with the rig the work holds
@@ -179,17 +178,18 @@ void LocalizeQuery(const MethodInfo& method, const Query& query, const GroupMap&
 // scale for the +s methods, as `eval run` poses them).
 void LocalizeRig(const EvalWork& work, const EvalGroup& g, const GroupMap& map,
                  const std::vector<ImageQuery>& photos, const DirectMatchingOptions& options,
-                 std::map<std::string, Tally>* tallies, json* per_rig) {
-  json row = {{"group", g.name}, {"images", json::array()}};
+                 std::map<std::string, Tally>* tallies, std::vector<DirectMatchingRig>* per_rig) {
+  DirectMatchingRig row;
+  row.group = g.name;
   double extract_ms = 0, match_ms = 0;
   size_t matches = 0;
   for (size_t c = 0; c < photos.size(); ++c) {
-    row["images"].push_back(g.images[c].name);
+    row.images.push_back(g.images[c].name);
     extract_ms += photos[c].times.extract_ms;
     match_ms += photos[c].times.match_ms;
     matches += photos[c].matches.size();
   }
-  row["matches"] = matches;
+  row.matches = static_cast<int>(matches);
   // The rig's own disagreement with the truth (worst camera): a floor under
   // any rig pose's error.
   double rig_rot = 0, rig_trans = 0;
@@ -199,7 +199,8 @@ void LocalizeRig(const EvalWork& work, const EvalGroup& g, const GroupMap& map,
     rig_rot = std::max(rig_rot, e.rotation_rad * kDeg);
     rig_trans = std::max(rig_trans, e.position);
   }
-  row["rig_error"] = {{"rotation_deg", rig_rot}, {"translation", rig_trans}};
+  row.rig_error_rotation_deg = rig_rot;
+  row.rig_error_translation = rig_trans;
   for (const std::string& name : options.rig_methods) {
     const MethodInfo& method = FindMethod(name);
     const PosedRig rig = PoseRig(g, method.similarity());
@@ -209,15 +210,16 @@ void LocalizeRig(const EvalWork& work, const EvalGroup& g, const GroupMap& map,
       query.gravity_map = work.gravity_world;
     }
     LocalizeQuery(method, query, map, rig.rig_from_world, extract_ms, match_ms, g.name, options,
-                  &(*tallies)[name], &row[name]);
+                  &(*tallies)[name], &row.methods[name]);
   }
-  per_rig->push_back(row);
+  per_rig->push_back(std::move(row));
 }
 
 }  // namespace
 
-json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const LiftingKey& key,
-                       const DirectMatchingOptions& options) {
+DirectMatchingReport RunDirectMatching(const EvalWork& work, const std::string& work_dir,
+                                       const LiftingKey& key,
+                                       const DirectMatchingOptions& options) {
   for (const std::string& name : options.rig_methods) {
     const MethodInfo& m = FindMethod(name);
     if (!m.multi || m.local_points) {
@@ -226,7 +228,10 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
     }
   }
   std::map<std::string, Tally> tallies;
-  json per_query = json::array(), per_rig = json::array();
+  DirectMatchingReport report;
+  report.max_rotation_deg = options.max_rotation_deg;
+  report.max_translation = options.max_translation;
+  report.features = SiftExtractorName(options.image.sift.extractor);
   for (const EvalGroup& g : work.groups) {
     const auto t0 = std::chrono::steady_clock::now();
     const GroupMap map = LoadGroupMap(work_dir, g, key, options);
@@ -236,50 +241,41 @@ json RunDirectMatching(const EvalWork& work, const std::string& work_dir, const 
       const Camera& camera = work.cameras.at(im.camera_id);
       ImageQuery q = MatchPhoto(
           map, ExtractOnce(path, camera, options.image, options.extracted.get()), camera, path);
-      json row = {{"group", g.name},
-                  {"image", im.name},
-                  {"features", q.features.size()},
-                  {"matches", q.matches.size()},
-                  {"extract_ms", q.times.extract_ms},
-                  {"match_ms", q.times.match_ms}};
+      DirectMatchingPhoto row{g.name,
+                              im.name,
+                              static_cast<int>(q.features.size()),
+                              static_cast<int>(q.matches.size()),
+                              q.times.extract_ms,
+                              q.times.match_ms,
+                              {}};
       for (const std::string& name : options.methods) {
         LocalizeQuery(FindMethod(name), q.query, map, ToSim3(im.cam_from_world), q.times.extract_ms,
-                      q.times.match_ms, im.name, options, &tallies[name], &row[name]);
+                      q.times.match_ms, im.name, options, &tallies[name], &row.methods[name]);
       }
-      per_query.push_back(row);
+      report.per_query.push_back(std::move(row));
       q.image = GreyImage{};  // the pixels are not needed any more
       photos.push_back(std::move(q));
     }
     if (g.has_rig && g.images.size() >= 2 && !options.rig_methods.empty()) {
-      LocalizeRig(work, g, map, photos, options, &tallies, &per_rig);
+      LocalizeRig(work, g, map, photos, options, &tallies, &report.per_rig);
     }
     LogProgress("[eval] direct matching, group {} ({:.1f} s)", g.name,
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   }
-  json methods = json::object();
   for (auto& [name, t] : tallies) {
     const double n = std::max<size_t>(1, t.rotation.size());
-    methods[name] = {{"queries", t.rotation.size()},
-                     {"localized", t.localized},
-                     {"median_rotation_deg", Median(t.rotation)},
-                     {"median_translation", Median(t.translation)},
-                     {"mean_ms",
-                      {{"extract", t.extract_ms / n},
-                       {"match", t.match_ms / n},
-                       {"ransac", t.ransac_ms / n},
-                       {"refine", t.refine_ms / n}}},
-                     {"mean_ransac_ms",
-                      {{"solver", t.solver_ms / n},
-                       {"scoring", t.scoring_ms / n},
-                       {"local_optimization", t.lo_ms / n}}},
-                     {"mean_iterations", t.iterations / n}};
+    DirectMatchingSummary& m = report.methods[name];
+    m.queries = static_cast<int>(t.rotation.size());
+    m.localized = t.localized;
+    m.median_rotation_deg = Median(t.rotation);
+    m.median_translation = Median(t.translation);
+    m.mean_ms = {t.extract_ms / n, t.match_ms / n, t.ransac_ms / n, t.refine_ms / n};
+    m.mean_solver_ms = t.solver_ms / n;
+    m.mean_scoring_ms = t.scoring_ms / n;
+    m.mean_local_optimization_ms = t.lo_ms / n;
+    m.mean_iterations = t.iterations / n;
   }
-  return {{"thresholds",
-           {{"rotation_deg", options.max_rotation_deg}, {"translation", options.max_translation}}},
-          {"features", SiftExtractorName(options.image.sift.extractor)},
-          {"methods", methods},
-          {"per_query", per_query},
-          {"per_rig", per_rig}};
+  return report;
 }
 
 }  // namespace linecloud

@@ -11,12 +11,11 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
+#include "linecloud/eval/eval_report.h"
 #include "linecloud/eval/eval_work.h"
 #include "linecloud/privacy/map_lifting.h"
 #include "linecloud/lifting/key.h"
-#include "linecloud/localize/image_query.h"
+#include "linecloud/pipeline/image_query.h"
 
 namespace linecloud {
 
@@ -62,7 +61,7 @@ GroupMapData LoadGroupMapData(const std::string& work_dir, const EvalGroup& grou
 // median errors and mean stage times, per query (image) and per rig the
 // details. Throws Error on a rig method that is not a multi-camera one or
 // needs local points (+l: photos give none).
-nlohmann::json RunDirectMatching(const EvalWork& work, const std::string& work_dir,
-                                 const LiftingKey& key, const DirectMatchingOptions& options);
+DirectMatchingReport RunDirectMatching(const EvalWork& work, const std::string& work_dir,
+                                       const LiftingKey& key, const DirectMatchingOptions& options);
 
 }  // namespace linecloud

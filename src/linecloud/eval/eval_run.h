@@ -9,9 +9,8 @@
 #include <string>
 #include <vector>
 
-#include <nlohmann/json.hpp>
-
 #include "linecloud/eval/direct_matching.h"
+#include "linecloud/eval/eval_report.h"
 #include "linecloud/eval/eval_work.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/privacy/map_lifting.h"
@@ -43,8 +42,9 @@ struct EvalRunOptions {
   void Check() const;
 };
 
-// Runs everything and writes RESULTS; returns report.json's content.
-nlohmann::json RunEvaluation(const EvalRunOptions& options);
+// Runs everything and writes report.json, report.md and the figures into out_dir; returns the
+// report.
+EvalReport RunEvaluation(const EvalRunOptions& options);
 
 // WORK/prepared.json; throws Error naming it when missing or malformed.
 EvalWork ReadPreparedWork(const std::string& work_dir);

@@ -30,25 +30,25 @@ struct MethodTally {
 
 // One query's result (a row of direct matching's per_query / per_rig) into the tally.
 void Count(const KeySweepOptions& o, const DirectMatchingOptions& dm, const std::string& dataset,
-           uint64_t key, const std::string& query, const std::string& method, const ojson& r,
-           MethodTally* t, ojson* wrong, ojson* queries, std::map<std::string, int>* failures) {
+           uint64_t key, const std::string& query, const std::string& method,
+           const DirectMatchingAttempt& r, MethodTally* t, ojson* wrong, ojson* queries,
+           std::map<std::string, int>* failures) {
   ++t->queries;
   queries->push_back({{"dataset", dataset},
                       {"key", key},
                       {"query", query},
                       {"method", method},
-                      {"success", r.value("success", false)},
-                      {"rotation_deg", r["rotation_deg"]},
-                      {"translation", r["translation"]},
-                      {"inliers", r.value("inliers", 0)},
-                      {"iterations", r.value("iterations", 0)},
-                      {"uniform_iterations", r.value("uniform_iterations", 0)},
-                      {"ransac_ms", r.value("ransac_ms", 0.0)}});
-  if (r.contains("ransac_ms")) t->ransac_ms.push_back(r["ransac_ms"].get<double>());
-  const double rot = r["rotation_deg"].get<double>();
-  const double trans = r["translation"].get<double>();
-  if (!r.value("success", false)) {
-    std::string reason = r.value("failure", std::string("no pose"));
+                      {"success", r.success},
+                      {"rotation_deg", r.rotation_deg},
+                      {"translation", r.translation},
+                      {"inliers", r.inliers},
+                      {"iterations", r.iterations},
+                      {"uniform_iterations", r.uniform_iterations},
+                      {"ransac_ms", r.ransac_ms}});
+  if (r.attempted) t->ransac_ms.push_back(r.ransac_ms);
+  const double rot = r.rotation_deg, trans = r.translation;
+  if (!r.success) {
+    std::string reason = r.failure.empty() ? std::string("no pose") : r.failure;
     // The reason's kind, without its numbers.
     reason = reason.substr(0, reason.find_first_of("0123456789"));
     ++(*failures)[reason];
@@ -64,10 +64,10 @@ void Count(const KeySweepOptions& o, const DirectMatchingOptions& dm, const std:
                       {"method", method},
                       {"rotation_deg", rot},
                       {"translation", trans},
-                      {"inliers", r.value("inliers", 0)},
-                      {"sigma_px", r.value("sigma_px", 0.0)},
-                      {"iterations", r.value("iterations", 0)},
-                      {"stop_reason", r.value("stop_reason", std::string())}});
+                      {"inliers", r.inliers},
+                      {"sigma_px", r.sigma_px.value_or(0.0)},
+                      {"iterations", r.iterations},
+                      {"stop_reason", r.stop_reason}});
   }
 }
 
@@ -108,18 +108,18 @@ ojson RunKeySweep(const KeySweepOptions& options) {
     dm.extracted = std::make_shared<ExtractedPhotos>();  // each photo extracted once
     for (uint64_t k = options.first_key; k < options.first_key + options.keys; ++k) {
       const auto start = std::chrono::steady_clock::now();
-      const ojson report = RunDirectMatching(work, work_dir, SweepKey(k), dm);
-      for (const ojson& row : report["per_query"]) {
+      const DirectMatchingReport report = RunDirectMatching(work, work_dir, SweepKey(k), dm);
+      for (const DirectMatchingPhoto& row : report.per_query) {
         for (const std::string& m : dm.methods) {
-          Count(options, dm, work.dataset, k, row["image"].get<std::string>(), m, row[m],
-                &tallies[m], &wrong, &queries, &failures);
+          Count(options, dm, work.dataset, k, row.image, m, row.methods.at(m), &tallies[m], &wrong,
+                &queries, &failures);
         }
       }
-      for (const ojson& row : report["per_rig"]) {
+      for (const DirectMatchingRig& row : report.per_rig) {
         for (const std::string& m : dm.rig_methods) {
-          if (!row.contains(m)) continue;
-          Count(options, dm, work.dataset, k, row["group"].get<std::string>(), m, row[m],
-                &tallies[m], &wrong, &queries, &failures);
+          if (const DirectMatchingAttempt* a = FindIn(row.methods, m))
+            Count(options, dm, work.dataset, k, row.group, m, *a, &tallies[m], &wrong, &queries,
+                  &failures);
         }
       }
       int wrong_so_far = 0;

@@ -11,7 +11,7 @@
 #include "linecloud/eval/eval_run.h"
 #include "linecloud/features/matching.h"
 #include "linecloud/io/colmap_model.h"
-#include "linecloud/localize/image_query.h"
+#include "linecloud/pipeline/image_query.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 

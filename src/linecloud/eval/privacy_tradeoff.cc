@@ -8,6 +8,7 @@
 #include "linecloud/eval/eval_run.h"
 #include "linecloud/draw/plot.h"
 #include "linecloud/io/colmap_model.h"
+#include "linecloud/io/json_util.h"
 #include "linecloud/lifting/lifting.h"
 #include "linecloud/privacy/recovery_score.h"
 #include "linecloud/util/error.h"
@@ -31,8 +32,9 @@ std::string Slug(const std::string& name) {
 }
 
 // The density attack on every group map as lifted, pooled over the maps.
-ojson AttackGroupMaps(const EvalWork& work, const std::string& work_dir, const LiftingKey& key,
-                      const MapLifting& lifting, const DensityAttackOptions& attack) {
+TradeoffAttack AttackGroupMaps(const EvalWork& work, const std::string& work_dir,
+                               const LiftingKey& key, const MapLifting& lifting,
+                               const DensityAttackOptions& attack) {
   const double metric = work.units == "metres" ? 1.0 : 0.0;
   size_t lines = 0, maps = 0;
   double within[3] = {0, 0, 0}, within_5cm = 0, seconds = 0;
@@ -53,98 +55,95 @@ ojson AttackGroupMaps(const EvalWork& work, const std::string& work_dir, const L
     seconds += r.seconds;
     ++maps;
   }
-  ojson j = {{"lines_per_map", static_cast<double>(lines) / std::max<size_t>(maps, 1)},
-             {"within_0.5_percent", within[0] / lines},
-             {"within_1_percent", within[1] / lines},
-             {"within_2_percent", within[2] / lines},
-             {"attack_seconds", seconds}};
-  j["within_5cm"] = metric > 0 ? ojson(within_5cm / lines) : ojson(nullptr);
-  return j;
+  TradeoffAttack a;
+  a.lines_per_map = static_cast<double>(lines) / std::max<size_t>(maps, 1);
+  a.within_half_percent = within[0] / lines;
+  a.within_1_percent = within[1] / lines;
+  a.within_2_percent = within[2] / lines;
+  if (metric > 0) a.within_5cm = within_5cm / lines;
+  a.attack_seconds = seconds;
+  return a;
 }
 
-ojson MethodFigures(const nlohmann::json& m) {
-  return {{"localized", m.value("localized", 0)},
-          {"queries", m.value("queries", 0)},
-          {"median_rotation_deg", m.value("median_rotation_deg", NAN)},
-          {"median_translation", m.value("median_translation", NAN)}};
+TradeoffLocalization Figures(int localized, int queries, double rotation_deg, double translation) {
+  return {localized, queries, rotation_deg, translation};
 }
 
-ojson Localization(const nlohmann::json& report, const std::vector<std::string>& methods) {
-  ojson j = ojson::object();
-  for (const std::string& m : methods) {
-    if (report.contains("methods") && report["methods"].contains(m)) {
-      j["paper_protocol"][m] = MethodFigures(report["methods"][m]);
+// A lifting's row from its `eval run` report.
+void AddLocalization(const EvalReport& report, const std::vector<std::string>& methods,
+                     TradeoffRow* row) {
+  for (const std::string& name : methods) {
+    if (const EvalMethodReport* m = FindIn(report.methods, name)) {
+      row->paper_protocol[name] =
+          Figures(m->localized, m->queries, m->median_rotation_deg, m->median_translation);
     }
-    if (report.contains("direct_matching") && report["direct_matching"]["methods"].contains(m)) {
-      j["direct_matching"][m] = MethodFigures(report["direct_matching"]["methods"][m]);
-    }
-  }
-  return j;
-}
-
-// p6L's median rotation error: direct matching when run, else the paper's protocol.
-double P6lRotation(const ojson& row) {
-  const ojson& l = row["localization"];
-  for (const char* protocol : {"direct_matching", "paper_protocol"}) {
-    if (l.contains(protocol) && l[protocol].contains("p6L")) {
-      return l[protocol]["p6L"]["median_rotation_deg"].get<double>();
+    if (!report.direct_matching) continue;
+    if (const DirectMatchingSummary* m = FindIn(report.direct_matching->methods, name)) {
+      row->direct_matching[name] =
+          Figures(m->localized, m->queries, m->median_rotation_deg, m->median_translation);
     }
   }
-  return NAN;
 }
 
-std::string Cell(const ojson& l, const char* protocol, const std::string& method) {
-  if (!l.contains(protocol) || !l[protocol].contains(method)) return "–";
-  const ojson& m = l[protocol][method];
-  return fmt::format("{}/{}, {:.4f}° / {:.4f}", m["localized"].get<int>(), m["queries"].get<int>(),
-                     m["median_rotation_deg"].get<double>(), m["median_translation"].get<double>());
+// p6L's figures: direct matching when run, else the paper's protocol.
+const TradeoffLocalization* P6l(const TradeoffRow& row) {
+  if (const TradeoffLocalization* d = FindIn(row.direct_matching, "p6L")) return d;
+  return FindIn(row.paper_protocol, "p6L");
+}
+double P6lRotation(const TradeoffRow& row) {
+  const TradeoffLocalization* p = P6l(row);
+  return p ? p->median_rotation_deg : NAN;
 }
 
-std::string TradeoffMarkdown(const std::string& dataset, const ojson& rows,
-                             const std::vector<std::string>& methods) {
-  std::string md = fmt::format("# Privacy against accuracy — {}\n\n", dataset);
+std::string Cell(const std::map<std::string, TradeoffLocalization>& by_method,
+                 const std::string& method) {
+  const TradeoffLocalization* m = FindIn(by_method, method);
+  if (!m) return "–";
+  return fmt::format("{}/{}, {:.4f}° / {:.4f}", m->localized, m->queries, m->median_rotation_deg,
+                     m->median_translation);
+}
+
+std::string TradeoffTable(const PrivacyTradeoffReport& r) {
+  std::string md = fmt::format("# Privacy against accuracy — {}\n\n", r.dataset);
   md +=
       "Attack: the density attack (Chelani et al., CVPR 2021) on every group map as `lift` "
       "writes it, pooled; recovered = within 1 % of the map's diagonal (and 5 cm). "
       "Localization: `eval run` on the same maps (localized / queries, median rotation / "
       "translation error).\n\n| lifting | lines per map | recovered within 1 % (share / points per "
       "map) | within 5 cm |";
-  for (const std::string& m : methods) md += fmt::format(" {} (paper protocol) |", m);
+  for (const std::string& m : r.methods) md += fmt::format(" {} (paper protocol) |", m);
   md += " p6L (direct matching) |\n|---|---|---|---|";
-  for (size_t i = 0; i < methods.size() + 1; ++i) md += "---|";
+  for (size_t i = 0; i < r.methods.size() + 1; ++i) md += "---|";
   md += "\n";
-  for (const ojson& r : rows) {
-    const ojson& a = r["attack"];
-    md += fmt::format("| {} | {:.0f} | {:.1f} % / {:.0f} | {} |", r["lifting"].get<std::string>(),
-                      a["lines_per_map"].get<double>(), 100 * a["within_1_percent"].get<double>(),
-                      a["within_1_percent"].get<double>() * a["lines_per_map"].get<double>(),
-                      a["within_5cm"].is_null()
-                          ? "–"
-                          : fmt::format("{:.1f} %", 100 * a["within_5cm"].get<double>()));
-    for (const std::string& m : methods)
-      md += fmt::format(" {} |", Cell(r["localization"], "paper_protocol", m));
-    md += fmt::format(" {} |\n", Cell(r["localization"], "direct_matching", "p6L"));
+  for (const TradeoffRow& row : r.liftings) {
+    const TradeoffAttack& a = row.attack;
+    md += fmt::format("| {} | {:.0f} | {:.1f} % / {:.0f} | {} |", row.lifting, a.lines_per_map,
+                      100 * a.within_1_percent, a.within_1_percent * a.lines_per_map,
+                      a.within_5cm ? fmt::format("{:.1f} %", 100 * *a.within_5cm) : "–");
+    for (const std::string& m : r.methods) md += fmt::format(" {} |", Cell(row.paper_protocol, m));
+    md += fmt::format(" {} |\n", Cell(row.direct_matching, "p6L"));
   }
-  // The target of [privacy]: recovery cut >= 3x, p6L error <= 1.5x, >= 90 % localized —
-  // judged on the share of the map's points and on their number.
-  const ojson& plain = rows.front();
-  const double r0 = plain["attack"]["within_1_percent"].get<double>(), e0 = P6lRotation(plain);
-  const double n0 = r0 * plain["attack"]["lines_per_map"].get<double>();
-  md += fmt::format(
+  return md;
+}
+
+// The target of [privacy]: recovery cut >= 3x, p6L error <= 1.5x, >= 90 % localized — judged on
+// the share of the map's points and on their number.
+std::string TradeoffVerdict(const PrivacyTradeoffReport& r) {
+  const TradeoffRow& plain = r.liftings.front();
+  const double r0 = plain.attack.within_1_percent, e0 = P6lRotation(plain);
+  const double n0 = r0 * plain.attack.lines_per_map;
+  std::string md = fmt::format(
       "\nAgainst the plain lifting ({:.1f} % = {:.0f} points per map recovered, p6L "
       "{:.4f}°), liftings with p6L's error within 1.5× and ≥ 90 % localized that cut ",
       100 * r0, n0, e0);
   std::vector<std::string> by_share, by_count;
-  for (const ojson& r : rows) {
-    const double rec = r["attack"]["within_1_percent"].get<double>(), err = P6lRotation(r);
-    const double count = rec * r["attack"]["lines_per_map"].get<double>();
-    const ojson& l = r["localization"];
-    const char* protocol = l.contains("direct_matching") ? "direct_matching" : "paper_protocol";
-    if (!l.contains(protocol) || !l[protocol].contains("p6L")) continue;
-    const ojson& p = l[protocol]["p6L"];
-    const bool ok = err <= 1.5 * e0 && p["localized"].get<int>() >= 0.9 * p["queries"].get<int>();
-    if (ok && rec * 3 <= r0) by_share.push_back(r["lifting"].get<std::string>());
-    if (ok && count * 3 <= n0) by_count.push_back(r["lifting"].get<std::string>());
+  for (const TradeoffRow& row : r.liftings) {
+    const TradeoffLocalization* p = P6l(row);
+    if (!p) continue;
+    const double rec = row.attack.within_1_percent, count = rec * row.attack.lines_per_map;
+    const bool ok = p->median_rotation_deg <= 1.5 * e0 && p->localized >= 0.9 * p->queries;
+    if (ok && rec * 3 <= r0) by_share.push_back(row.lifting);
+    if (ok && count * 3 <= n0) by_count.push_back(row.lifting);
   }
   auto list = [](const std::vector<std::string>& v) {
     return v.empty() ? std::string("none") : fmt::format("{}", fmt::join(v, ", "));
@@ -153,38 +152,36 @@ std::string TradeoffMarkdown(const std::string& dataset, const ojson& rows,
       "the recovered share by ≥ 3×: {}; the number of recovered points by ≥ 3×: {} "
       "(p6L: {}).\n",
       list(by_share), list(by_count),
-      rows.front()["localization"].contains("direct_matching") ? "direct matching"
-                                                               : "paper protocol");
+      plain.direct_matching.empty() ? "paper protocol" : "direct matching");
   return md;
 }
 
-void TradeoffPlot(const std::string& path, const std::string& dataset, const ojson& rows) {
+void TradeoffPlot(const std::string& path, const PrivacyTradeoffReport& r) {
   // One series per family, starting at the plain lifting.
+  const TradeoffRow& plain = r.liftings.front();
   std::map<std::string, PlotSeries> families;
   int color = 0;
-  for (const ojson& r : rows) {
-    const std::string name = r["lifting"].get<std::string>();
+  for (const TradeoffRow& row : r.liftings) {
+    const std::string& name = row.lifting;
     const std::string family = name == "plain" ? "plain" : name.substr(0, name.find(' '));
-    for (const std::string& f : {family}) {
-      if (!families.count(f)) {
-        PlotSeries s;
-        s.name = f;
-        s.color = color++;
-        s.markers = true;
-        if (f != "plain" && f != "compact" && f != "resist") {
-          s.x.push_back(100 * rows.front()["attack"]["within_1_percent"].get<double>());
-          s.y.push_back(P6lRotation(rows.front()));
-          s.labels.push_back("");
-        }
-        families[f] = s;
+    if (!families.count(family)) {
+      PlotSeries s;
+      s.name = family;
+      s.color = color++;
+      s.markers = true;
+      if (family != "plain" && family != "compact" && family != "resist") {
+        s.x.push_back(100 * plain.attack.within_1_percent);
+        s.y.push_back(P6lRotation(plain));
+        s.labels.push_back("");
       }
-      families[f].x.push_back(100 * r["attack"]["within_1_percent"].get<double>());
-      families[f].y.push_back(P6lRotation(r));
-      families[f].labels.push_back(name);
+      families[family] = s;
     }
+    families[family].x.push_back(100 * row.attack.within_1_percent);
+    families[family].y.push_back(P6lRotation(row));
+    families[family].labels.push_back(name);
   }
   PlotOptions o;
-  o.title = fmt::format("{}: what the density attack recovers against p6L's accuracy", dataset);
+  o.title = fmt::format("{}: what the density attack recovers against p6L's accuracy", r.dataset);
   o.x_label = "points recovered by the attack within 1 % of the scene diagonal (%)";
   o.y_label = "p6L median rotation error (°)";
   o.x_min = 0, o.x_max = 100;
@@ -198,6 +195,43 @@ void TradeoffPlot(const std::string& path, const std::string& dataset, const ojs
   }
   o.y_min = 0, o.y_max = y_max > 0 ? 1.2 * y_max : 1;  // room for the labels
   WriteLinePlot(path, o, series);
+}
+
+ojson ToJson(const std::map<std::string, TradeoffLocalization>& by_method) {
+  ojson j = ojson::object();
+  for (const auto& [name, m] : by_method) {
+    j[name] = {{"localized", m.localized},
+               {"queries", m.queries},
+               {"median_rotation_deg", m.median_rotation_deg},
+               {"median_translation", m.median_translation}};
+  }
+  return j;
+}
+
+std::map<std::string, TradeoffLocalization> LocalizationFrom(const JsonFields& f) {
+  std::map<std::string, TradeoffLocalization> out;
+  for (const auto& [name, value] : f.raw().items()) {
+    const JsonFields m = f.Object(name.c_str());
+    out[name] = {m.Int("localized"), m.Int("queries"), m.NumberOrNull("median_rotation_deg", NAN),
+                 m.NumberOrNull("median_translation", NAN)};
+  }
+  return out;
+}
+
+TradeoffRow RowFrom(const JsonFields& f) {
+  TradeoffRow row;
+  row.lifting = f.String("lifting");
+  const JsonFields a = f.Object("attack");
+  row.attack.lines_per_map = a.Number("lines_per_map");
+  row.attack.within_half_percent = a.Number("within_0.5_percent");
+  row.attack.within_1_percent = a.Number("within_1_percent");
+  row.attack.within_2_percent = a.Number("within_2_percent");
+  if (!a.At("within_5cm").is_null()) row.attack.within_5cm = a.Number("within_5cm");
+  row.attack.attack_seconds = a.Number("attack_seconds");
+  const JsonFields l = f.Object("localization");
+  if (l.Has("paper_protocol")) row.paper_protocol = LocalizationFrom(l.Object("paper_protocol"));
+  if (l.Has("direct_matching")) row.direct_matching = LocalizationFrom(l.Object("direct_matching"));
+  return row;
 }
 
 }  // namespace
@@ -238,7 +272,7 @@ void PrivacyTradeoffOptions::Check() const {
   attack.Check();
 }
 
-ojson RunPrivacyTradeoff(const PrivacyTradeoffOptions& o) {
+PrivacyTradeoffReport RunPrivacyTradeoff(const PrivacyTradeoffOptions& o) {
   o.Check();
   const EvalWork work = ReadPreparedWork(o.work_dir);
   const LiftingKey key = EvalLiftingKey(o.work_dir);
@@ -247,12 +281,13 @@ ojson RunPrivacyTradeoff(const PrivacyTradeoffOptions& o) {
   if (liftings.front().Name() != "plain")
     Fail("eval privacy: the first lifting must be the plain one");
   CreateDirectories(o.out_dir);
-  ojson rows = ojson::array();
+  PrivacyTradeoffReport report{work.dataset, work.units, o.methods, {}};
   const auto photos = std::make_shared<ExtractedPhotos>();  // SIFT once per photo
   for (const MapLifting& lifting : liftings) {
     if (o.progress) o.progress(fmt::format("{}: attack", lifting.Name()));
-    ojson row = {{"lifting", lifting.Name()}};
-    row["attack"] = AttackGroupMaps(work, o.work_dir, key, lifting, o.attack);
+    TradeoffRow row;
+    row.lifting = lifting.Name();
+    row.attack = AttackGroupMaps(work, o.work_dir, key, lifting, o.attack);
     if (o.progress) o.progress(fmt::format("{}: localization", lifting.Name()));
     EvalRunOptions run;
     run.work_dir = o.work_dir;
@@ -263,31 +298,54 @@ ojson RunPrivacyTradeoff(const PrivacyTradeoffOptions& o) {
     run.noise_sweep.clear();
     run.direct_matching = o.direct_matching;
     run.extracted_photos = photos;
-    row["localization"] = Localization(RunEvaluation(run), o.methods);
-    rows.push_back(row);
+    AddLocalization(RunEvaluation(run), o.methods, &row);
+    report.liftings.push_back(std::move(row));
   }
-  const ojson report = {
-      {"dataset", work.dataset}, {"units", work.units}, {"methods", o.methods}, {"liftings", rows}};
   WriteFileAtomically(JoinPaths(o.out_dir, "tradeoff.json"),
-                      [&](std::ostream& out) { out << report.dump(2) << "\n"; });
+                      [&](std::ostream& out) { out << ToJson(report).dump(2) << "\n"; });
   RenderPrivacyTradeoff(o.out_dir);
   return report;
 }
 
+ojson ToJson(const PrivacyTradeoffReport& r) {
+  ojson rows = ojson::array();
+  for (const TradeoffRow& row : r.liftings) {
+    const TradeoffAttack& a = row.attack;
+    ojson attack = {{"lines_per_map", a.lines_per_map},
+                    {"within_0.5_percent", a.within_half_percent},
+                    {"within_1_percent", a.within_1_percent},
+                    {"within_2_percent", a.within_2_percent},
+                    {"attack_seconds", a.attack_seconds}};
+    attack["within_5cm"] = a.within_5cm ? ojson(*a.within_5cm) : ojson(nullptr);
+    ojson localization = ojson::object();
+    if (!row.paper_protocol.empty()) localization["paper_protocol"] = ToJson(row.paper_protocol);
+    if (!row.direct_matching.empty()) localization["direct_matching"] = ToJson(row.direct_matching);
+    rows.push_back({{"lifting", row.lifting}, {"attack", attack}, {"localization", localization}});
+  }
+  return {{"dataset", r.dataset}, {"units", r.units}, {"methods", r.methods}, {"liftings", rows}};
+}
+
+PrivacyTradeoffReport PrivacyTradeoffFromJson(const nlohmann::json& j, const std::string& where) {
+  const JsonFields f(j, where);
+  PrivacyTradeoffReport r;
+  r.dataset = f.String("dataset");
+  r.units = f.String("units");
+  r.methods = f.Strings("methods");
+  const nlohmann::json& rows = f.Array("liftings");
+  for (size_t i = 0; i < rows.size(); ++i)
+    r.liftings.push_back(RowFrom(JsonFields(rows[i], f.Where(fmt::format("liftings[{}]", i)))));
+  if (r.liftings.empty() || r.liftings.front().lifting != "plain")
+    Fail("{}: liftings must start with the plain one", f.Where("liftings"));
+  return r;
+}
+
 void RenderPrivacyTradeoff(const std::string& out_dir) {
   const std::string path = JoinPaths(out_dir, "tradeoff.json");
-  const ojson report = ojson::parse(ReadFileToString(path), nullptr, false);
-  if (report.is_discarded() || !report.contains("liftings") || report["liftings"].empty()) {
-    Fail("{}: not a tradeoff.json of eval privacy", path);
-  }
-  const std::string dataset = report.value("dataset", "");
-  const std::vector<std::string> methods = report.contains("methods")
-                                               ? report["methods"].get<std::vector<std::string>>()
-                                               : std::vector<std::string>{"p6L", "p4L+u"};
+  const PrivacyTradeoffReport report = PrivacyTradeoffFromJson(ReadJsonFile(path), path);
   WriteFileAtomically(JoinPaths(out_dir, "tradeoff.md"), [&](std::ostream& out) {
-    out << TradeoffMarkdown(dataset, report["liftings"], methods);
+    out << TradeoffTable(report) << TradeoffVerdict(report);
   });
-  TradeoffPlot(JoinPaths(out_dir, "tradeoff.png"), dataset, report["liftings"]);
+  TradeoffPlot(JoinPaths(out_dir, "tradeoff.png"), report);
 }
 
 }  // namespace linecloud

@@ -9,6 +9,8 @@
 #pragma once
 
 #include <functional>
+#include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,7 +38,41 @@ std::vector<MapLifting> DefaultTradeoffLiftings();
 // The `--quick` preset: plain, uniform and balanced 90 %, resist 0.2.
 std::vector<MapLifting> QuickTradeoffLiftings();
 
-nlohmann::ordered_json RunPrivacyTradeoff(const PrivacyTradeoffOptions& options);
+// What the density attack recovers from a lifting's group maps, pooled over the maps.
+struct TradeoffAttack {
+  double lines_per_map = 0;
+  // Shares of the maps' points recovered within 0.5 / 1 / 2 % of the map's diagonal, and within
+  // 5 cm (metric works only).
+  double within_half_percent = 0, within_1_percent = 0, within_2_percent = 0;
+  std::optional<double> within_5cm;
+  double attack_seconds = 0;
+};
+
+// What localization keeps: one method's figures under one protocol.
+struct TradeoffLocalization {
+  int localized = 0, queries = 0;
+  double median_rotation_deg = 0, median_translation = 0;
+};
+
+struct TradeoffRow {
+  std::string lifting;  // MapLifting::Name()
+  TradeoffAttack attack;
+  // By method: `eval run`'s paper protocol, and direct matching when it ran.
+  std::map<std::string, TradeoffLocalization> paper_protocol, direct_matching;
+};
+
+// tradeoff.json: the first row is the plain lifting.
+struct PrivacyTradeoffReport {
+  std::string dataset, units;
+  std::vector<std::string> methods;
+  std::vector<TradeoffRow> liftings;
+};
+
+nlohmann::ordered_json ToJson(const PrivacyTradeoffReport& report);
+// Errors name `where` and the field.
+PrivacyTradeoffReport PrivacyTradeoffFromJson(const nlohmann::json& j, const std::string& where);
+
+PrivacyTradeoffReport RunPrivacyTradeoff(const PrivacyTradeoffOptions& options);
 
 // tradeoff.md and tradeoff.png from OUT/tradeoff.json (what RunPrivacyTradeoff
 // ends with; `eval privacy --render OUT` redoes it).

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <optional>
 
 #include "linecloud/util/error.h"
@@ -114,6 +115,87 @@ Rigid3d JsonPose(const nlohmann::json& j, const std::string& where) {
 
 nlohmann::json PoseToJson(const Eigen::Quaterniond& q, const Eigen::Vector3d& t) {
   return {{"q", {q.w(), q.x(), q.y(), q.z()}}, {"t", {t.x(), t.y(), t.z()}}};
+}
+
+JsonFields::JsonFields(const nlohmann::json& j, std::string where)
+    : j_(j), where_(std::move(where)) {
+  if (!j_.is_object()) Fail("{}: not an object", where_);
+}
+
+const nlohmann::json& JsonFields::At(const char* key) const {
+  if (!j_.contains(key)) Fail("{}: missing", Where(key));
+  return j_[key];
+}
+
+double JsonFields::Number(const char* key) const {
+  const nlohmann::json& v = At(key);
+  if (!v.is_number()) Fail("{}: {} is not a number", Where(key), ShownInMessage(v));
+  return v.get<double>();
+}
+
+double JsonFields::NumberOrNull(const char* key, double if_null) const {
+  return At(key).is_null() ? if_null : Number(key);
+}
+
+std::optional<double> JsonFields::Optional(const char* key, double if_null) const {
+  if (!Has(key)) return std::nullopt;
+  return NumberOrNull(key, if_null);
+}
+
+int JsonFields::Int(const char* key) const {
+  const nlohmann::json& v = At(key);
+  if (!v.is_number_integer() || v.get<int64_t>() != static_cast<int64_t>(v.get<int>()))
+    Fail("{}: {} is not an integer", Where(key), ShownInMessage(v));
+  return v.get<int>();
+}
+
+bool JsonFields::Bool(const char* key) const {
+  const nlohmann::json& v = At(key);
+  if (!v.is_boolean()) Fail("{}: {} is not true or false", Where(key), ShownInMessage(v));
+  return v.get<bool>();
+}
+
+std::string JsonFields::String(const char* key) const {
+  const nlohmann::json& v = At(key);
+  if (!v.is_string()) Fail("{}: {} is not a string", Where(key), ShownInMessage(v));
+  return v.get<std::string>();
+}
+
+std::string JsonFields::StringOr(const char* key, const std::string& otherwise) const {
+  return Has(key) ? String(key) : otherwise;
+}
+
+JsonFields JsonFields::Object(const char* key) const { return JsonFields(At(key), Where(key)); }
+
+const nlohmann::json& JsonFields::Array(const char* key) const {
+  const nlohmann::json& v = At(key);
+  if (!v.is_array()) Fail("{}: not an array", Where(key));
+  return v;
+}
+
+std::vector<double> JsonFields::Numbers(const char* key) const {
+  std::vector<double> out;
+  const nlohmann::json& a = Array(key);
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (a[i].is_null()) {
+      out.push_back(std::numeric_limits<double>::quiet_NaN());
+    } else if (a[i].is_number()) {
+      out.push_back(a[i].get<double>());
+    } else {
+      Fail("{}[{}]: {} is not a number", Where(key), i, ShownInMessage(a[i]));
+    }
+  }
+  return out;
+}
+
+std::vector<std::string> JsonFields::Strings(const char* key) const {
+  std::vector<std::string> out;
+  const nlohmann::json& a = Array(key);
+  for (size_t i = 0; i < a.size(); ++i) {
+    if (!a[i].is_string()) Fail("{}[{}]: {} is not a string", Where(key), i, ShownInMessage(a[i]));
+    out.push_back(a[i].get<std::string>());
+  }
+  return out;
 }
 
 }  // namespace linecloud

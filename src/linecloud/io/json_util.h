@@ -1,6 +1,7 @@
 // Reading linecloud's JSON inputs with errors that name the file and field.
 #pragma once
 
+#include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -33,6 +34,34 @@ std::vector<Eigen::Vector3d> JsonVector3List(const nlohmann::json& j, const std:
 std::vector<PluckerLine> JsonLineList(const nlohmann::json& j, const std::string& where);
 // {"q": [w, x, y, z], "t": [x, y, z]}; the quaternion is normalised.
 Rigid3d JsonPose(const nlohmann::json& j, const std::string& where);
+
+// An object's fields, read with errors that name the source and the field's path
+// ("report.json.methods.p6L.queries: missing"); for typed reports read back (ToJson's inverse).
+// The object must outlive this view.
+class JsonFields {
+ public:
+  JsonFields(const nlohmann::json& j, std::string where);  // throws Error unless an object
+  bool Has(const char* key) const { return j_.contains(key); }
+  std::string Where(const std::string& key) const { return where_ + "." + key; }
+  const nlohmann::json& At(const char* key) const;  // present, any type
+  double Number(const char* key) const;
+  double NumberOrNull(const char* key, double if_null) const;  // null: a non-finite value
+  std::optional<double> Optional(const char* key, double if_null) const;  // absent: nullopt
+  int Int(const char* key) const;
+  bool Bool(const char* key) const;
+  std::string String(const char* key) const;
+  std::string StringOr(const char* key, const std::string& otherwise) const;
+  JsonFields Object(const char* key) const;
+  const nlohmann::json& Array(const char* key) const;
+  std::vector<double> Numbers(const char* key) const;  // null entries: NaN
+  std::vector<std::string> Strings(const char* key) const;
+  const nlohmann::json& raw() const { return j_; }
+  const std::string& where() const { return where_; }
+
+ private:
+  const nlohmann::json& j_;
+  std::string where_;
+};
 
 nlohmann::json PoseToJson(const Eigen::Quaterniond& q, const Eigen::Vector3d& t);
 

@@ -30,7 +30,7 @@
 #include "linecloud/geometry/rigid3.h"
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/lifting/line_cloud.h"
-#include "linecloud/localize/image_query.h"
+#include "linecloud/pipeline/image_query.h"
 #include "linecloud/localize/localize.h"
 
 namespace linecloud {

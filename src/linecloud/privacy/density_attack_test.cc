@@ -6,7 +6,10 @@
 #include <numeric>
 #include <random>
 
+#include <fmt/format.h>
+
 #include "linecloud/lifting/lifting.h"
+#include "linecloud/privacy/attack_bench.h"
 #include "linecloud/lifting/sparsify.h"
 #include "linecloud/privacy/map_lifting.h"
 #include "linecloud/privacy/recovery_score.h"
@@ -93,6 +96,30 @@ TEST(DensityAttack, SameResultOnOneOrTwoThreads) {
   const DensityAttackResult a = RunDensityAttack(l.cloud, one), b = RunDensityAttack(l.cloud, two);
   ASSERT_EQ(a.points.size(), b.points.size());
   for (size_t i = 0; i < a.points.size(); ++i) EXPECT_EQ(a.points[i], b.points[i]);
+}
+
+// `bench attack`'s rows: one per size, the same figures in the JSON and the table, and the
+// same recovery run to run (fixed key and seed).
+TEST(AttackBench, TypedRowsAsJsonAndMarkdown) {
+  AttackBenchOptions o;
+  o.sizes = {2000, 3000};
+  o.threads = 1;
+  const std::vector<AttackBenchRow> rows = RunAttackBench(o);
+  ASSERT_EQ(rows.size(), 2u);
+  EXPECT_EQ(rows[0].lines, 2000u);
+  EXPECT_EQ(rows[1].lines, 3000u);
+  EXPECT_EQ(rows[0].threads, 1);
+  EXPECT_LE(rows[0].within_half_percent, rows[0].within_1_percent);
+  EXPECT_LE(rows[0].within_1_percent, rows[0].within_2_percent);
+  EXPECT_GT(rows[0].within_2_percent, 0.0);
+  EXPECT_EQ(RunAttackBench(o)[1].within_1_percent, rows[1].within_1_percent);
+  const nlohmann::json j = ToJson(rows);
+  EXPECT_EQ(j[1]["lines"], 3000);
+  EXPECT_EQ(j[0]["within_1_percent"].get<double>(), rows[0].within_1_percent);
+  const std::string md = AttackBenchMarkdown(rows);
+  EXPECT_NE(md.find(fmt::format("| 3000 | 1 | {:.1f} |", rows[1].seconds)), std::string::npos)
+      << md;
+  EXPECT_NE(md.find(fmt::format("{:.1f} %", 100 * rows[0].within_1_percent)), std::string::npos);
 }
 
 TEST(DensityAttack, DegenerateClouds) {

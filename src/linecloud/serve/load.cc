@@ -15,7 +15,7 @@
 #include "linecloud/features/image.h"
 #include "linecloud/features/sift.h"
 #include "linecloud/io/json_util.h"
-#include "linecloud/localize/image_query.h"
+#include "linecloud/pipeline/image_query.h"
 #include "linecloud/localize/query_json.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/base64.h"

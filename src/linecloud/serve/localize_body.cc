@@ -7,7 +7,7 @@
 #include <fmt/format.h>
 
 #include "linecloud/io/json_util.h"
-#include "linecloud/localize/image_query.h"
+#include "linecloud/pipeline/image_query.h"
 #include "linecloud/localize/query_json.h"
 #include "linecloud/pipeline/localizer_option_table.h"
 #include "linecloud/serve/wire.h"

@@ -29,7 +29,7 @@
 #include "linecloud/features/sift_scale_space.h"
 #include "linecloud/io/ply.h"
 #include "linecloud/io/json_util.h"
-#include "linecloud/localize/image_query.h"
+#include "linecloud/pipeline/image_query.h"
 #include "linecloud/localize/query_json.h"
 #include "linecloud/pipeline/localizer.h"
 #include "linecloud/pipeline/localizer_option_table.h"

@@ -1,4 +1,4 @@
-#include "linecloud/localize/image_query.h"
+#include "linecloud/pipeline/image_query.h"
 
 #include <charconv>
 #include <chrono>
