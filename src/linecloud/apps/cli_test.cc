@@ -27,6 +27,11 @@ namespace {
 using testing::DataPath;
 using testing::TempDir;
 
+// The pose of a result (its "q" and "t" among its other fields).
+Rigid3d PoseIn(const nlohmann::json& result, const std::string& where) {
+  return JsonPose({{"q", result.at("q")}, {"t", result.at("t")}}, where);
+}
+
 struct CliResult {
   int code;
   std::string out, err;
@@ -285,7 +290,7 @@ TEST(Cli, NewcomerPathOnARealModel) {
     ASSERT_EQ(r.code, 0) << r.err;
     const nlohmann::json result = nlohmann::json::parse(r.out);
     ASSERT_TRUE(result["success"].get<bool>()) << method << r.out;
-    const Rigid3d estimate = JsonPose(result, "result");
+    const Rigid3d estimate = PoseIn(result, "result");
     std::cout << "[ " << method << " on maupertuis 02.jpg ] "
               << RotationDistance(estimate.rotation, reference.rotation) * 180 / 3.14159
               << " deg from COLMAP's pose\n";
@@ -467,7 +472,7 @@ TEST(Cli, MapGravityFromLiftToLocalize) {
   const nlohmann::json result = nlohmann::json::parse(r.out);
   ASSERT_TRUE(result["success"].get<bool>()) << r.out;
   const Rigid3d truth = JsonPose(q["ground_truth"]["cam_from_world"], "truth");
-  EXPECT_LT(RotationDistance(JsonPose(result, "result").rotation, truth.rotation),
+  EXPECT_LT(RotationDistance(PoseIn(result, "result").rotation, truth.rotation),
             0.2 * 3.14159 / 180);
 }
 
@@ -695,7 +700,7 @@ TEST(Cli, SolveReturnsTheTruePoseForEveryImplementedMethod) {
     EXPECT_EQ(out["method"], std::string(m.name));
     bool found = false;
     for (const auto& s : out["solutions"]) {
-      const Rigid3d pose = JsonPose(s, "solution");
+      const Rigid3d pose = PoseIn(s, "solution");
       const Sim3d sim(s["scale"].get<double>(), pose.rotation, pose.translation);
       const PoseError e = ComparePoses(sim, inst.truth);
       found |= e.rotation_rad < 1e-6 && e.translation_rel < 1e-6 && e.scale_rel < 1e-6;
@@ -785,7 +790,7 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
     ASSERT_EQ(r.code, 0) << method << ": " << r.err;
     const nlohmann::json result = ReadJsonFile(tmp.Path("result.json"));
     ASSERT_TRUE(result["success"].get<bool>()) << method;
-    const Rigid3d estimate = JsonPose(result, "result");
+    const Rigid3d estimate = PoseIn(result, "result");
     EXPECT_LT(RotationDistance(estimate.rotation, truth.rotation), 0.2 * 3.14159 / 180) << method;
     EXPECT_LT((estimate.Center() - truth.Center()).norm(), 0.05) << method;
     EXPECT_LT((JsonVector3(result["center"], "center") - estimate.Center()).norm(), 1e-9);
@@ -808,7 +813,7 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
     ASSERT_EQ(r.code, 0) << method << ": " << r.err;
     const nlohmann::json result = nlohmann::json::parse(r.out);
     ASSERT_TRUE(result["success"].get<bool>()) << method;
-    const Rigid3d estimate = JsonPose(result, "result");
+    const Rigid3d estimate = PoseIn(result, "result");
     EXPECT_LT(RotationDistance(estimate.rotation, rig_truth.rotation), 0.2 * 3.14159 / 180)
         << method;
     EXPECT_NEAR(result["scale"].get<double>(), 1.0, 0.01) << method;

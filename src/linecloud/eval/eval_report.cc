@@ -126,7 +126,8 @@ EvalMethodReport MethodReportFrom(const Fields& f) {
     m.rms_rotation_error_over_bound = f.Number("rms_rotation_error_over_bound");
   const json& rows = f.Array("per_query");
   for (size_t i = 0; i < rows.size(); ++i)
-    m.per_query.push_back(QueryResultFrom(Fields(rows[i], f.Where(fmt::format("per_query[{}]", i)))));
+    m.per_query.push_back(
+        QueryResultFrom(Fields(rows[i], f.Where(fmt::format("per_query[{}]", i)))));
   return m;
 }
 
@@ -184,9 +185,8 @@ std::map<std::string, DirectMatchingAttempt> AttemptsFrom(
 }
 
 json ToJson(const DirectMatchingPhoto& p) {
-  json row = {{"group", p.group},           {"image", p.image},
-              {"features", p.features},     {"matches", p.matches},
-              {"extract_ms", p.extract_ms}, {"match_ms", p.match_ms}};
+  json row = {{"group", p.group},     {"image", p.image},           {"features", p.features},
+              {"matches", p.matches}, {"extract_ms", p.extract_ms}, {"match_ms", p.match_ms}};
   AddAttempts(p.methods, &row);
   return row;
 }
@@ -198,18 +198,17 @@ DirectMatchingPhoto PhotoFrom(const Fields& f) {
   p.matches = f.Int("matches");
   p.extract_ms = f.Number("extract_ms");
   p.match_ms = f.Number("match_ms");
-  p.methods =
-      AttemptsFrom(f, {"group", "image", "features", "matches", "extract_ms", "match_ms"});
+  p.methods = AttemptsFrom(f, {"group", "image", "features", "matches", "extract_ms", "match_ms"});
   return p;
 }
 
 json ToJson(const DirectMatchingRig& r) {
-  json row = {{"group", r.group},
-              {"images", r.images},
-              {"matches", r.matches},
-              {"rig_error",
-               {{"rotation_deg", r.rig_error_rotation_deg},
-                {"translation", r.rig_error_translation}}}};
+  json row = {
+      {"group", r.group},
+      {"images", r.images},
+      {"matches", r.matches},
+      {"rig_error",
+       {{"rotation_deg", r.rig_error_rotation_deg}, {"translation", r.rig_error_translation}}}};
   AddAttempts(r.methods, &row);
   return row;
 }
@@ -299,8 +298,7 @@ EvalSweep SweepFrom(const Fields& f, const char* levels, const char* translation
 std::optional<EvalReport::GroundTruth> EvalReport::ground_truth() const {
   if (!reconstruction.is_object() || !reconstruction.contains("ground_truth")) return std::nullopt;
   const Fields g(reconstruction["ground_truth"], "reconstruction.ground_truth");
-  return GroundTruth{g.Int("aligned_on"), g.Number("max_rotation_deg"),
-                     g.Number("max_position_m")};
+  return GroundTruth{g.Int("aligned_on"), g.Number("max_rotation_deg"), g.Number("max_position_m")};
 }
 
 json ToJson(const DirectMatchingReport& d) {
@@ -308,11 +306,12 @@ json ToJson(const DirectMatchingReport& d) {
   for (const auto& [name, m] : d.methods) methods[name] = ToJson(m);
   for (const DirectMatchingPhoto& p : d.per_query) per_query.push_back(ToJson(p));
   for (const DirectMatchingRig& r : d.per_rig) per_rig.push_back(ToJson(r));
-  return {{"thresholds", {{"rotation_deg", d.max_rotation_deg}, {"translation", d.max_translation}}},
-          {"features", d.features},
-          {"methods", methods},
-          {"per_query", per_query},
-          {"per_rig", per_rig}};
+  return {
+      {"thresholds", {{"rotation_deg", d.max_rotation_deg}, {"translation", d.max_translation}}},
+      {"features", d.features},
+      {"methods", methods},
+      {"per_query", per_query},
+      {"per_rig", per_rig}};
 }
 
 DirectMatchingReport DirectMatchingReportFromJson(const json& j, const std::string& where) {
@@ -370,8 +369,8 @@ EvalReport EvalReportFromJson(const json& j, const std::string& where) {
   for (const auto& [name, value] : methods.raw().items())
     r.methods[name] = MethodReportFrom(methods.Object(name.c_str()));
   if (f.Has("direct_matching"))
-    r.direct_matching = DirectMatchingReportFromJson(f.At("direct_matching"),
-                                                     f.Where("direct_matching"));
+    r.direct_matching =
+        DirectMatchingReportFromJson(f.At("direct_matching"), f.Where("direct_matching"));
   if (f.Has("density")) r.density = SweepFrom(f.Object("density"), "dropped", "median_translation");
   if (f.Has("noise"))
     r.noise = SweepFrom(f.Object("noise"), "noise_px", "median_translation_relative");

@@ -106,6 +106,11 @@ Rigid3d JsonPose(const nlohmann::json& j, const std::string& where) {
   if (!j.is_object() || !j.contains("q") || !j.contains("t")) {
     Fail("{}: expected {{\"q\": [w, x, y, z], \"t\": [x, y, z]}}", where);
   }
+  // Another field (a "scale", a "center", a misspelling) would be ignored: a rigid pose is q and t.
+  for (const auto& [key, value] : j.items()) {
+    if (key != "q" && key != "t")
+      Fail("{}: unknown field {} (a rigid pose has q and t only)", where, ShownInMessage(key));
+  }
   const std::vector<double> q = Numbers(j["q"], 4, where + ".q");
   Eigen::Quaterniond quat(q[0], q[1], q[2], q[3]);
   if (!(quat.norm() > 1e-9)) Fail("{}.q: zero quaternion", where);

@@ -32,7 +32,7 @@ std::string ShownInMessage(const nlohmann::json& value);
 Eigen::Vector3d JsonVector3(const nlohmann::json& j, const std::string& where);
 std::vector<Eigen::Vector3d> JsonVector3List(const nlohmann::json& j, const std::string& where);
 std::vector<PluckerLine> JsonLineList(const nlohmann::json& j, const std::string& where);
-// {"q": [w, x, y, z], "t": [x, y, z]}; the quaternion is normalised.
+// {"q": [w, x, y, z], "t": [x, y, z]}; the quaternion is normalised; any other field is refused.
 Rigid3d JsonPose(const nlohmann::json& j, const std::string& where);
 
 // An object's fields, read with errors that name the source and the field's path

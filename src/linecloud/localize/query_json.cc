@@ -20,17 +20,18 @@ const nlohmann::json& Array(const nlohmann::json& j, const char* name, const std
 
 Camera CameraFromJson(const nlohmann::json& j, const std::string& where) {
   if (!j.is_object()) Fail("{}: expected an object", where);
-  for (const char* key : {"model", "width", "height", "params"}) {
-    if (!j.contains(key)) Fail("{}: field '{}' is missing", where, key);
-  }
-  // A misspelt or unsupported field is refused rather than ignored; the identity fields of
-  // COLMAP's and pycolmap's camera dicts are accepted (and not used).
+  // A misspelt or unsupported field is refused rather than ignored (first, so that "Model" is
+  // named as what it is, not as a missing "model"); the identity fields of COLMAP's and
+  // pycolmap's camera dicts are accepted (and not used).
   for (const auto& [key, value] : j.items()) {
     static constexpr std::string_view kKnown[] = {
         "model", "width", "height", "params", "id", "camera_id", "has_prior_focal_length"};
     if (std::find(std::begin(kKnown), std::end(kKnown), key) == std::end(kKnown)) {
       Fail("{}: unknown field {} (model, width, height, params)", where, ShownInMessage(key));
     }
+  }
+  for (const char* key : {"model", "width", "height", "params"}) {
+    if (!j.contains(key)) Fail("{}: field '{}' is missing", where, key);
   }
   if (!j["model"].is_string()) Fail("{}.model: expected a camera model name", where);
   Camera camera;

@@ -58,6 +58,12 @@ TEST(QueryJson, ErrorsNameTheField) {
   // identity fields are not.
   EXPECT_EQ(error([](auto& j) { j["cameras"][0]["focal_length"] = 600; }),
             "q.json: cameras[0]: unknown field \"focal_length\" (model, width, height, params)");
+  // A field spelt with another case is named as it was sent, not as a missing field.
+  EXPECT_EQ(error([](auto& j) {
+              j["cameras"][0]["Model"] = j["cameras"][0]["model"];
+              j["cameras"][0].erase("model");
+            }),
+            "q.json: cameras[0]: unknown field \"Model\" (model, width, height, params)");
   EXPECT_EQ(error([](auto& j) {
               j["cameras"][0]["camera_id"] = 3;
               j["cameras"][0]["has_prior_focal_length"] = true;

@@ -129,6 +129,15 @@ TEST(LocalizeBody, WhatAStrangerSendsIsRefusedNamingThePart) {
             "--max-frames)");
   j["frames"][1].erase("cam_from_rig");
   EXPECT_EQ(body(j), "frames[1]: field 'cam_from_rig' is missing (the frame's pose in the rig)");
+  // A rigid pose is q and t: a "scale" (a Sim3 pose's) or a misspelt field would be ignored.
+  j = {{"frames", {Frame(1, 0), Frame(1, 0)}}};
+  j["frames"][1]["cam_from_rig"]["scale"] = 2;
+  EXPECT_EQ(body(j),
+            "frames[1].cam_from_rig: unknown field \"scale\" (a rigid pose has q and t only)");
+  EXPECT_EQ(multipart({{"image[0]", "A"},
+                       {"camera", kCamera},
+                       {"cam_from_rig[0]", R"({"q": [1, 0, 0, 0], "t": [0, 0, 0], "T": 1})"}}),
+            "cam_from_rig[0]: unknown field \"T\" (a rigid pose has q and t only)");
   EXPECT_EQ(body({{"frames", json::array()}}),
             "frames: expected [{camera, keypoints, descriptors, cam_from_rig}, ...]");
   EXPECT_EQ(body({{"frames", {Frame(1, 0)}}, {"points_local", {{{"frame", -1}}}}}),

@@ -681,6 +681,7 @@ TEST(Serve, FountainPhotoThroughEveryRoute) {
          {{{"sensorId", "cam"},
            {"imageFormat", "RGBA32"},  // the reference client's label for JPEG bytes
            {"size", {1536, 1024}},
+           {"imageOrientation", {{"mirrored", false}, {"rotation", 0}}},  // upright: accepted
            {"imageBytes", Base64Encode(std::vector<uint8_t>(photo.begin(), photo.end()))},
            {"params",
             {{"model", "PINHOLE"}, {"modelParams", {1379.74, 1382.08, 760.095, 503.155}}}}}}}}}};
@@ -691,6 +692,22 @@ TEST(Serve, FountainPhotoThroughEveryRoute) {
   ASSERT_TRUE(r);
   EXPECT_EQ(r->status, 400) << r->body;
   EXPECT_NE(r->body.find(R"(params: unknown field \"k1\")"), std::string::npos) << r->body;
+  // Fields OSCP does not have would be ignored (a client's "options"), and a turned photo would
+  // be used as it stands: refused, named.
+  json with_options = req;
+  with_options["options"] = {{"threshold", 2}};
+  r = c.Post("/geopose", with_options.dump(), "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400) << r->body;
+  EXPECT_NE(r->body.find(R"(GeoPoseReq: unknown field \"options\" (id, timestamp)"),
+            std::string::npos)
+      << r->body;
+  json turned = req;
+  turned["sensorReadings"]["cameraReadings"][0]["imageOrientation"]["rotation"] = 90;
+  r = c.Post("/geopose", turned.dump(), "application/json");
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->status, 400) << r->body;
+  EXPECT_NE(r->body.find("cameraReadings[0].imageOrientation:"), std::string::npos) << r->body;
   r = c.Post("/geopose", req.dump(), "application/json");
   ASSERT_TRUE(r);
   ASSERT_EQ(r->status, 200) << r->body;

@@ -129,6 +129,37 @@ struct HttpError {
   throw HttpError{status, std::move(message), retry_after};
 }
 
+// A GeoPoseReq's fields beyond OSCP's (v2) would be ignored: an "options" or a "threshold" the
+// client believes it set. Refused, naming the field (Error). An imageOrientation other than
+// upright is refused too: the photo is used as its pixels stand.
+void CheckGeoPoseReqFields(const json& request, const json& reading) {
+  const auto only = [](const json& j, std::initializer_list<std::string_view> known,
+                       std::string_view where) {
+    for (const auto& [key, value] : j.items()) {
+      if (std::find(known.begin(), known.end(), key) == known.end()) {
+        Fail("{}unknown field {} ({})", where, ShownInMessage(key), fmt::join(known, ", "));
+      }
+    }
+  };
+  only(request, {"id", "timestamp", "type", "sensors", "sensorReadings", "priorPose"}, "");
+  only(reading,
+       {"timestamp", "sensorId", "privacy", "sequenceNumber", "imageFormat", "size", "imageBytes",
+        "imageOrientation", "params"},
+       "cameraReadings[0]: ");
+  if (reading.contains("imageOrientation")) {
+    const json& o = reading["imageOrientation"];
+    const bool upright =
+        o.is_object() && (!o.contains("mirrored") || o["mirrored"] == false) &&
+        (!o.contains("rotation") || (o["rotation"].is_number() && o["rotation"] == 0));
+    if (!upright) {
+      Fail(
+          "cameraReadings[0].imageOrientation: {} is not applied by this server; send the photo "
+          "upright (rotation 0, not mirrored)",
+          ShownInMessage(o));
+    }
+  }
+}
+
 // The pose (cam_from_world, or rig_from_world for a device's frames; with
 // its scale for the Sim(3) methods) and its statistics. For the map's owner (an admin
 // token, `owner_map` given) also what the CLI's --overlay draws: the inliers'
@@ -652,6 +683,7 @@ struct Server::Impl {
     auto image = std::make_shared<GreyImage>();
     auto bytes = std::make_shared<std::string>();
     try {
+      CheckGeoPoseReqFields(j, c);
       if (!c.contains("imageBytes") || !c["imageBytes"].is_string()) Fail("imageBytes is missing");
       if (!c.contains("size") || !c["size"].is_array() || c["size"].size() != 2 ||
           !c["size"][0].is_number_unsigned() || !c["size"][1].is_number_unsigned()) {
