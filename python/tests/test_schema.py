@@ -6,8 +6,11 @@ module and a real `linecloud serve` process, that the three take the same names,
 ranges, and give the same pose for the same photo and options (to 1e-12)."""
 
 import json
+import os
 import re
 import subprocess
+import sys
+import textwrap
 import threading
 import urllib.error
 import urllib.request
@@ -431,3 +434,30 @@ def run_cli_features(fountain, tmp_path):
         run_cli("features", "--image", fountain["photo"], "--camera",
                 _camera_text(fountain["camera"]), "--out", out)
     return out.read_text()
+
+
+def test_exit_with_a_daemon_thread_inside_a_long_call(demo, tmp_path):
+    """The interpreter exits cleanly (status 0, no SIGABRT) while a daemon thread is inside a
+    long call: the thread, back from the call, must not take the GIL of an exiting
+    interpreter (it parks; the process ends without it)."""
+    script = tmp_path / "exit_inside_call.py"
+    script.write_text(textwrap.dedent(f"""
+        import json, sys, threading, time
+        import linecloud as lc
+        query = json.loads(open({str(sorted((demo / "queries").glob("*.json"))[0])!r}).read())
+        localizer = lc.Localizer({str(demo / "map.lcm")!r})
+        def long_call():
+            localizer.localize_query(query, method="p6L", min_iterations=10_000_000,
+                                     max_iterations=10_000_000, uniform_sampling=True,
+                                     max_seconds=1.5)
+        for _ in range(2):
+            threading.Thread(target=long_call, daemon=True).start()
+        time.sleep(0.3)
+        print("exiting", flush=True)
+        sys.exit(0)
+    """))
+    for _ in range(3):
+        out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                             timeout=60, env=dict(os.environ))
+        assert out.returncode == 0, (out.returncode, out.stderr[-2000:])
+        assert out.stdout == "exiting\n", out.stdout

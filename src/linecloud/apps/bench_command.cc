@@ -212,9 +212,8 @@ void RegisterBenchMatch(CLI::App* bench) {
     }
     if (!match_real->empty()) match->real_images = RealBenchImages(*match_real);
     match->progress = [](const std::string& s) { std::cerr << s << "\n"; };
-    const nlohmann::json rows = RunMatchBench(*match);
-    std::cout << (*match_json ? rows.dump(2) + "\n"
-                              : MatchBenchMarkdown(rows, match->queries, !match_real->empty()));
+    const std::vector<MatchBenchRow> rows = RunMatchBench(*match);
+    std::cout << (*match_json ? ToJson(rows).dump(2) + "\n" : MatchBenchMarkdown(rows));
   });
 }
 
@@ -252,8 +251,8 @@ void RegisterBenchPhoto(CLI::App* bench) {
       photo->extractors.push_back(ParseSiftExtractor(f, "--features"));
     }
     photo->progress = [](const std::string& s) { std::cerr << s << "\n"; };
-    const nlohmann::json report = RunPhotoBench(*photo);
-    std::cout << (*photo_json ? report.dump(2) + "\n" : PhotoBenchMarkdown(report));
+    const PhotoBenchReport report = RunPhotoBench(*photo);
+    std::cout << (*photo_json ? ToJson(report).dump(2) + "\n" : PhotoBenchMarkdown(report));
   });
 }
 

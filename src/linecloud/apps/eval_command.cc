@@ -152,7 +152,7 @@ void RegisterEvalKeys(CLI::App* eval) {
       ->capture_default_str();
   keys_cmd->callback([sweep, sweep_features] {
     sweep->features = ParseSiftExtractor(*sweep_features, "--features");
-    const auto report = RunKeySweep(*sweep);
+    const nlohmann::ordered_json report = ToJson(RunKeySweep(*sweep));
     std::cout << report["methods"].dump(1) << "\n";
     if (!report["wrong"].empty())
       std::cout << "wrong successes: " << report["wrong"].dump(1) << "\n";

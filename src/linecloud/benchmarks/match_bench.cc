@@ -173,9 +173,9 @@ void MatchBenchOptions::Check() const {
   index.Check();
 }
 
-nlohmann::json RunMatchBench(const MatchBenchOptions& o) {
+std::vector<MatchBenchRow> RunMatchBench(const MatchBenchOptions& o) {
   o.Check();
-  nlohmann::json rows = nlohmann::json::array();
+  std::vector<MatchBenchRow> rows;
   const DescriptorMatchOptions match;
   for (const size_t n : o.map_sizes) {
     std::vector<uint8_t> map, query;
@@ -205,12 +205,12 @@ nlohmann::json RunMatchBench(const MatchBenchOptions& o) {
       const DescriptorIndex index(map, index_options);
       const double build_s = SecondsSince(t);
       const double memory_mb = (double(HeapBytes()) - double(rss_before)) / 1e6;
-      nlohmann::json ms = nlohmann::json::object();
+      std::map<int, double> ms;
       std::vector<DescriptorMatch> approx;
       for (const int threads : o.threads) {
         t = Clock::now();
         approx = index.Match(query, match, threads);
-        ms[std::to_string(threads)] = 1e3 * SecondsSince(t);
+        ms[threads] = 1e3 * SecondsSince(t);
       }
       std::set<std::pair<int, int>> found;
       for (const DescriptorMatch& m : approx) found.insert({m.query, m.map});
@@ -218,44 +218,56 @@ nlohmann::json RunMatchBench(const MatchBenchOptions& o) {
       for (const DescriptorMatch& m : exact) hits += found.count({m.query, m.map});
       size_t approx_on_recall = 0;
       for (const DescriptorMatch& m : approx) approx_on_recall += m.query < int(o.recall_queries);
-      rows.push_back({{"map_size", n},
-                      {"descriptors", o.real_images.empty() ? "synthetic" : "real"},
-                      {"index", DescriptorIndexKindName(kind)},
-                      {"queries", o.queries},
-                      {"index_build_s", build_s},
-                      {"memory_mb", memory_mb},
-                      {"ms_by_threads", ms},
-                      {"exact_ms_per_query", exact_ms / o.recall_queries},
-                      {"exact_ms_extrapolated", exact_ms / o.recall_queries * o.queries},
-                      {"recall_queries", o.recall_queries},
-                      {"exact_matches", exact.size()},
-                      {"approx_matches", approx_on_recall},
-                      {"recall", exact.empty() ? 1.0 : double(hits) / exact.size()}});
+      rows.push_back({n, !o.real_images.empty(), std::string(DescriptorIndexKindName(kind)),
+                      o.queries, build_s, memory_mb, ms, exact_ms / o.recall_queries,
+                      exact_ms / o.recall_queries * o.queries, o.recall_queries, exact.size(),
+                      approx_on_recall, exact.empty() ? 1.0 : double(hits) / exact.size()});
     }
   }
   return rows;
 }
 
-std::string MatchBenchMarkdown(const nlohmann::json& rows, size_t queries, bool real) {
+nlohmann::json ToJson(const std::vector<MatchBenchRow>& rows) {
+  nlohmann::json j = nlohmann::json::array();
+  for (const MatchBenchRow& r : rows) {
+    nlohmann::json ms = nlohmann::json::object();
+    for (const auto& [threads, v] : r.ms_by_threads) ms[std::to_string(threads)] = v;
+    j.push_back({{"map_size", r.map_size},
+                 {"descriptors", r.real ? "real" : "synthetic"},
+                 {"index", r.index},
+                 {"queries", r.queries},
+                 {"index_build_s", r.index_build_s},
+                 {"memory_mb", r.memory_mb},
+                 {"ms_by_threads", ms},
+                 {"exact_ms_per_query", r.exact_ms_per_query},
+                 {"exact_ms_extrapolated", r.exact_ms_extrapolated},
+                 {"recall_queries", r.recall_queries},
+                 {"exact_matches", r.exact_matches},
+                 {"approx_matches", r.approx_matches},
+                 {"recall", r.recall}});
+  }
+  return j;
+}
+
+std::string MatchBenchMarkdown(const std::vector<MatchBenchRow>& rows) {
+  const bool real = !rows.empty() && rows.front().real;
   std::string out = fmt::format(
       "bench match: {} query descriptors ({}), ratio 0.8\n"
       "| map size | index | build s | memory MB | ms, 1 thread | ms, 2 threads | exact ms "
       "(extrapolated) | recall of exact matches |\n|---|---|---|---|---|---|---|---|\n",
-      queries,
+      rows.empty() ? 0 : rows.front().queries,
       real ? "real SIFT of fountain-P11 0000.jpg; map: the other photos"
            : "synthetic: half noisy copies of map descriptors");
-  for (const auto& r : rows) {
-    const auto& ms = r["ms_by_threads"];
-    auto at = [&](const char* t) {
-      return ms.contains(t) ? fmt::format("{:.0f}", ms[t].get<double>()) : std::string("-");
+  for (const MatchBenchRow& r : rows) {
+    auto at = [&](int threads) {
+      const auto it = r.ms_by_threads.find(threads);
+      return it == r.ms_by_threads.end() ? std::string("-") : fmt::format("{:.0f}", it->second);
     };
     out += fmt::format(
         "| {} | {} | {:.1f} | {:.0f} | {} | {} | {:.0f} | {:.3f} ({} exact matches of {} "
         "queries) |\n",
-        r["map_size"].get<size_t>(), r["index"].get<std::string>(),
-        r["index_build_s"].get<double>(), r["memory_mb"].get<double>(), at("1"), at("2"),
-        r["exact_ms_extrapolated"].get<double>(), r["recall"].get<double>(),
-        r["exact_matches"].get<size_t>(), r["recall_queries"].get<size_t>());
+        r.map_size, r.index, r.index_build_s, r.memory_mb, at(1), at(2), r.exact_ms_extrapolated,
+        r.recall, r.exact_matches, r.recall_queries);
   }
   return out;
 }

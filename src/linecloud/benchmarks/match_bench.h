@@ -14,6 +14,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -62,13 +63,26 @@ RealDescriptors RealSiftDescriptors(const std::vector<std::string>& images, size
                                     size_t map_size,
                                     const std::function<void(const std::string&)>& progress);
 
-// Rows per map size and index kind: map_size, index, build_s, memory_mb,
-// ms (all queries) per thread count, exact ms per query, exact and
-// approximate matches on the recall queries, recall.
-nlohmann::json RunMatchBench(const MatchBenchOptions& options);
+// One map size and index kind.
+struct MatchBenchRow {
+  size_t map_size = 0;
+  bool real = false;  // real photos' descriptors, or synthetic ones
+  std::string index;  // DescriptorIndexKindName
+  size_t queries = 0;
+  double index_build_s = 0, memory_mb = 0;
+  std::map<int, double> ms_by_threads;  // all queries matched, by thread count
+  double exact_ms_per_query = 0, exact_ms_extrapolated = 0;
+  // On the recall queries: the exact matches, the index's, and the share of the exact ones the
+  // index finds.
+  size_t recall_queries = 0, exact_matches = 0, approx_matches = 0;
+  double recall = 0;
+};
 
-// RunMatchBench's rows as the Markdown table `linecloud bench match` prints
-// (`real`: the descriptors were real photos').
-std::string MatchBenchMarkdown(const nlohmann::json& rows, size_t queries, bool real);
+std::vector<MatchBenchRow> RunMatchBench(const MatchBenchOptions& options);
+
+// The rows as JSON (`bench match --json`) and as the Markdown table `linecloud bench match`
+// prints.
+nlohmann::json ToJson(const std::vector<MatchBenchRow>& rows);
+std::string MatchBenchMarkdown(const std::vector<MatchBenchRow>& rows);
 
 }  // namespace linecloud

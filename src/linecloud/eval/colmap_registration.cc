@@ -92,73 +92,31 @@ Reconstruction ReadRegistered(const std::string& dir) {
 }
 
 // linecloud's figures for an image from an `eval run` report (direct matching).
-ojson OursFor(const DirectMatchingReport* ours, const std::string& image) {
-  if (!ours) return nullptr;
+std::optional<std::map<std::string, OursOnImage>> OursFor(const DirectMatchingReport* ours,
+                                                          const std::string& image) {
+  if (!ours) return std::nullopt;
+  std::map<std::string, OursOnImage> by_method;
   for (const DirectMatchingPhoto& row : ours->per_query) {
     if (row.image != image) continue;
-    ojson j;
     for (const char* method : {"p6L", "p3P"}) {
       const DirectMatchingAttempt* a = FindIn(row.methods, method);
       const DirectMatchingSummary* m = FindIn(ours->methods, method);
       if (!a || !m) continue;
       const double ms = row.extract_ms + row.match_ms + m->mean_ms.ransac + m->mean_ms.refine;
-      j[method] = {{"rotation_deg", a->rotation_deg},
-                   {"translation", a->translation},
-                   {"seconds", ms / 1000}};
+      by_method[method] = {{a->rotation_deg, a->translation}, ms / 1000};
     }
-    return j;
+    if (!by_method.empty()) return by_method;
   }
-  return nullptr;
+  return std::nullopt;  // the image is not in the report, or has neither method
 }
 
-std::string Markdown(const ojson& r) {
-  std::string md = fmt::format(
-      "# COLMAP {} registering the left-out images — {}\n\nPer group: the dataset's database "
-      "without the group's images, then `feature_extractor` (each image, its known camera), "
-      "`exhaustive_matcher` (new pairs) and `image_registrator` on the group's map, one thread. "
-      "Errors against the ground truth as in `eval run`; seconds per image (COLMAP: the group's "
-      "matching and registration shared among its images).\n\n",
-      r["colmap_version"].get<std::string>(), r["dataset"].get<std::string>());
-  md +=
-      "| image | COLMAP error | COLMAP s (extract + match + register) | linecloud p6L error | "
-      "p6L s | linecloud p3P error | p3P s |\n|---|---|---|---|---|---|---|\n";
-  auto err = [](const ojson& j) {
-    return j.is_null() ? std::string("not registered")
-                       : fmt::format("{:.4f}° / {:.4f}", j["rotation_deg"].get<double>(),
-                                     j["translation"].get<double>());
-  };
-  for (const ojson& row : r["images"]) {
-    const ojson& c = row["colmap"];
-    std::string line = fmt::format("| {} | {} | {:.2f} ({:.2f} + {:.2f} + {:.2f}) |",
-                                   row["image"].get<std::string>(), err(c["error"]),
-                                   c["seconds"].get<double>(), c["extract_s"].get<double>(),
-                                   c["match_s"].get<double>(), c["register_s"].get<double>());
-    for (const char* m : {"p6L", "p3P"}) {
-      if (row["ours"].is_null() || !row["ours"].contains(m)) {
-        line += " – | – |";
-        continue;
-      }
-      const ojson& o = row["ours"][m];
-      line += fmt::format(" {} | {:.2f} |", err(o), o["seconds"].get<double>());
-    }
-    md += line + "\n";
-  }
-  const ojson& s = r["summary"];
-  md += fmt::format("\nCOLMAP: {} / {} registered, median {:.4f}° / {:.4f}, {:.2f} s per image.",
-                    s["colmap_registered"].get<int>(), s["images"].get<int>(),
-                    s["colmap_median_rotation_deg"].get<double>(),
-                    s["colmap_median_translation"].get<double>(),
-                    s["colmap_mean_seconds"].get<double>());
-  if (s.contains("p6L_median_rotation_deg")) {
-    md += fmt::format(
-        " linecloud p6L: median {:.4f}° / {:.4f} ({:.2f}× COLMAP's rotation error), "
-        "{:.2f} s per image ({:.2f}× COLMAP's time).",
-        s["p6L_median_rotation_deg"].get<double>(), s["p6L_median_translation"].get<double>(),
-        s["p6L_median_rotation_deg"].get<double>() / s["colmap_median_rotation_deg"].get<double>(),
-        s["p6L_mean_seconds"].get<double>(),
-        s["p6L_mean_seconds"].get<double>() / s["colmap_mean_seconds"].get<double>());
-  }
-  return md + "\n";
+std::string ErrorCell(const std::optional<RegistrationError>& e) {
+  return e ? fmt::format("{:.4f}° / {:.4f}", e->rotation_deg, e->translation)
+           : std::string("not registered");
+}
+
+ojson ToJson(const RegistrationError& e) {
+  return {{"rotation_deg", e.rotation_deg}, {"translation", e.translation}};
 }
 
 // COLMAP's registration of one group's images: per image the registered
@@ -209,54 +167,58 @@ GroupRegistration RegisterGroup(const std::string& work_dir, const EvalGroup& g,
 }
 
 // One image's row: COLMAP's error and time, linecloud's beside.
-ojson ImageRow(const EvalGroup& g, const EvalImage& im, const GroupRegistration& r,
-               const DirectMatchingReport* ours) {
-  const double shared = (r.match_s + r.register_s) / g.images.size();
-  ojson c = {{"extract_s", r.extract_s.at(im.name)},
-             {"match_s", r.match_s / g.images.size()},
-             {"register_s", r.register_s / g.images.size()},
-             {"seconds", r.extract_s.at(im.name) + shared},
-             {"error", nullptr}};
+RegistrationImage ImageRow(const EvalGroup& g, const EvalImage& im, const GroupRegistration& r,
+                           const DirectMatchingReport* ours) {
+  RegistrationImage row;
+  row.group = g.name;
+  row.image = im.name;
+  ColmapOnImage& c = row.colmap;
+  c.extract_s = r.extract_s.at(im.name);
+  c.match_s = r.match_s / g.images.size();
+  c.register_s = r.register_s / g.images.size();
+  c.seconds = c.extract_s + c.match_s + c.register_s;
   for (const auto& [id, image] : r.model.images) {
     if (image.name != im.name) continue;
     const LocalizationError e =
         CompareLocalization(ToSim3(image.cam_from_world), ToSim3(im.cam_from_world));
-    c["error"] = {{"rotation_deg", e.rotation_rad * kDeg}, {"translation", e.position}};
+    c.error = RegistrationError{e.rotation_rad * kDeg, e.position};
   }
-  return {{"group", g.name}, {"image", im.name}, {"colmap", c}, {"ours", OursFor(ours, im.name)}};
+  row.ours = OursFor(ours, im.name);
+  return row;
 }
 
-ojson Summary(const ojson& images) {
+double Mean(const std::vector<double>& v) {
+  double s = 0;
+  for (const double x : v) s += x;
+  return v.empty() ? 0.0 : s / v.size();
+}
+
+RegistrationSummary Summary(const std::vector<RegistrationImage>& images) {
   std::vector<double> c_rot, c_pos, c_sec, p_rot, p_pos, p_sec;
-  int registered = 0;
-  for (const ojson& row : images) {
-    const ojson& c = row["colmap"];
-    registered += !c["error"].is_null();
-    c_rot.push_back(c["error"].is_null() ? 180 : c["error"]["rotation_deg"].get<double>());
-    c_pos.push_back(c["error"].is_null() ? 1e9 : c["error"]["translation"].get<double>());
-    c_sec.push_back(c["seconds"].get<double>());
-    if (!row["ours"].is_null() && row["ours"].contains("p6L")) {
-      p_rot.push_back(row["ours"]["p6L"]["rotation_deg"].get<double>());
-      p_pos.push_back(row["ours"]["p6L"]["translation"].get<double>());
-      p_sec.push_back(row["ours"]["p6L"]["seconds"].get<double>());
+  RegistrationSummary s;
+  for (const RegistrationImage& row : images) {
+    const ColmapOnImage& c = row.colmap;
+    s.colmap_registered += c.error.has_value();
+    c_rot.push_back(c.error ? c.error->rotation_deg : 180);
+    c_pos.push_back(c.error ? c.error->translation : 1e9);
+    c_sec.push_back(c.seconds);
+    if (row.ours && row.ours->count("p6L")) {
+      const OursOnImage& p = row.ours->at("p6L");
+      p_rot.push_back(p.rotation_deg);
+      p_pos.push_back(p.translation);
+      p_sec.push_back(p.seconds);
     }
   }
-  auto mean = [](const std::vector<double>& v) {
-    double s = 0;
-    for (const double x : v) s += x;
-    return v.empty() ? 0.0 : s / v.size();
-  };
-  ojson summary = {{"images", static_cast<int>(c_rot.size())},
-                   {"colmap_registered", registered},
-                   {"colmap_median_rotation_deg", Median(c_rot)},
-                   {"colmap_median_translation", Median(c_pos)},
-                   {"colmap_mean_seconds", mean(c_sec)}};
+  s.images = static_cast<int>(c_rot.size());
+  s.colmap_median_rotation_deg = Median(c_rot);
+  s.colmap_median_translation = Median(c_pos);
+  s.colmap_mean_seconds = Mean(c_sec);
   if (!p_rot.empty()) {
-    summary["p6L_median_rotation_deg"] = Median(p_rot);
-    summary["p6L_median_translation"] = Median(p_pos);
-    summary["p6L_mean_seconds"] = mean(p_sec);
+    s.p6l_median_rotation_deg = Median(p_rot);
+    s.p6l_median_translation = Median(p_pos);
+    s.p6l_mean_seconds = Mean(p_sec);
   }
-  return summary;
+  return s;
 }
 
 // The version line COLMAP printed when `eval prepare` ran it.
@@ -277,7 +239,7 @@ void ColmapRegistrationOptions::Check() const {
   colmap.Check();
 }
 
-ojson RunColmapRegistration(const ColmapRegistrationOptions& o) {
+ColmapRegistrationReport RunColmapRegistration(const ColmapRegistrationOptions& o) {
   o.Check();
   const EvalWork work = ReadPreparedWork(o.work_dir);
   std::optional<DirectMatchingReport> ours;
@@ -289,25 +251,118 @@ ojson RunColmapRegistration(const ColmapRegistrationOptions& o) {
   CreateDirectories(o.out_dir);
   ColmapOptions colmap = o.colmap;
   colmap.num_threads = 1;  // one core, as linecloud's figures
-  ojson images = ojson::array();
+  ColmapRegistrationReport report{work.dataset, ColmapVersion(o.work_dir), work.units, {}, {}};
   for (const EvalGroup& g : work.groups) {
     const GroupRegistration r = RegisterGroup(o.work_dir, g, JoinPaths(work.dataset_dir, "images"),
                                               JoinPaths(o.out_dir, g.name), colmap);
     for (const EvalImage& im : g.images)
-      images.push_back(ImageRow(g, im, r, ours ? &*ours : nullptr));
+      report.images.push_back(ImageRow(g, im, r, ours ? &*ours : nullptr));
     LogProgress("[eval colmap] group {}: {} images, match {:.1f} s, register {:.1f} s", g.name,
                 g.images.size(), r.match_s, r.register_s);
   }
-  const ojson report = {{"dataset", work.dataset},
-                        {"colmap_version", ColmapVersion(o.work_dir)},
-                        {"units", work.units},
-                        {"summary", Summary(images)},
-                        {"images", images}};
+  report.summary = Summary(report.images);
   WriteFileAtomically(JoinPaths(o.out_dir, "colmap_registration.json"),
-                      [&](std::ostream& out) { out << report.dump(2) << "\n"; });
+                      [&](std::ostream& out) { out << ToJson(report).dump(2) << "\n"; });
   WriteFileAtomically(JoinPaths(o.out_dir, "colmap_registration.md"),
-                      [&](std::ostream& out) { out << Markdown(report); });
+                      [&](std::ostream& out) { out << ColmapRegistrationMarkdown(report); });
   return report;
+}
+
+ojson ToJson(const ColmapRegistrationReport& r) {
+  ojson images = ojson::array();
+  for (const RegistrationImage& row : r.images) {
+    const ColmapOnImage& c = row.colmap;
+    ojson colmap = {{"extract_s", c.extract_s},
+                    {"match_s", c.match_s},
+                    {"register_s", c.register_s},
+                    {"seconds", c.seconds},
+                    {"error", c.error ? ToJson(*c.error) : ojson(nullptr)}};
+    ojson ours = nullptr;
+    if (row.ours) {
+      ours = ojson::object();
+      for (const auto& [method, f] : *row.ours) {
+        ours[method] = {{"rotation_deg", f.rotation_deg},
+                        {"translation", f.translation},
+                        {"seconds", f.seconds}};
+      }
+    }
+    images.push_back(
+        {{"group", row.group}, {"image", row.image}, {"colmap", colmap}, {"ours", ours}});
+  }
+  const RegistrationSummary& s = r.summary;
+  ojson summary = {{"images", s.images},
+                   {"colmap_registered", s.colmap_registered},
+                   {"colmap_median_rotation_deg", s.colmap_median_rotation_deg},
+                   {"colmap_median_translation", s.colmap_median_translation},
+                   {"colmap_mean_seconds", s.colmap_mean_seconds}};
+  if (s.p6l_median_rotation_deg) {
+    summary["p6L_median_rotation_deg"] = *s.p6l_median_rotation_deg;
+    summary["p6L_median_translation"] = *s.p6l_median_translation;
+    summary["p6L_mean_seconds"] = *s.p6l_mean_seconds;
+  }
+  return {{"dataset", r.dataset},
+          {"colmap_version", r.colmap_version},
+          {"units", r.units},
+          {"summary", summary},
+          {"images", images}};
+}
+
+RegistrationSummary RegistrationSummaryFromJson(const nlohmann::json& report,
+                                                const std::string& where) {
+  const JsonFields s = JsonFields(report, where).Object("summary");
+  RegistrationSummary out;
+  out.images = s.Int("images");
+  out.colmap_registered = s.Int("colmap_registered");
+  out.colmap_median_rotation_deg = s.Number("colmap_median_rotation_deg");
+  out.colmap_median_translation = s.Number("colmap_median_translation");
+  out.colmap_mean_seconds = s.Number("colmap_mean_seconds");
+  if (s.Has("p6L_median_rotation_deg")) {
+    out.p6l_median_rotation_deg = s.Number("p6L_median_rotation_deg");
+    out.p6l_median_translation = s.Number("p6L_median_translation");
+    out.p6l_mean_seconds = s.Number("p6L_mean_seconds");
+  }
+  return out;
+}
+
+std::string ColmapRegistrationMarkdown(const ColmapRegistrationReport& r) {
+  std::string md = fmt::format(
+      "# COLMAP {} registering the left-out images — {}\n\nPer group: the dataset's database "
+      "without the group's images, then `feature_extractor` (each image, its known camera), "
+      "`exhaustive_matcher` (new pairs) and `image_registrator` on the group's map, one thread. "
+      "Errors against the ground truth as in `eval run`; seconds per image (COLMAP: the group's "
+      "matching and registration shared among its images).\n\n",
+      r.colmap_version, r.dataset);
+  md +=
+      "| image | COLMAP error | COLMAP s (extract + match + register) | linecloud p6L error | "
+      "p6L s | linecloud p3P error | p3P s |\n|---|---|---|---|---|---|---|\n";
+  for (const RegistrationImage& row : r.images) {
+    const ColmapOnImage& c = row.colmap;
+    std::string line =
+        fmt::format("| {} | {} | {:.2f} ({:.2f} + {:.2f} + {:.2f}) |", row.image,
+                    ErrorCell(c.error), c.seconds, c.extract_s, c.match_s, c.register_s);
+    for (const char* m : {"p6L", "p3P"}) {
+      if (!row.ours || !row.ours->count(m)) {
+        line += " – | – |";
+        continue;
+      }
+      const OursOnImage& o = row.ours->at(m);
+      line += fmt::format(" {} | {:.2f} |", ErrorCell(RegistrationError(o)), o.seconds);
+    }
+    md += line + "\n";
+  }
+  const RegistrationSummary& s = r.summary;
+  md += fmt::format("\nCOLMAP: {} / {} registered, median {:.4f}° / {:.4f}, {:.2f} s per image.",
+                    s.colmap_registered, s.images, s.colmap_median_rotation_deg,
+                    s.colmap_median_translation, s.colmap_mean_seconds);
+  if (s.p6l_median_rotation_deg) {
+    md += fmt::format(
+        " linecloud p6L: median {:.4f}° / {:.4f} ({:.2f}× COLMAP's rotation error), "
+        "{:.2f} s per image ({:.2f}× COLMAP's time).",
+        *s.p6l_median_rotation_deg, *s.p6l_median_translation,
+        *s.p6l_median_rotation_deg / s.colmap_median_rotation_deg, *s.p6l_mean_seconds,
+        *s.p6l_mean_seconds / s.colmap_mean_seconds);
+  }
+  return md + "\n";
 }
 
 }  // namespace linecloud

@@ -14,9 +14,11 @@
 #include <gtest/gtest.h>
 
 #include "linecloud/colmap/dataset.h"
+#include "linecloud/eval/colmap_registration.h"
 #include "linecloud/eval/direct_matching.h"
 #include "linecloud/eval/eval_prepare.h"
 #include "linecloud/eval/eval_run.h"
+#include "linecloud/eval/photo_bench.h"
 #include "linecloud/eval/privacy_tradeoff.h"
 #include "linecloud/eval/eval_work.h"
 #include "linecloud/features/image.h"
@@ -38,19 +40,6 @@ using testing::ErrorOf;
 using testing::TempDir;
 
 void WriteText(const std::string& path, const std::string& text) { std::ofstream(path) << text; }
-
-// A number of a report by JSON pointer ("/methods/p6L/localized"); a field
-// that is missing or not a number (a non-finite value is written as null) is a
-// failure naming the field, and NaN fails every comparison after it.
-double Number(const nlohmann::json& report, const std::string& pointer) {
-  const nlohmann::json::json_pointer p(pointer);
-  if (!report.contains(p) || !report[p].is_number()) {
-    ADD_FAILURE() << pointer << " is "
-                  << (report.contains(p) ? report[p].dump() : std::string("missing"));
-    return std::numeric_limits<double>::quiet_NaN();
-  }
-  return report[p].get<double>();
-}
 
 // A dataset folder with empty image files (the reader does not decode them).
 void MakeDataset(const TempDir& tmp, const std::string& queries) {
@@ -447,6 +436,38 @@ TEST(DirectMatching, RefusesRigMethodsThatCannotTakeARigOfPhotos) {
   }
 }
 
+// `bench photo`'s typed report: the JSON layout `--json` prints and the table's cells.
+TEST(PhotoBench, ReportAsJsonAndMarkdown) {
+  PhotoBenchReport r;
+  r.work = "w";
+  r.dataset = "fountain-P11";
+  r.max_image_size = 3200;
+  r.photos = 2;
+  r.mean_map_lines = 12000;
+  r.mean_padded_lines = 100000;
+  PhotoBenchRow row;
+  row.features = "opencv";
+  row.threads = 2;
+  row.photos = 2;
+  row.localized = 2;
+  row.median_rotation_deg = 0.0042;
+  row.ms.total = {412.4, 530.6};
+  row.ms.extract = {301, 350};
+  r.rows = {row};
+  r.colmap_cli_extract_ms[1] = {1800, 1900};
+  const nlohmann::json j = ToJson(r);
+  EXPECT_EQ(j["rows"][0]["ms"]["total"]["p99"].get<double>(), 530.6);
+  EXPECT_EQ(j["rows"][0]["features"], "opencv");
+  EXPECT_EQ(j["colmap_cli_extract_ms"]["1"]["p50"].get<double>(), 1800);
+  EXPECT_EQ(j["mean_padded_lines"], 100000);
+  const std::string md = PhotoBenchMarkdown(r);
+  EXPECT_NE(md.find("bench photo: 2 photos of fountain-P11"), std::string::npos) << md;
+  EXPECT_NE(md.find("| opencv | 2 | 2 / 2 | 0.0042 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| 301 / 350 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("**412** / 531 |"), std::string::npos) << md;
+  EXPECT_NE(md.find("(whole command) | 1 | | | | | | 1800 / 1900 |"), std::string::npos) << md;
+}
+
 // A report read back names the field that is wrong, with its path.
 TEST(EvalReport, ReadingNamesTheBadField) {
   EvalReport r;
@@ -658,19 +679,58 @@ TEST(EvalReport, ColmapFeaturesAtOpenCVsSpeedAndOpenCVsLocalizeAlike) {
   }
 }
 
+// `eval colmap`'s typed report: an image COLMAP did not register, linecloud's figures beside, the
+// summary read back from the JSON.
+TEST(EvalColmap, ReportAsJsonMarkdownAndSummary) {
+  ColmapRegistrationReport r{"fountain-P11", "3.8", "metres", {}, {}};
+  RegistrationImage a{"g00",
+                      "0000.jpg",
+                      {1.0, 0.5, 0.25, 1.75, RegistrationError{0.01, 0.002}},
+                      std::map<std::string, OursOnImage>{{"p6L", {{0.004, 0.0005}, 0.9}}}};
+  RegistrationImage b{"g00", "0001.jpg", {1.0, 0.5, 0.25, 1.75, std::nullopt}, std::nullopt};
+  r.images = {a, b};
+  r.summary.images = 2;
+  r.summary.colmap_registered = 1;
+  r.summary.colmap_median_rotation_deg = 180;
+  r.summary.colmap_mean_seconds = 1.75;
+  r.summary.p6l_median_rotation_deg = 0.004;
+  r.summary.p6l_median_translation = 0.0005;
+  r.summary.p6l_mean_seconds = 0.9;
+  const nlohmann::json j = ToJson(r);
+  EXPECT_TRUE(j["images"][1]["colmap"]["error"].is_null());
+  EXPECT_TRUE(j["images"][1]["ours"].is_null());
+  EXPECT_EQ(j["images"][0]["ours"]["p6L"]["seconds"].get<double>(), 0.9);
+  EXPECT_EQ(j["summary"]["p6L_mean_seconds"].get<double>(), 0.9);
+  const RegistrationSummary s = RegistrationSummaryFromJson(j, "c.json");
+  EXPECT_EQ(s.colmap_registered, 1);
+  EXPECT_EQ(*s.p6l_median_rotation_deg, 0.004);
+  const std::string md = ColmapRegistrationMarkdown(r);
+  EXPECT_NE(md.find("| 0001.jpg | not registered | 1.75 (1.00 + 0.50 + 0.25) | – | – | – | – |"),
+            std::string::npos)
+      << md;
+  EXPECT_NE(md.find("| 0000.jpg | 0.0100° / 0.0020 | 1.75 (1.00 + 0.50 + 0.25) | 0.0040° / 0.0005 "
+                    "| 0.90 | – | – |"),
+            std::string::npos)
+      << md;
+  nlohmann::json bad = j;
+  bad["summary"].erase("images");
+  EXPECT_EQ(ErrorOf([&] { RegistrationSummaryFromJson(bad, "c.json"); }),
+            "c.json.summary.images: missing");
+}
+
 TEST(EvalColmap, P6lAgainstColmapsOwnRegistration) {
   const char* path = std::getenv("LINECLOUD_COLMAP_REPORT");
   if (!path)
     LINECLOUD_ABSENT(
         "LINECLOUD_COLMAP_REPORT is not set (.ci/run sets it after `linecloud eval colmap`)");
-  const nlohmann::json s = ReadJsonFile(path)["summary"];
-  EXPECT_EQ(Number(s, "/colmap_registered"), Number(s, "/images"));
-  ASSERT_TRUE(s.contains("p6L_median_rotation_deg")) << "eval colmap without --ours";
+  const RegistrationSummary s = RegistrationSummaryFromJson(ReadJsonFile(path), path);
+  EXPECT_EQ(s.colmap_registered, s.images);
+  ASSERT_TRUE(s.p6l_median_rotation_deg.has_value()) << "eval colmap without --ours";
   // One run's medians over eleven photos at the 0.003 deg level move with the
   // map COLMAP builds: 1.05x on CI's work of 2026-11-24, 2.03x on a local work
   // of 2026-11-26 (the same features, COLMAP's own, in both).
-  EXPECT_LE(Number(s, "/p6L_median_rotation_deg"), 2.5 * Number(s, "/colmap_median_rotation_deg"));
-  EXPECT_LT(Number(s, "/p6L_mean_seconds"), Number(s, "/colmap_mean_seconds"));
+  EXPECT_LE(*s.p6l_median_rotation_deg, 2.5 * s.colmap_median_rotation_deg);
+  EXPECT_LT(*s.p6l_mean_seconds, s.colmap_mean_seconds);
 }
 
 }  // namespace

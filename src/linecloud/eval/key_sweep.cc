@@ -28,46 +28,33 @@ struct MethodTally {
   std::vector<double> ransac_ms;
 };
 
-// One query's result (a row of direct matching's per_query / per_rig) into the tally.
+// One query's result (a row of direct matching's per_query / per_rig) into the tally and the
+// report.
 void Count(const KeySweepOptions& o, const DirectMatchingOptions& dm, const std::string& dataset,
            uint64_t key, const std::string& query, const std::string& method,
-           const DirectMatchingAttempt& r, MethodTally* t, ojson* wrong, ojson* queries,
-           std::map<std::string, int>* failures) {
+           const DirectMatchingAttempt& r, MethodTally* t, KeySweepReport* report) {
   ++t->queries;
-  queries->push_back({{"dataset", dataset},
-                      {"key", key},
-                      {"query", query},
-                      {"method", method},
-                      {"success", r.success},
-                      {"rotation_deg", r.rotation_deg},
-                      {"translation", r.translation},
-                      {"inliers", r.inliers},
-                      {"iterations", r.iterations},
-                      {"uniform_iterations", r.uniform_iterations},
-                      {"ransac_ms", r.ransac_ms}});
+  const KeySweepAttempt a{dataset,       key,
+                          query,         method,
+                          r.success,     r.rotation_deg,
+                          r.translation, r.inliers,
+                          r.iterations,  r.uniform_iterations,
+                          r.ransac_ms,   r.sigma_px.value_or(0.0),
+                          r.stop_reason};
+  report->queries.push_back(a);
   if (r.attempted) t->ransac_ms.push_back(r.ransac_ms);
-  const double rot = r.rotation_deg, trans = r.translation;
   if (!r.success) {
     std::string reason = r.failure.empty() ? std::string("no pose") : r.failure;
     // The reason's kind, without its numbers.
     reason = reason.substr(0, reason.find_first_of("0123456789"));
-    ++(*failures)[reason];
+    ++report->failures[reason];
     return;
   }
   ++t->successes;
-  t->localized += rot <= dm.max_rotation_deg && trans <= dm.max_translation;
-  if (rot > o.wrong_rotation_deg || trans > o.wrong_translation) {
+  t->localized += r.rotation_deg <= dm.max_rotation_deg && r.translation <= dm.max_translation;
+  if (r.rotation_deg > o.wrong_rotation_deg || r.translation > o.wrong_translation) {
     ++t->wrong;
-    wrong->push_back({{"dataset", dataset},
-                      {"key", key},
-                      {"query", query},
-                      {"method", method},
-                      {"rotation_deg", rot},
-                      {"translation", trans},
-                      {"inliers", r.inliers},
-                      {"sigma_px", r.sigma_px.value_or(0.0)},
-                      {"iterations", r.iterations},
-                      {"stop_reason", r.stop_reason}});
+    report->wrong.push_back(a);
   }
 }
 
@@ -93,33 +80,38 @@ LiftingKey SweepKey(uint64_t i) {
   return LiftingKey(bytes);
 }
 
-ojson RunKeySweep(const KeySweepOptions& options) {
+KeySweepReport RunKeySweep(const KeySweepOptions& options) {
   options.Check();
   DirectMatchingOptions dm;
   dm.methods = options.methods;
   dm.rig_methods = options.rig_methods;
   dm.image.sift.extractor = options.features;
+  KeySweepReport report;
+  report.keys = options.keys;
+  report.first_key = options.first_key;
+  report.features = SiftExtractorName(options.features);
+  report.wrong_rotation_deg = options.wrong_rotation_deg;
+  report.wrong_translation = options.wrong_translation;
+  report.localized_rotation_deg = dm.max_rotation_deg;
+  report.localized_translation = dm.max_translation;
   std::map<std::string, MethodTally> tallies;
-  std::map<std::string, int> failures;
-  ojson wrong = ojson::array(), datasets = ojson::array(), queries = ojson::array();
   for (const std::string& work_dir : options.work_dirs) {
     const EvalWork work = ReadPreparedWork(work_dir);
-    datasets.push_back(work.dataset);
+    report.datasets.push_back(work.dataset);
     dm.extracted = std::make_shared<ExtractedPhotos>();  // each photo extracted once
     for (uint64_t k = options.first_key; k < options.first_key + options.keys; ++k) {
       const auto start = std::chrono::steady_clock::now();
-      const DirectMatchingReport report = RunDirectMatching(work, work_dir, SweepKey(k), dm);
-      for (const DirectMatchingPhoto& row : report.per_query) {
+      const DirectMatchingReport matched = RunDirectMatching(work, work_dir, SweepKey(k), dm);
+      for (const DirectMatchingPhoto& row : matched.per_query) {
         for (const std::string& m : dm.methods) {
-          Count(options, dm, work.dataset, k, row.image, m, row.methods.at(m), &tallies[m], &wrong,
-                &queries, &failures);
+          Count(options, dm, work.dataset, k, row.image, m, row.methods.at(m), &tallies[m],
+                &report);
         }
       }
-      for (const DirectMatchingRig& row : report.per_rig) {
+      for (const DirectMatchingRig& row : matched.per_rig) {
         for (const std::string& m : dm.rig_methods) {
           if (const DirectMatchingAttempt* a = FindIn(row.methods, m))
-            Count(options, dm, work.dataset, k, row.group, m, *a, &tallies[m], &wrong, &queries,
-                  &failures);
+            Count(options, dm, work.dataset, k, row.group, m, *a, &tallies[m], &report);
         }
       }
       int wrong_so_far = 0;
@@ -129,32 +121,70 @@ ojson RunKeySweep(const KeySweepOptions& options) {
                   wrong_so_far);
     }
   }
-  ojson methods = ojson::object();
   for (const auto& [name, t] : tallies) {
     double sum = 0;
     for (const double ms : t.ransac_ms) sum += ms;
-    methods[name] = {{"queries", t.queries},
-                     {"successes", t.successes},
-                     {"localized", t.localized},
-                     {"wrong", t.wrong},
-                     {"ransac_ms",
-                      {{"mean", t.ransac_ms.empty() ? 0.0 : sum / t.ransac_ms.size()},
-                       {"p50", Percentile(t.ransac_ms, 50)},
-                       {"p99", Percentile(t.ransac_ms, 99)}}}};
+    report.methods[name] = {t.queries,
+                            t.successes,
+                            t.localized,
+                            t.wrong,
+                            t.ransac_ms.empty() ? 0.0 : sum / t.ransac_ms.size(),
+                            Percentile(t.ransac_ms, 50),
+                            Percentile(t.ransac_ms, 99)};
+  }
+  WriteFileAtomically(options.out, [&](std::ostream& os) { os << ToJson(report).dump(2) << "\n"; });
+  return report;
+}
+
+nlohmann::ordered_json ToJson(const KeySweepReport& r) {
+  ojson methods = ojson::object();
+  for (const auto& [name, m] : r.methods) {
+    methods[name] = {
+        {"queries", m.queries},
+        {"successes", m.successes},
+        {"localized", m.localized},
+        {"wrong", m.wrong},
+        {"ransac_ms",
+         {{"mean", m.ransac_ms_mean}, {"p50", m.ransac_ms_p50}, {"p99", m.ransac_ms_p99}}}};
+  }
+  ojson wrong = ojson::array(), queries = ojson::array();
+  for (const KeySweepAttempt& a : r.wrong) {
+    wrong.push_back({{"dataset", a.dataset},
+                     {"key", a.key},
+                     {"query", a.query},
+                     {"method", a.method},
+                     {"rotation_deg", a.rotation_deg},
+                     {"translation", a.translation},
+                     {"inliers", a.inliers},
+                     {"sigma_px", a.sigma_px},
+                     {"iterations", a.iterations},
+                     {"stop_reason", a.stop_reason}});
+  }
+  for (const KeySweepAttempt& a : r.queries) {
+    queries.push_back({{"dataset", a.dataset},
+                       {"key", a.key},
+                       {"query", a.query},
+                       {"method", a.method},
+                       {"success", a.success},
+                       {"rotation_deg", a.rotation_deg},
+                       {"translation", a.translation},
+                       {"inliers", a.inliers},
+                       {"iterations", a.iterations},
+                       {"uniform_iterations", a.uniform_iterations},
+                       {"ransac_ms", a.ransac_ms}});
   }
   ojson report;
-  report["datasets"] = datasets;
-  report["keys"] = {{"count", options.keys}, {"first", options.first_key}};
-  report["features"] = SiftExtractorName(options.features);
+  report["datasets"] = r.datasets;
+  report["keys"] = {{"count", r.keys}, {"first", r.first_key}};
+  report["features"] = r.features;
   report["thresholds"] = {
-      {"wrong",
-       {{"rotation_deg", options.wrong_rotation_deg}, {"translation", options.wrong_translation}}},
-      {"localized", {{"rotation_deg", dm.max_rotation_deg}, {"translation", dm.max_translation}}}};
+      {"wrong", {{"rotation_deg", r.wrong_rotation_deg}, {"translation", r.wrong_translation}}},
+      {"localized",
+       {{"rotation_deg", r.localized_rotation_deg}, {"translation", r.localized_translation}}}};
   report["methods"] = methods;
   report["wrong"] = wrong;
-  report["failures"] = failures;
+  report["failures"] = r.failures;
   report["queries"] = queries;
-  WriteFileAtomically(options.out, [&](std::ostream& os) { os << report.dump(2) << "\n"; });
   return report;
 }
 

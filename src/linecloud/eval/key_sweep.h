@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -37,9 +38,43 @@ struct KeySweepOptions {
 // run; never a key for a real map).
 LiftingKey SweepKey(uint64_t i);
 
-// Writes and returns {"keys", "features", "thresholds", "methods": {name:
-// {"queries", "successes", "localized", "wrong", "ransac_ms": {"mean", "p50",
-// "p99"}}}, "wrong": [...], "failures": {reason: count}}.
-nlohmann::ordered_json RunKeySweep(const KeySweepOptions& options);
+// One method on one query photo (or a group's rig of photos) under one key.
+struct KeySweepAttempt {
+  std::string dataset;
+  uint64_t key = 0;
+  std::string query, method;
+  bool success = false;
+  double rotation_deg = 180, translation = 1e9;  // to the ground truth; 180 / 1e9: no pose
+  int inliers = 0, iterations = 0, uniform_iterations = 0;
+  double ransac_ms = 0;
+  double sigma_px = 0;
+  std::string stop_reason;
+};
+
+struct KeySweepMethod {
+  int queries = 0, successes = 0, localized = 0, wrong = 0;
+  double ransac_ms_mean = 0, ransac_ms_p50 = 0, ransac_ms_p99 = 0;
+};
+
+struct KeySweepReport {
+  std::vector<std::string> datasets;
+  int keys = 0;
+  uint64_t first_key = 0;
+  std::string features;
+  double wrong_rotation_deg = 0, wrong_translation = 0;          // a success beyond: wrong
+  double localized_rotation_deg = 0, localized_translation = 0;  // a success within: localized
+  std::map<std::string, KeySweepMethod> methods;
+  std::vector<KeySweepAttempt> wrong;    // the wrong successes
+  std::map<std::string, int> failures;   // by the reason's kind (its text without numbers)
+  std::vector<KeySweepAttempt> queries;  // every attempt
+};
+
+// Runs the sweep and writes options.out (ToJson).
+KeySweepReport RunKeySweep(const KeySweepOptions& options);
+
+// {"datasets", "keys", "features", "thresholds", "methods": {name: {"queries", "successes",
+// "localized", "wrong", "ransac_ms": {"mean", "p50", "p99"}}}, "wrong": [...], "failures":
+// {reason: count}, "queries": [...]}.
+nlohmann::ordered_json ToJson(const KeySweepReport& report);
 
 }  // namespace linecloud

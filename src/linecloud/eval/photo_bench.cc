@@ -83,24 +83,27 @@ double ColmapExtractMs(const std::string& colmap, const std::string& image_dir,
 }
 
 struct Samples {
-  std::map<std::string, std::vector<double>> ms;  // by stage
+  std::vector<double> decode, extract, match, ransac_refine, checks, total;  // ms
   std::vector<double> rotation;
   int localized = 0, photos = 0;
   std::vector<double> features, matches;
 };
 
-json Summary(const Samples& s) {
-  json stages = json::object();
-  for (const auto& [stage, v] : s.ms) {
-    stages[stage] = {{"p50", Percentile(v, 50)}, {"p99", Percentile(v, 99)}};
-  }
-  return {{"photos", s.photos},
-          {"localized", s.localized},
-          {"median_rotation_deg", Median(s.rotation)},
-          {"median_features", Median(s.features)},
-          {"median_matches", Median(s.matches)},
-          {"ms", stages}};
+Quantiles Of(const std::vector<double>& v) { return {Percentile(v, 50), Percentile(v, 99)}; }
+
+PhotoBenchRow Summary(const Samples& s) {
+  PhotoBenchRow row;
+  row.photos = s.photos;
+  row.localized = s.localized;
+  row.median_rotation_deg = Median(s.rotation);
+  row.median_features = Median(s.features);
+  row.median_matches = Median(s.matches);
+  row.ms = {Of(s.decode),        Of(s.extract), Of(s.match),
+            Of(s.ransac_refine), Of(s.checks),  Of(s.total)};
+  return row;
 }
+
+json ToJson(const Quantiles& q) { return {{"p50", q.p50}, {"p99", q.p99}}; }
 
 }  // namespace
 
@@ -115,7 +118,7 @@ void PhotoBenchOptions::Check() const {
   if (pad_to > 0 && padding_dir.empty()) Fail("bench photo: padding needs --padding DIR");
 }
 
-json RunPhotoBench(const PhotoBenchOptions& o) {
+PhotoBenchReport RunPhotoBench(const PhotoBenchOptions& o) {
   o.Check();
   const EvalWork work = ReadPreparedWork(o.work_dir);
   const LiftingKey key = EvalLiftingKey(o.work_dir);
@@ -177,12 +180,12 @@ json RunPhotoBench(const PhotoBenchOptions& o) {
         Samples& s = rows[{e, t}];
         ++s.photos;
         const StageTimes& st = r.times;
-        s.ms["decode"].push_back(st.decode_ms);
-        s.ms["extract"].push_back(st.extract_ms);
-        s.ms["match"].push_back(st.match_ms);
-        s.ms["ransac_refine"].push_back(st.prepare_ms + st.ransac_ms + st.refine_ms);
-        s.ms["checks"].push_back(st.check_ms);
-        s.ms["total"].push_back(st.total_ms);
+        s.decode.push_back(st.decode_ms);
+        s.extract.push_back(st.extract_ms);
+        s.match.push_back(st.match_ms);
+        s.ransac_refine.push_back(st.prepare_ms + st.ransac_ms + st.refine_ms);
+        s.checks.push_back(st.check_ms);
+        s.total.push_back(st.total_ms);
         s.features.push_back(static_cast<double>(r.num_features()));
         s.matches.push_back(static_cast<double>(r.num_matches()));
         double rot = 180;
@@ -205,54 +208,75 @@ json RunPhotoBench(const PhotoBenchOptions& o) {
   std::error_code ec;
   fs::remove_all(scratch, ec);
 
-  json out = {{"work", o.work_dir},
-              {"max_image_size", o.max_image_size},
-              {"dataset", work.dataset},
-              {"photos", photos.size()},
-              {"mean_map_lines", map_lines / photos.size()},
-              {"mean_padded_lines", padded_lines / photos.size()},
-              {"rows", json::array()}};
+  PhotoBenchReport out;
+  out.work = o.work_dir;
+  out.dataset = work.dataset;
+  out.max_image_size = o.max_image_size;
+  out.photos = photos.size();
+  out.mean_map_lines = map_lines / photos.size();
+  out.mean_padded_lines = padded_lines / photos.size();
   for (const auto& [config, s] : rows) {
-    json row = Summary(s);
-    row["features"] = SiftExtractorName(config.first);
-    row["threads"] = config.second;
-    out["rows"].push_back(row);
+    PhotoBenchRow& row = out.rows.emplace_back(Summary(s));
+    row.features = SiftExtractorName(config.first);
+    row.threads = config.second;
   }
-  json peers = json::object();
-  for (const auto& [t, v] : colmap_ms) {
-    peers[std::to_string(t)] = {{"p50", Percentile(v, 50)}, {"p99", Percentile(v, 99)}};
-  }
-  out["colmap_cli_extract_ms"] = peers;
+  for (const auto& [t, v] : colmap_ms) out.colmap_cli_extract_ms[t] = Of(v);
   return out;
 }
 
-std::string PhotoBenchMarkdown(const json& report) {
+json ToJson(const PhotoBenchReport& r) {
+  json rows = json::array();
+  for (const PhotoBenchRow& row : r.rows) {
+    rows.push_back({{"features", row.features},
+                    {"threads", row.threads},
+                    {"photos", row.photos},
+                    {"localized", row.localized},
+                    {"median_rotation_deg", row.median_rotation_deg},
+                    {"median_features", row.median_features},
+                    {"median_matches", row.median_matches},
+                    {"ms",
+                     {{"decode", ToJson(row.ms.decode)},
+                      {"extract", ToJson(row.ms.extract)},
+                      {"match", ToJson(row.ms.match)},
+                      {"ransac_refine", ToJson(row.ms.ransac_refine)},
+                      {"checks", ToJson(row.ms.checks)},
+                      {"total", ToJson(row.ms.total)}}}});
+  }
+  json peers = json::object();
+  for (const auto& [t, q] : r.colmap_cli_extract_ms) peers[std::to_string(t)] = ToJson(q);
+  return {{"work", r.work},
+          {"max_image_size", r.max_image_size},
+          {"dataset", r.dataset},
+          {"photos", r.photos},
+          {"mean_map_lines", r.mean_map_lines},
+          {"mean_padded_lines", r.mean_padded_lines},
+          {"rows", rows},
+          {"colmap_cli_extract_ms", peers}};
+}
+
+std::string PhotoBenchMarkdown(const PhotoBenchReport& report) {
   std::string md = fmt::format(
       "bench photo: {} photos of {}, JPEG bytes to pose (SIFT on at most {} px); maps of {} lines "
       "padded to {}\n\n"
       "| features | threads | localized | median rot. ° | features | matches | decode | extract "
       "p50 / p99 | match p50 / p99 | RANSAC+LM | checks | total p50 / p99 ms |\n"
       "|---|---|---|---|---|---|---|---|---|---|---|---|\n",
-      report["photos"].get<size_t>(), report["dataset"].get<std::string>(),
-      report["max_image_size"].get<int>(), report["mean_map_lines"].get<size_t>(),
-      report["mean_padded_lines"].get<size_t>());
-  for (const json& r : report["rows"]) {
-    const json& ms = r["ms"];
-    auto p = [&](const char* stage, const char* which) { return ms[stage][which].get<double>(); };
+      report.photos, report.dataset, report.max_image_size, report.mean_map_lines,
+      report.mean_padded_lines);
+  for (const PhotoBenchRow& r : report.rows) {
+    const PhotoStageTimes& ms = r.ms;
     md += fmt::format(
         "| {} | {} | {} / {} | {:.4f} | {:.0f} | {:.0f} | {:.0f} | {:.0f} / {:.0f} | {:.0f} / "
         "{:.0f} | {:.0f} | {:.0f} | **{:.0f}** / {:.0f} |\n",
-        r["features"].get<std::string>(), r["threads"].get<int>(), r["localized"].get<int>(),
-        r["photos"].get<int>(), r["median_rotation_deg"].get<double>(),
-        r["median_features"].get<double>(), r["median_matches"].get<double>(), p("decode", "p50"),
-        p("extract", "p50"), p("extract", "p99"), p("match", "p50"), p("match", "p99"),
-        p("ransac_refine", "p50"), p("checks", "p50"), p("total", "p50"), p("total", "p99"));
+        r.features, r.threads, r.localized, r.photos, r.median_rotation_deg, r.median_features,
+        r.median_matches, ms.decode.p50, ms.extract.p50, ms.extract.p99, ms.match.p50, ms.match.p99,
+        ms.ransac_refine.p50, ms.checks.p50, ms.total.p50, ms.total.p99);
   }
-  for (const auto& [t, v] : report["colmap_cli_extract_ms"].items()) {
+  for (const auto& [t, q] : report.colmap_cli_extract_ms) {
     md += fmt::format(
         "| COLMAP CLI `feature_extractor` (whole command) | {} | | | | | | {:.0f} / {:.0f} | | | "
         "| |\n",
-        t, v["p50"].get<double>(), v["p99"].get<double>());
+        t, q.p50, q.p99);
   }
   return md;
 }

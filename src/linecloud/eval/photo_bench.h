@@ -9,6 +9,7 @@
 #pragma once
 
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -36,9 +37,36 @@ struct PhotoBenchOptions {
   void Check() const;
 };
 
-nlohmann::json RunPhotoBench(const PhotoBenchOptions& options);
+// A stage's time over the photos (ms).
+struct Quantiles {
+  double p50 = 0, p99 = 0;
+};
 
-// The rows as a Markdown table.
-std::string PhotoBenchMarkdown(const nlohmann::json& report);
+struct PhotoStageTimes {
+  Quantiles decode, extract, match, ransac_refine, checks, total;
+};
+
+// One extractor at one thread count, over every photo.
+struct PhotoBenchRow {
+  std::string features;  // the extractor's name
+  int threads = 0;
+  int photos = 0, localized = 0;
+  double median_rotation_deg = 0, median_features = 0, median_matches = 0;
+  PhotoStageTimes ms;
+};
+
+struct PhotoBenchReport {
+  std::string work, dataset;
+  int max_image_size = 0;
+  size_t photos = 0, mean_map_lines = 0, mean_padded_lines = 0;
+  std::vector<PhotoBenchRow> rows;
+  std::map<int, Quantiles> colmap_cli_extract_ms;  // by thread count (COLMAP's whole command)
+};
+
+PhotoBenchReport RunPhotoBench(const PhotoBenchOptions& options);
+
+// The report as JSON (`bench photo --json`) and as a Markdown table.
+nlohmann::json ToJson(const PhotoBenchReport& report);
+std::string PhotoBenchMarkdown(const PhotoBenchReport& report);
 
 }  // namespace linecloud

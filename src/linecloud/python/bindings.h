@@ -6,6 +6,31 @@
 
 namespace linecloud::python {
 
+// Exit while a daemon thread is inside a long call. A thread that released the GIL must not take
+// it back once the interpreter exits: CPython ends such a thread with pthread_exit, whose
+// unwinding through the noexcept destructor of pybind11's gil_scoped_release aborted the process
+// (SIGABRT). And it must not still be computing while exit() runs the library's static
+// destructors (a SIGSEGV in a solver). So: an atexit hook (registered by the module) marks the
+// exit and waits, GIL released, up to 2 s for every long call to reach a point where it parks:
+// its next poll (RANSAC polls for Ctrl-C) or its end. A parked thread sleeps until the process
+// ends. A call that polls nothing for longer than that can still be inside the library at exit.
+void ParkIfInterpreterExiting();
+void WaitForLongCallsToPark();  // the atexit hook's wait
+
+// The GIL released around a long call and taken back after it (pybind11's gil_scoped_release),
+// counting the call as running until it returns or parks.
+class GilReleased {
+ public:
+  GilReleased();
+  ~GilReleased();
+  GilReleased(const GilReleased&) = delete;
+  GilReleased& operator=(const GilReleased&) = delete;
+
+ private:
+  PyThreadState* state_;
+  bool outer_;  // the thread's outermost release (the one counted)
+};
+
 void BindLineCloud(pybind11::module_& m);   // LineCloud, lift, read_colmap_model
 void BindLocalizer(pybind11::module_& m);   // Localizer
 void BindEstimation(pybind11::module_& m);  // estimate_pose, solve, methods

@@ -110,7 +110,7 @@ LineCloud Lift(const std::string& model_dir, const PyLiftOptions& p) {
   lifting.sparsify_mode = SparsifyModeFromName(p.sparsify_mode, "sparsify_mode");
   lifting.resist_attack = p.resist_attack.value_or(-1);
   lifting.compact = p.compact;
-  py::gil_scoped_release release;
+  GilReleased release;
   return LiftModelWith(o, lifting).cloud;
 }
 
@@ -176,7 +176,7 @@ void BindLineCloud(py::module_& m) {
           "read",
           [](const std::filesystem::path& path) {
             const std::string p = path.string();
-            py::gil_scoped_release release;
+            GilReleased release;
             return ReadLineCloud(p);
           },
           py::arg("path"), "Read a .lcm file (checked: magic, version, checksum, content).")
@@ -184,7 +184,7 @@ void BindLineCloud(py::module_& m) {
           "write",
           [](const LineCloud& cloud, const std::filesystem::path& path) {
             const std::string p = path.string();
-            py::gil_scoped_release release;
+            GilReleased release;
             WriteLineCloud(cloud, p);
           },
           py::arg("path"), "Write a .lcm file (atomically: a reader sees the old or the new).")
@@ -263,7 +263,7 @@ void BindLineCloud(py::module_& m) {
         Reconstruction model;
         {
           const std::string p = path.string();
-          py::gil_scoped_release release;
+          GilReleased release;
           model = ReadColmapModel(p);
         }
         return ModelToDict(model);

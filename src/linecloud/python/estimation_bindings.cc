@@ -256,7 +256,7 @@ py::tuple EstimatePose(const std::string& method, py::handle points2D, py::handl
                                   gravity, map_gravity, points_local, cam_from_rig);
   LocalizeResult r;
   {
-    py::gil_scoped_release release;
+    GilReleased release;
     r = Localize(*e.method, e.query, e.map, e.options, kEstimate);
   }
   return ResultToPython(e, r);
@@ -273,7 +273,7 @@ std::vector<double> TimeEstimatePose(int repeats, const std::string& method, py:
   const Estimate e = MakeEstimate(method, points2D, map_side, camera, ransac, refine, success,
                                   gravity, map_gravity, points_local, cam_from_rig);
   std::vector<double> seconds;
-  py::gil_scoped_release release;
+  GilReleased release;
   for (int k = 0; k < repeats; ++k) {
     const auto start = std::chrono::steady_clock::now();
     const LocalizeResult r = Localize(*e.method, e.query, e.map, e.options, kEstimate);
@@ -292,7 +292,7 @@ py::list Solve(const std::string& method, const py::kwargs& sample) {
   const MinimalProblem problem = ParseProblemJson(j, "solve");
   std::vector<Sim3d> solutions;
   {
-    py::gil_scoped_release release;
+    GilReleased release;
     SolveMinimal(*problem.method, problem.sample, &solutions);
   }
   py::list out;

@@ -74,7 +74,7 @@ PyLocalizer MakeLocalizer(py::object cloud_or_path, std::optional<std::string> m
   if (py::isinstance<LineCloud>(cloud_or_path)) {
     const LineCloud& cloud = cloud_or_path.cast<const LineCloud&>();
     out.source = "LineCloud";
-    py::gil_scoped_release release;
+    GilReleased release;
     out.localizer = std::make_shared<const Localizer>(cloud, options, out.source);
     return out;
   }
@@ -82,7 +82,7 @@ PyLocalizer MakeLocalizer(py::object cloud_or_path, std::optional<std::string> m
   // A map file's index is cached as the CLI caches it (the same file: built once for both).
   LocalizerOptions cached = options;
   UseIndexCache(out.source, &cached);
-  py::gil_scoped_release release;
+  GilReleased release;
   out.localizer = std::make_shared<const Localizer>(ReadLineCloud(out.source), cached, out.source);
   return out;
 }
@@ -160,6 +160,7 @@ Request MakeRequest(const PyLocalizer& self, const py::kwargs& kwargs, const std
   // Ctrl-C: the request polls Python's signal handlers while it runs without
   // the GIL (a handler that raises stops it; ResultToDict re-raises).
   r.request.should_stop = [] {
+    ParkIfInterpreterExiting();
     py::gil_scoped_acquire gil;
     return PyErr_CheckSignals() != 0;
   };
@@ -292,7 +293,7 @@ py::dict LocalizeImages(const PyLocalizer& self, py::handle image, py::handle ca
   SetRig(photos, r, where);
   LocalizerResult result;
   {
-    py::gil_scoped_release release;
+    GilReleased release;
     result = self.localizer->LocalizePhotos(photos, r.request);
   }
   return ResultToDict(result, r.with_inliers);
@@ -341,7 +342,7 @@ py::dict LocalizeFeatures(const PyLocalizer& self, py::handle keypoints, py::han
   SetRig(photos, r, where);
   LocalizerResult result;
   {
-    py::gil_scoped_release release;
+    GilReleased release;
     result = self.localizer->LocalizePhotos(photos, r.request);
   }
   return ResultToDict(result, r.with_inliers);
@@ -356,7 +357,7 @@ py::dict LocalizeQuery(const PyLocalizer& self, py::handle query, const py::kwar
   const Query q = ParseQueryJson(ToJson(query, "query"), "query");
   LocalizerResult result;
   {
-    py::gil_scoped_release release;
+    GilReleased release;
     result = self.localizer->LocalizeQuery(q, r.request, "query");
   }
   return ResultToDict(result, r.with_inliers);

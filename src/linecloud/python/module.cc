@@ -8,8 +8,11 @@
 //
 // Progress and warnings (util/log.h) go to stdout / stderr unless set_log_sink hands them to a
 // Python callable.
+#include <atomic>
+#include <chrono>
 #include <memory>
 #include <string>
+#include <thread>
 #include <utility>
 
 #include <pybind11/pybind11.h>
@@ -20,6 +23,53 @@
 #include "linecloud/version.h"
 
 namespace py = pybind11;
+
+namespace linecloud::python {
+namespace {
+
+std::atomic<bool> exiting{false};
+std::atomic<int> running{0};          // long calls running without the GIL, not parked
+thread_local int released_depth = 0;  // this thread's GilReleased scopes
+
+bool InterpreterExiting() {
+#if PY_VERSION_HEX >= 0x030D0000
+  return exiting || Py_IsFinalizing();
+#else
+  return exiting || _Py_IsFinalizing();
+#endif
+}
+
+}  // namespace
+
+void ParkIfInterpreterExiting() {
+  if (!InterpreterExiting()) return;
+  if (released_depth > 0) --running;  // counted by its outermost GilReleased: parked now
+  for (;;) std::this_thread::sleep_for(std::chrono::hours(1));
+}
+
+void WaitForLongCallsToPark() {
+  exiting = true;
+  GilReleased release;  // (this thread's own release is not counted as a call)
+  --running;
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(2);
+  while (running > 0 && std::chrono::steady_clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  ++running;
+  exiting = false;  // the GIL is taken back below; later calls at exit park in finalization
+}
+
+GilReleased::GilReleased() : state_(PyEval_SaveThread()), outer_(released_depth++ == 0) {
+  if (outer_) ++running;
+}
+
+GilReleased::~GilReleased() {
+  ParkIfInterpreterExiting();
+  --released_depth;
+  if (outer_) --running;
+  PyEval_RestoreThread(state_);
+}
+
+}  // namespace linecloud::python
 
 namespace {
 
@@ -33,10 +83,12 @@ void SetLogSink(py::object sink) {
       throw py::type_error("set_log_sink: sink must be a callable sink(level, line) or None");
     }
     std::shared_ptr<py::object> held(new py::object(std::move(sink)), [](py::object* object) {
+      linecloud::python::ParkIfInterpreterExiting();
       py::gil_scoped_acquire gil;
       delete object;
     });
     cpp = [held](linecloud::LogLevel level, std::string_view line) {
+      linecloud::python::ParkIfInterpreterExiting();
       py::gil_scoped_acquire gil;
       try {
         (*held)(std::string(linecloud::LogLevelName(level)), std::string(line));
@@ -74,6 +126,9 @@ PYBIND11_MODULE(_core, m) {
         "default (progress to stdout, warnings to stderr). One sink for the process.");
   // The sink holds a Python object: drop it before the interpreter goes.
   py::module_::import("atexit").attr("register")(py::cpp_function([] { SetLogSink(py::none()); }));
+  // Daemon threads inside long calls park before the interpreter and the library go (bindings.h).
+  py::module_::import("atexit").attr("register")(
+      py::cpp_function([] { linecloud::python::WaitForLongCallsToPark(); }));
   linecloud::python::BindLineCloud(m);
   linecloud::python::BindLocalizer(m);
   linecloud::python::BindEstimation(m);

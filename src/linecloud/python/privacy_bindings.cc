@@ -40,7 +40,7 @@ LineCloud CloudOf(py::handle cloud, std::string* name) {
     return cloud.cast<LineCloud>();
   }
   *name = py::str(py::module_::import("os").attr("fspath")(cloud));
-  py::gil_scoped_release release;
+  GilReleased release;
   return ReadLineCloud(*name);
 }
 
@@ -52,7 +52,7 @@ py::array_t<double> Attack(py::handle cloud_or_path, const py::kwargs& kwargs) {
   const LineCloud cloud = CloudOf(cloud_or_path, &name);
   DensityAttackResult r;
   {
-    py::gil_scoped_release release;
+    GilReleased release;
     r = RunDensityAttack(cloud, options);
   }
   std::vector<double> xyz;
@@ -84,7 +84,7 @@ py::dict Audit(py::handle cloud_or_path, const std::filesystem::path& model_dir,
   const LineCloud cloud = CloudOf(cloud_or_path, &options.map_path);
   nlohmann::ordered_json report;
   {
-    py::gil_scoped_release release;
+    GilReleased release;
     report = RunAudit(cloud, options);
   }
   return FromJson(report).cast<py::dict>();

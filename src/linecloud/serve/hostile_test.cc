@@ -451,6 +451,25 @@ TEST(Hostile, WorkStopsAtTheDeadline) {
   EXPECT_TRUE(s.Alive());
 }
 
+// --request-seconds runs from the request's arrival, the body's upload included (it started when
+// the body had arrived: headers, a 3 s pause, then the body got a 200 with a 0.2 s budget).
+TEST(Hostile, TheDeadlineRunsFromArrival) {
+  Maps m;
+  Served s(m.tmp, {"--request-seconds", "1"});
+  ASSERT_GT(s.port(), 0) << s.err();
+  const std::string request =
+      Request("POST", "/v1/maps/synth/localize", {kRoot, "Content-Type: application/json"},
+              FeaturesBody(20, false));
+  const size_t head = request.find("\r\n\r\n") + 4;
+  const Answer late = RawExchange(s.port(), request, 10, head, 1.5);
+  EXPECT_EQ(late.status, 504) << late.body;
+  EXPECT_NE(late.body.find("deadline"), std::string::npos) << late.body;
+  EXPECT_LT(late.seconds, 3.0);
+  const Answer prompt = Send(s.port(), request);  // the same request in one piece: a pose
+  EXPECT_EQ(prompt.status, 200) << prompt.body;
+  EXPECT_TRUE(s.Alive());
+}
+
 // An outsider's requests: focal 1e308 kept RANSAC busy until the 504, a width
 // of 2^63 was taken, a point method on a line map was refused after matching.
 // Refused before any work, naming what is wrong.

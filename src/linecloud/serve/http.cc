@@ -249,6 +249,7 @@ struct HttpServer::Impl {
   void ReadHead(MHD_Connection* connection, const char* url, const char* method,
                 RequestState* state) const {
     HttpRequest& req = state->request;
+    req.arrived = std::chrono::steady_clock::now();
     req.method = method;
     req.path = PercentDecode(url, false);
     const MHD_ConnectionInfo* info =

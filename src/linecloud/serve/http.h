@@ -33,6 +33,8 @@ struct HttpRequest {
   std::string body;    // empty for multipart/form-data (see `parts`)
   bool multipart = false;
   std::map<std::string, std::string> parts;  // multipart/form-data fields by name
+  // When its head arrived (before its body was read): deadlines run from here.
+  std::chrono::steady_clock::time_point arrived{};
 
   // The first field of that name (case-insensitive), "" when absent.
   std::string Header(std::string_view name) const;

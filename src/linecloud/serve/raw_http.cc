@@ -6,7 +6,9 @@
 #include <unistd.h>
 
 #include <cctype>
+#include <algorithm>
 #include <chrono>
+#include <thread>
 #include <cstdlib>
 
 namespace linecloud {
@@ -43,16 +45,22 @@ int ConnectLoopback(int port, double timeout_s) {
   return fd;
 }
 
-RawAnswer RawExchange(int port, const std::string& request, double timeout_s) {
+RawAnswer RawExchange(int port, const std::string& request, double timeout_s, size_t pause_after,
+                      double pause_s) {
   const auto start = std::chrono::steady_clock::now();
   RawAnswer a;
   const int fd = ConnectLoopback(port, timeout_s);
   if (fd < 0) return a;
   size_t sent = 0;
-  while (sent < request.size()) {
-    const ssize_t n = ::send(fd, request.data() + sent, request.size() - sent, MSG_NOSIGNAL);
-    if (n <= 0) break;  // the server may answer and close before reading everything
-    sent += static_cast<size_t>(n);
+  const size_t first = pause_s > 0 ? std::min(pause_after, request.size()) : request.size();
+  for (const size_t until : {first, request.size()}) {
+    if (sent == first && first < request.size() && pause_s > 0)
+      std::this_thread::sleep_for(std::chrono::duration<double>(pause_s));
+    while (sent < until) {
+      const ssize_t n = ::send(fd, request.data() + sent, until - sent, MSG_NOSIGNAL);
+      if (n <= 0) break;  // the server may answer and close before reading everything
+      sent += static_cast<size_t>(n);
+    }
   }
   std::string in;
   char buffer[65536];

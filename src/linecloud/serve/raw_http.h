@@ -21,7 +21,9 @@ struct RawAnswer {
 int ConnectLoopback(int port, double timeout_s = 10);
 
 // Sends `request` on a new connection and reads one answer (the head, then
-// Content-Length bytes of body).
-RawAnswer RawExchange(int port, const std::string& request, double timeout_s = 10);
+// Content-Length bytes of body). With `pause_s`, the first `pause_after` bytes are sent, then
+// nothing for pause_s seconds, then the rest (a slow upload).
+RawAnswer RawExchange(int port, const std::string& request, double timeout_s = 10,
+                      size_t pause_after = 0, double pause_s = 0);
 
 }  // namespace linecloud

@@ -387,9 +387,11 @@ struct Server::Impl {
   }
 
   // When a request that arrives now must be answered (--request-seconds).
-  Clock::time_point Deadline() const {
-    return Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                              std::chrono::duration<double>(options.request_seconds));
+  // --request-seconds from the request's arrival (its head), the body's upload included.
+  Clock::time_point Deadline(const HttpRequest& req) const {
+    const Clock::time_point start = req.arrived == Clock::time_point{} ? Clock::now() : req.arrived;
+    return start + std::chrono::duration_cast<Clock::duration>(
+                       std::chrono::duration<double>(options.request_seconds));
   }
 
   // Runs `job` on a worker within the request's deadline: 503 when the queue
@@ -526,7 +528,7 @@ struct Server::Impl {
     const auto map = FindMap(id, token);
     (*log)["map"] = id;
     Throttle(token);
-    const Clock::time_point deadline = Deadline();
+    const Clock::time_point deadline = Deadline(req);
     const std::string type = req.Header("Content-Type");
     if (!req.multipart && type.rfind("application/json", 0) != 0) {
       Throw(415, "send multipart/form-data (image + camera) or application/json (features)");
@@ -666,7 +668,7 @@ struct Server::Impl {
     (*log)["map"] = id;
     if (!map->anchor) Throw(404, "the map has no geo-anchor");
     Throttle(token);
-    const Clock::time_point deadline = Deadline();
+    const Clock::time_point deadline = Deadline(req);
     json j = ParseBody(req.body, "GeoPoseReq", deadline);
     const json* reading = nullptr;
     if (j.is_object() && j.contains("sensorReadings") && j["sensorReadings"].is_object() &&
