@@ -173,3 +173,30 @@ def test_lines_in_a_wrong_layout_are_refused_naming_the_line():
     b, _ = lc.estimate_pose("p6L", xy, scaled, camera, ransac={"seed": 1})
     np.testing.assert_allclose(a["q"], b["q"], atol=1e-9)
     np.testing.assert_allclose(a["t"], b["t"], atol=1e-9)
+
+
+def test_ctrl_c_stops_a_long_estimate_pose():
+    """estimate_pose polls Python's signal handlers while RANSAC runs without the GIL: Ctrl-C
+    ends a run of 10^8 iterations (it was ignored: an outsider's run went on for 14 min)."""
+    import signal
+    import threading
+    import time
+    rng = np.random.default_rng(1)
+    points = rng.uniform(-1, 1, (100, 3)) + [0, 0, 5]
+    v = rng.normal(size=(100, 3))
+    v /= np.linalg.norm(v, axis=1)[:, None]
+    camera = {"model": "PINHOLE", "width": 1000, "height": 1000, "params": [500, 500, 500, 500]}
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    timer = threading.Timer(0.5, lambda: signal.raise_signal(signal.SIGINT))
+    start = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            lc.estimate_pose("p6L", rng.uniform(0, 1000, (100, 2)),
+                             np.hstack([v, np.cross(points, v)]), camera,
+                             ransac={"min_iterations": 10**8, "max_iterations": 10**8,
+                                     "max_seconds": 30})
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    timer.join()
+    assert 0.5 <= time.monotonic() - start < 3

@@ -254,11 +254,20 @@ py::tuple EstimatePose(const std::string& method, py::handle points2D, py::handl
                        py::handle cam_from_rig) {
   const Estimate e = MakeEstimate(method, points2D, map_side, camera, ransac, refine, success,
                                   gravity, map_gravity, points_local, cam_from_rig);
+  // Ctrl-C: RANSAC polls Python's signal handlers while it runs without the GIL (a handler that
+  // raises stops it and the exception is raised here); at exit the thread parks (bindings.h).
+  LocalizeOptions options = e.options;
+  options.ransac.should_stop = [] {
+    ParkIfInterpreterExiting();
+    py::gil_scoped_acquire gil;
+    return PyErr_CheckSignals() != 0;
+  };
   LocalizeResult r;
   {
     GilReleased release;
-    r = Localize(*e.method, e.query, e.map, e.options, kEstimate);
+    r = Localize(*e.method, e.query, e.map, options, kEstimate);
   }
+  if (PyErr_Occurred()) throw py::error_already_set();
   return ResultToPython(e, r);
 }
 
