@@ -187,12 +187,6 @@ RegistrationImage ImageRow(const EvalGroup& g, const EvalImage& im, const GroupR
   return row;
 }
 
-double Mean(const std::vector<double>& v) {
-  double s = 0;
-  for (const double x : v) s += x;
-  return v.empty() ? 0.0 : s / v.size();
-}
-
 RegistrationSummary Summary(const std::vector<RegistrationImage>& images) {
   std::vector<double> c_rot, c_pos, c_sec, p_rot, p_pos, p_sec;
   RegistrationSummary s;

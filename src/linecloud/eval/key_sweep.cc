@@ -122,13 +122,11 @@ KeySweepReport RunKeySweep(const KeySweepOptions& options) {
     }
   }
   for (const auto& [name, t] : tallies) {
-    double sum = 0;
-    for (const double ms : t.ransac_ms) sum += ms;
     report.methods[name] = {t.queries,
                             t.successes,
                             t.localized,
                             t.wrong,
-                            t.ransac_ms.empty() ? 0.0 : sum / t.ransac_ms.size(),
+                            Mean(t.ransac_ms),
                             Percentile(t.ransac_ms, 50),
                             Percentile(t.ransac_ms, 99)};
   }

@@ -17,6 +17,10 @@ namespace linecloud::python {
 void ParkIfInterpreterExiting();
 void WaitForLongCallsToPark();  // the atexit hook's wait
 
+// A long call's should_stop (RANSAC polls it): true when a Python signal handler raised (Ctrl-C),
+// the exception left set for the caller to raise; parks the thread when the interpreter exits.
+bool PythonSignalRaised();
+
 // The GIL released around a long call and taken back after it (pybind11's gil_scoped_release),
 // counting the call as running until it returns or parks.
 class GilReleased {

@@ -257,11 +257,7 @@ py::tuple EstimatePose(const std::string& method, py::handle points2D, py::handl
   // Ctrl-C: RANSAC polls Python's signal handlers while it runs without the GIL (a handler that
   // raises stops it and the exception is raised here); at exit the thread parks (bindings.h).
   LocalizeOptions options = e.options;
-  options.ransac.should_stop = [] {
-    ParkIfInterpreterExiting();
-    py::gil_scoped_acquire gil;
-    return PyErr_CheckSignals() != 0;
-  };
+  options.ransac.should_stop = PythonSignalRaised;
   LocalizeResult r;
   {
     GilReleased release;

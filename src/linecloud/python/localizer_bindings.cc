@@ -159,11 +159,7 @@ Request MakeRequest(const PyLocalizer& self, const py::kwargs& kwargs, const std
   r.request.scale_known = BoolOption(o, "scale_known", where);
   // Ctrl-C: the request polls Python's signal handlers while it runs without
   // the GIL (a handler that raises stops it; ResultToDict re-raises).
-  r.request.should_stop = [] {
-    ParkIfInterpreterExiting();
-    py::gil_scoped_acquire gil;
-    return PyErr_CheckSignals() != 0;
-  };
+  r.request.should_stop = PythonSignalRaised;
   if (!rig.is_none()) {
     if (!py::isinstance<py::list>(rig) && !py::isinstance<py::tuple>(rig)) {
       throw py::type_error(where + ": cam_from_rig must be a list of pose dicts");

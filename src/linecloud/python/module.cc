@@ -47,6 +47,12 @@ void ParkIfInterpreterExiting() {
   for (;;) std::this_thread::sleep_for(std::chrono::hours(1));
 }
 
+bool PythonSignalRaised() {
+  ParkIfInterpreterExiting();
+  py::gil_scoped_acquire gil;
+  return PyErr_CheckSignals() != 0;
+}
+
 void WaitForLongCallsToPark() {
   exiting = true;
   GilReleased release;  // (this thread's own release is not counted as a call)

@@ -7,6 +7,13 @@
 
 namespace linecloud {
 
+// Arithmetic mean; 0 for no values.
+inline double Mean(const std::vector<double>& values) {
+  double sum = 0;
+  for (const double v : values) sum += v;
+  return values.empty() ? 0.0 : sum / static_cast<double>(values.size());
+}
+
 // Upper median (the element at n/2 after sorting); 0 for no values.
 inline double Median(std::vector<double> values) {
   if (values.empty()) return 0;
