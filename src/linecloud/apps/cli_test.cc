@@ -15,6 +15,7 @@
 #include "linecloud/io/json_util.h"
 #include "linecloud/io/track_descriptors.h"
 #include "linecloud/lifting/lifting.h"
+#include "linecloud/privacy/audit_report.h"
 #include "linecloud/privacy/two_key_attack.h"
 #include "linecloud/synthetic/minimal_instances.h"
 #include <nlohmann/json.hpp>
@@ -932,6 +933,15 @@ TEST(Cli, AuditMeasuresWhatLeaksFromARealMap) {
   }
   EXPECT_NE(ReadFileToString(tmp.Path("audit/report.md")).find("| 1 % of the diagonal |"),
             std::string::npos);
+  // report.json is the typed report: read back, it writes the same JSON and renders the same
+  // report.md.
+  const nlohmann::json written = ReadJsonFile(tmp.Path("audit/report.json"));
+  EXPECT_EQ(written, report);
+  const AuditReport typed = AuditReportFromJson(written, "report.json");
+  EXPECT_EQ(nlohmann::json(ToJson(typed)), written);
+  EXPECT_EQ(AuditMarkdown(typed), ReadFileToString(tmp.Path("audit/report.md")));
+  ASSERT_TRUE(typed.pairing_attacks.by_crossing.has_value());
+  EXPECT_EQ(typed.two_keys->pairing, "crossing");
   EXPECT_EQ(ReadFileToString(tmp.Path("map.lcm")), map_before);
   // The attacker's own command: the same recovery, without the model.
   r = RunCli({"attack", "--map", tmp.Path("map.lcm"), "--out", tmp.Path("rec.ply"), "--quiet"});

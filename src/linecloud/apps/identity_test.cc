@@ -86,8 +86,8 @@ std::string RenamedDatabase(const std::string& database, const std::string& copy
 }
 
 // The attacks on `map` (lifted from `model`) with `other` beside it.
-nlohmann::ordered_json Attack(const std::string& map, const std::string& model,
-                              const std::string& other, const std::string& store) {
+PairingAttacksReport Attack(const std::string& map, const std::string& model,
+                            const std::string& other, const std::string& store) {
   AuditOptions o;
   o.map_path = map;
   o.model_dir = model;
@@ -96,18 +96,21 @@ nlohmann::ordered_json Attack(const std::string& map, const std::string& model,
   o.skip_density_attack = true;
   o.crossing_tolerance = 1e-4;
   o.recovered_within = 1e-4;
-  return RunAudit(o)["pairing_attacks"];
+  return RunAudit(o).pairing_attacks;
 }
 
-void ExpectNothingBeyondNoise(const nlohmann::ordered_json& p, const std::string& what) {
-  SCOPED_TRACE(what + ": " + p.dump());
-  for (const char* pairing : {"by_id", "by_descriptor", "by_crossing"}) {
-    ASSERT_TRUE(p.contains(pairing)) << pairing;
-    EXPECT_LE(p[pairing]["share_recovered_beyond_own"].get<double>(), 0.01) << pairing;
+void ExpectNothingBeyondNoise(const PairingAttacksReport& p, const std::string& what) {
+  SCOPED_TRACE(what);
+  for (const auto& [name, pairing] : {std::pair{"by_id", &p.by_id},
+                                      {"by_descriptor", &p.by_descriptor},
+                                      {"by_crossing", &p.by_crossing}}) {
+    ASSERT_TRUE(pairing->has_value()) << name;
+    EXPECT_LE((*pairing)->share_recovered_beyond_own.value(), 0.01)
+        << name << ": " << (*pairing)->recovered << " recovered";
   }
   // The descriptor pairing recovers nothing at all: a version's point keeps
   // its released direction, so its two lines are parallel.
-  EXPECT_LE(p["by_descriptor"]["share_recovered"].get<double>(), 0.01);
+  EXPECT_LE(p.by_descriptor->share_recovered, 0.01);
 }
 
 // A copy of `model` with its point ids changed by `rename`.
@@ -432,8 +435,9 @@ TEST(Identity, PointsAtOnePlaceInOneMapGetParallelLines) {
   a.skip_density_attack = true;
   a.other_map_path = tmp.Path("m.lcm");  // itself: every line parallel to its twin
   a.crossing_tolerance = 1e-4;
-  const auto p = RunAudit(a)["pairing_attacks"];
-  EXPECT_EQ(p["by_id"]["recovered"].get<size_t>(), 0u) << p.dump();
+  const PairingAttacksReport p = RunAudit(a).pairing_attacks;
+  ASSERT_TRUE(p.by_id.has_value());
+  EXPECT_EQ(p.by_id->recovered, 0u) << p.by_id->intersections << " intersections";
 }
 
 }  // namespace

@@ -67,8 +67,7 @@ void RunAuditCommand(AuditOptions options, bool quiet) {
     RefuseOutputOverInputs(options.out_dir,
                            {options.map_path, options.other_map_path, options.model_dir}, "--out");
   }
-  const nlohmann::ordered_json report = RunAudit(options);
-  std::cout << report.dump(2) << "\n";
+  std::cout << ToJson(RunAudit(options)).dump(2) << "\n";
 }
 
 }  // namespace

@@ -154,6 +154,26 @@ int JsonFields::Int(const char* key) const {
   return v.get<int>();
 }
 
+size_t JsonFields::Count(const char* key) const {
+  const nlohmann::json& v = At(key);
+  if (!v.is_number_unsigned() && !(v.is_number_integer() && v.get<int64_t>() >= 0)) {
+    Fail("{}: {} is not a count (an integer >= 0)", Where(key), ShownInMessage(v));
+  }
+  return static_cast<size_t>(v.get<uint64_t>());
+}
+
+double JsonFields::Share(const char* key) const {
+  const double v = Number(key);
+  if (!(v >= 0 && v <= 1)) Fail("{}: {} is not a share in [0, 1]", Where(key), v);
+  return v;
+}
+
+double JsonFields::NonNegative(const char* key) const {
+  const double v = Number(key);
+  if (!(v >= 0) || !std::isfinite(v)) Fail("{}: {} is not a finite number >= 0", Where(key), v);
+  return v;
+}
+
 bool JsonFields::Bool(const char* key) const {
   const nlohmann::json& v = At(key);
   if (!v.is_boolean()) Fail("{}: {} is not true or false", Where(key), ShownInMessage(v));

@@ -48,6 +48,9 @@ class JsonFields {
   double NumberOrNull(const char* key, double if_null) const;  // null: a non-finite value
   std::optional<double> Optional(const char* key, double if_null) const;  // absent: nullopt
   int Int(const char* key) const;
+  size_t Count(const char* key) const;        // an integer >= 0
+  double Share(const char* key) const;        // a number in [0, 1]
+  double NonNegative(const char* key) const;  // a finite number >= 0
   bool Bool(const char* key) const;
   std::string String(const char* key) const;
   std::string StringOr(const char* key, const std::string& otherwise) const;

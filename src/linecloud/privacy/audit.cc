@@ -24,8 +24,6 @@
 namespace linecloud {
 namespace {
 
-using ojson = nlohmann::ordered_json;
-
 // recovered.ply's colours: audit.png's (audit_figure.h), as bytes.
 std::vector<std::array<uint8_t, 3>> ErrorColours(const RecoveryScore& s) {
   std::vector<std::array<uint8_t, 3>> colours;
@@ -38,43 +36,43 @@ std::vector<std::array<uint8_t, 3>> ErrorColours(const RecoveryScore& s) {
   return colours;
 }
 
-ojson DensityAttackJson(const DensityAttackResult& r, const DensityAttackOptions& o,
-                        const RecoveryScore& score) {
-  ojson j = {{"method", "Chelani, Kahl, Sattler, CVPR 2021 (density of the line cloud)"},
-             {"line_neighbours", r.line_neighbours},
-             {"refine_rounds", o.refine_rounds},
-             {"refine_neighbours", o.refine_neighbours},
-             {"lines_without_votes", r.lines_without_votes},
-             {"seconds", r.seconds}};
-  j["recovery"] = RecoveryJson(score);
+DensityAttackReport DensityAttackOf(const DensityAttackResult& r, const DensityAttackOptions& o,
+                                    const RecoveryScore& score) {
+  DensityAttackReport a;
+  a.method = "Chelani, Kahl, Sattler, CVPR 2021 (density of the line cloud)";
+  a.line_neighbours = r.line_neighbours;
+  a.refine_rounds = o.refine_rounds;
+  a.refine_neighbours = o.refine_neighbours;
+  a.lines_without_votes = r.lines_without_votes;
+  a.seconds = r.seconds;
+  a.recovery = SummarizeRecovery(score);
   if (r.lines_without_votes == r.points.size()) {
-    j["why_nothing"] =
+    a.why_nothing =
         "no two lines of the map cross at an angle (all parallel): no line has a "
         "vote, and every estimate is the line's anchor";
   }
-  return j;
+  return a;
 }
 
-ojson TwoKeyJson(const TwoLiftingsAttack& attack, const std::vector<Eigen::Vector3d>& secret,
-                 double diagonal, size_t lines, const std::string& other) {
-  size_t exact = 0;
+TwoKeyReport TwoKeyOf(const TwoLiftingsAttack& attack, const std::vector<Eigen::Vector3d>& secret,
+                      double diagonal, size_t lines, const std::string& other) {
+  TwoKeyReport t;
   for (size_t k = 0; k < attack.points.size(); ++k) {
-    exact += (attack.points[k] - secret[attack.indices[k]]).norm() <= 1e-6 * diagonal;
+    t.recovered_exactly += (attack.points[k] - secret[attack.indices[k]]).norm() <= 1e-6 * diagonal;
   }
-  ojson j = {{"other_map", other},
-             {"pairing", attack.pairing},
-             {"pairs", attack.shared_ids},
-             {"parallel_pairs", attack.parallel},
-             {"recovered", attack.points.size()},
-             {"recovered_exactly", exact},
-             {"share_recovered_exactly", lines ? static_cast<double>(exact) / lines : 0.0},
-             {"exact_means", "within 1e-6 of the scene diagonal"}};
-  if (exact == 0) {
-    j["why_nothing"] =
+  t.other_map = other;
+  t.pairing = attack.pairing;
+  t.pairs = attack.shared_ids;
+  t.parallel_pairs = attack.parallel;
+  t.recovered = attack.points.size();
+  t.share_recovered_exactly = lines ? static_cast<double>(t.recovered_exactly) / lines : 0.0;
+  t.exact_means = "within 1e-6 of the scene diagonal";
+  if (t.recovered_exactly == 0) {
+    t.why_nothing =
         "no line of the other map crosses a line of this map in one of its points: "
         "the maps hold no common point (another scene, or a disjoint part of it)";
   }
-  return j;
+  return t;
 }
 
 // The points of `a` (the audited map) an attack recovers: those with an
@@ -97,27 +95,26 @@ size_t CountRecovered(const TwoLiftingsAttack& attack, const std::vector<size_t>
 
 // `own`: the points the map's own crossings recover; a pairing of two maps is
 // then also scored by what it recovers beyond them (what the second map adds).
-ojson PairingJson(const TwoLiftingsAttack& attack, const std::vector<size_t>* partner,
-                  const std::vector<Eigen::Vector3d>& secret, double within, double seconds,
-                  std::vector<uint8_t>* recovered, const std::vector<uint8_t>* own = nullptr) {
-  const size_t n = CountRecovered(attack, partner, secret, within, recovered);
-  size_t beyond = 0;
+PairingReport PairingOf(const TwoLiftingsAttack& attack, const std::vector<size_t>* partner,
+                        const std::vector<Eigen::Vector3d>& secret, double within, double seconds,
+                        std::vector<uint8_t>* recovered,
+                        const std::vector<uint8_t>* own = nullptr) {
+  const double points = static_cast<double>(secret.size());
+  PairingReport p;
+  p.pairing = attack.pairing;
+  p.pairs = attack.shared_ids;
+  p.parallel_pairs = attack.parallel;
+  p.intersections = attack.points.size();
+  p.recovered = CountRecovered(attack, partner, secret, within, recovered);
+  p.share_recovered = secret.empty() ? 0.0 : p.recovered / points;
+  p.seconds = seconds;
   if (own) {
+    size_t beyond = 0;
     for (size_t i = 0; i < recovered->size(); ++i) beyond += (*recovered)[i] && !(*own)[i];
+    p.recovered_beyond_own = beyond;
+    p.share_recovered_beyond_own = secret.empty() ? 0.0 : beyond / points;
   }
-  ojson j = {{"pairing", attack.pairing},
-             {"pairs", attack.shared_ids},
-             {"parallel_pairs", attack.parallel},
-             {"intersections", attack.points.size()},
-             {"recovered", n},
-             {"share_recovered", secret.empty() ? 0.0 : static_cast<double>(n) / secret.size()},
-             {"seconds", seconds}};
-  if (own) {
-    j["recovered_beyond_own"] = beyond;
-    j["share_recovered_beyond_own"] =
-        secret.empty() ? 0.0 : static_cast<double>(beyond) / secret.size();
-  }
-  return j;
+  return p;
 }
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
@@ -128,42 +125,43 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 // different directions cross there), and with `other` (another version or
 // lifting of the model) what pairing the two maps by equal id, by nearest
 // descriptor and by crossing lines recovers.
-ojson PairingAttacksJson(const LineCloud& cloud, const LineCloud* other,
-                         const std::vector<Eigen::Vector3d>& secret, double diagonal,
-                         const AuditOptions& o) {
+PairingAttacksReport PairingAttacksOf(const LineCloud& cloud, const LineCloud* other,
+                                      const std::vector<Eigen::Vector3d>& secret, double diagonal,
+                                      const AuditOptions& o) {
   const Eigen::AlignedBox3d box = RobustBox(secret, 0.005, 0.05);
   const double tolerance = o.crossing_tolerance * diagonal;
   const double within = o.recovered_within * diagonal;
-  ojson j = {{"crossing_tolerance_diagonal", o.crossing_tolerance},
-             {"recovered_within_diagonal", o.recovered_within}};
+  PairingAttacksReport p;
+  p.crossing_tolerance_diagonal = o.crossing_tolerance;
+  p.recovered_within_diagonal = o.recovered_within;
   auto start = std::chrono::steady_clock::now();
   std::vector<size_t> partner;
   const TwoLiftingsAttack self = IntersectSelfCrossings(cloud, box, tolerance, &partner);
   std::vector<uint8_t> own, recovered;
-  j["self_crossings"] = PairingJson(self, &partner, secret, within, SecondsSince(start), &own);
-  if (!other) return j;
+  p.self_crossings = PairingOf(self, &partner, secret, within, SecondsSince(start), &own);
+  if (!other) return p;
   start = std::chrono::steady_clock::now();
-  j["by_id"] = PairingJson(IntersectLinesOfEqualId(cloud, *other), nullptr, secret, within,
-                           SecondsSince(start), &recovered, &own);
+  p.by_id = PairingOf(IntersectLinesOfEqualId(cloud, *other), nullptr, secret, within,
+                      SecondsSince(start), &recovered, &own);
   if (cloud.has_descriptors() && other->has_descriptors() &&
       cloud.descriptor_dim == other->descriptor_dim) {
     start = std::chrono::steady_clock::now();
-    j["by_descriptor"] = PairingJson(IntersectLinesOfNearestDescriptor(cloud, *other), nullptr,
-                                     secret, within, SecondsSince(start), &recovered, &own);
+    p.by_descriptor = PairingOf(IntersectLinesOfNearestDescriptor(cloud, *other), nullptr, secret,
+                                within, SecondsSince(start), &recovered, &own);
   }
   start = std::chrono::steady_clock::now();
-  j["by_crossing"] = PairingJson(IntersectCrossingLinesInBox(cloud, *other, box, tolerance),
-                                 nullptr, secret, within, SecondsSince(start), &recovered, &own);
+  p.by_crossing = PairingOf(IntersectCrossingLinesInBox(cloud, *other, box, tolerance), nullptr,
+                            secret, within, SecondsSince(start), &recovered, &own);
   // What the second map adds: the most any pairing recovers beyond the map's
   // own crossings.
   size_t worst = 0;
-  for (const char* name : {"by_id", "by_descriptor", "by_crossing"}) {
-    if (j.contains(name)) worst = std::max(worst, j[name]["recovered_beyond_own"].get<size_t>());
+  for (const auto* a : {&p.by_id, &p.by_descriptor, &p.by_crossing}) {
+    if (*a) worst = std::max(worst, *(*a)->recovered_beyond_own);
   }
-  j["most_recovered_beyond_own"] = worst;
-  j["share_most_recovered_beyond_own"] =
+  p.most_recovered_beyond_own = worst;
+  p.share_most_recovered_beyond_own =
       secret.empty() ? 0.0 : static_cast<double>(worst) / secret.size();
-  return j;
+  return p;
 }
 
 std::string Percent(double share) { return fmt::format("{:.1f} %", 100 * share); }
@@ -233,12 +231,12 @@ std::vector<Eigen::Vector3d> SecretPointsOfLines(const LineCloud& cloud,
   return secret;
 }
 
-ojson RunAudit(const AuditOptions& o) {
+AuditReport RunAudit(const AuditOptions& o) {
   o.Check();
   return RunAudit(ReadLineCloud(o.map_path), o);
 }
 
-ojson RunAudit(const LineCloud& cloud, const AuditOptions& o) {
+AuditReport RunAudit(const LineCloud& cloud, const AuditOptions& o) {
   o.Check();
   const Reconstruction model = ReadColmapModel(o.model_dir);
   // The public demo key needs no key store (anyone can compute it).
@@ -250,17 +248,18 @@ ojson RunAudit(const LineCloud& cloud, const AuditOptions& o) {
   if (secret.empty()) Fail("{}: the map has no lines", o.map_path);
   const double diagonal = SceneDiagonal(secret);
 
-  ojson report = {{"map", o.map_path},
-                  {"model", o.model_dir},
-                  {"lines", cloud.size()},
-                  {"model_points", model.points3D.size()},
-                  {"encoding", LineEncodingName(cloud.encoding)},
-                  {"diagonal", diagonal},
-                  {"metric_scale", o.metric_scale > 0 ? ojson(o.metric_scale) : ojson(nullptr)}};
+  AuditReport report;
+  report.map = o.map_path;
+  report.model = o.model_dir;
+  report.lines = cloud.size();
+  report.model_points = model.points3D.size();
+  report.encoding = LineEncodingName(cloud.encoding);
+  report.diagonal = diagonal;
+  if (o.metric_scale > 0) report.metric_scale = o.metric_scale;
   if (!o.skip_density_attack) {
     const DensityAttackResult attack = RunDensityAttack(cloud, o.attack);
     const RecoveryScore score = ScoreRecovery(attack.points, secret, o.metric_scale);
-    report["density_attack"] = DensityAttackJson(attack, o.attack, score);
+    report.density_attack = DensityAttackOf(attack, o.attack, score);
     if (!o.out_dir.empty()) {
       CreateDirectories(o.out_dir);
       WritePointsPly(JoinPaths(o.out_dir, "recovered.ply"), attack.points, ErrorColours(score),
@@ -282,95 +281,17 @@ ojson RunAudit(const LineCloud& cloud, const AuditOptions& o) {
   if (!o.other_map_path.empty()) {
     other = ReadLineCloud(o.other_map_path);
     const TwoLiftingsAttack attack = AttackTwoLiftings(cloud, *other, o.attack.threads);
-    report["two_keys"] = TwoKeyJson(attack, secret, diagonal, cloud.size(), o.other_map_path);
+    report.two_keys = TwoKeyOf(attack, secret, diagonal, cloud.size(), o.other_map_path);
   }
-  report["pairing_attacks"] =
-      PairingAttacksJson(cloud, other ? &*other : nullptr, secret, diagonal, o);
+  report.pairing_attacks = PairingAttacksOf(cloud, other ? &*other : nullptr, secret, diagonal, o);
   if (!o.out_dir.empty()) {
     CreateDirectories(o.out_dir);
     WriteFileAtomically(JoinPaths(o.out_dir, "report.json"),
-                        [&](std::ostream& out) { out << report.dump(2) << "\n"; });
+                        [&](std::ostream& out) { out << ToJson(report).dump(2) << "\n"; });
     WriteFileAtomically(JoinPaths(o.out_dir, "report.md"),
                         [&](std::ostream& out) { out << AuditMarkdown(report); });
   }
   return report;
-}
-
-std::string AuditMarkdown(const ojson& r) {
-  std::string md = fmt::format("# Privacy audit of {}\n\n", r["map"].get<std::string>());
-  md += fmt::format(
-      "{} lines ({} encoding) lifted from {} ({} points); scene diagonal {:.4g} model "
-      "units{}.\n\n",
-      r["lines"].get<size_t>(), r["encoding"].get<std::string>(), r["model"].get<std::string>(),
-      r["model_points"].get<size_t>(), r["diagonal"].get<double>(),
-      r["metric_scale"].is_null()
-          ? ""
-          : fmt::format(" ({:.3g} m)",
-                        r["diagonal"].get<double>() * r["metric_scale"].get<double>()));
-  if (r.contains("density_attack")) {
-    const ojson& a = r["density_attack"];
-    const ojson& rec = a["recovery"];
-    md += "## Density attack (Chelani, Kahl, Sattler, CVPR 2021)\n\n";
-    md += fmt::format(
-        "What anyone holding only the map recovers: for each line, the points where its {} "
-        "nearest lines pass closest vote for the hidden point; {} refinement rounds. {:.1f} s.\n\n",
-        a["line_neighbours"].get<int>(), a["refine_rounds"].get<int>(), a["seconds"].get<double>());
-    md += "| recovered within | share of the points |\n|---|---|\n";
-    for (const auto& [p, share] : rec["within_diagonal_percent"].items()) {
-      md += fmt::format("| {} % of the diagonal | {} |\n", p, Percent(share.get<double>()));
-    }
-    if (rec.contains("within_m")) {
-      for (const auto& [m, share] : rec["within_m"].items()) {
-        md += fmt::format("| {:.0f} cm | {} |\n", 100 * std::stod(m), Percent(share.get<double>()));
-      }
-    }
-    if (a.contains("why_nothing"))
-      md += fmt::format("Nothing to vote with: {}.\n\n", a["why_nothing"].get<std::string>());
-    md += fmt::format(
-        "\nMedian error: {:.2f} % of the diagonal{}. `audit.png` shows the secret and "
-        "the recovered points side by side; `recovered.ply` the recovered points "
-        "coloured by error.\n\n",
-        rec["median_error_diagonal_percent"].get<double>(),
-        rec.contains("median_error_m")
-            ? fmt::format(" ({:.3f} m)", rec["median_error_m"].get<double>())
-            : "");
-  }
-  if (r.contains("two_keys")) {
-    const ojson& t = r["two_keys"];
-    md += "## Two liftings of one model (Speciale et al., CVPR 2019, Sec. 3.1)\n\n";
-    md += fmt::format(
-        "With {} as well, an attacker pairs the lines by {} and intersects them: "
-        "{} points recovered, {} of them exactly ({} of the map's points).\n",
-        t["other_map"].get<std::string>(), t["pairing"].get<std::string>(),
-        t["recovered"].get<size_t>(), t["recovered_exactly"].get<size_t>(),
-        Percent(t["share_recovered_exactly"].get<double>()));
-    if (t.contains("why_nothing"))
-      md += fmt::format("Nothing recovered: {}.\n", t["why_nothing"].get<std::string>());
-    md += "\nThis is why a model must only ever be lifted with its one key.\n";
-  }
-  if (r.contains("pairing_attacks")) {
-    const ojson& p = r["pairing_attacks"];
-    md += fmt::format(
-        "\n## Pairing attacks\n\nLines paired as an attacker would, intersected; a point counts "
-        "as recovered when an intersection lies within {:g} of the scene diagonal of it "
-        "(crossings: "
-        "lines within {:g} of the diagonal of each other). \"Beyond its own\": points the pairing "
-        "recovers that the map's own crossings do not (what the other map adds).\n\n| pairing | "
-        "pairs | recovered | share | beyond its own |\n|---|---|---|---|---|\n",
-        p["recovered_within_diagonal"].get<double>(),
-        p["crossing_tolerance_diagonal"].get<double>());
-    for (const char* name : {"self_crossings", "by_id", "by_descriptor", "by_crossing"}) {
-      if (!p.contains(name)) continue;
-      const ojson& a = p[name];
-      md += fmt::format("| {} | {} | {} | {} | {} |\n", a["pairing"].get<std::string>(),
-                        a["pairs"].get<size_t>(), a["recovered"].get<size_t>(),
-                        Percent(a["share_recovered"].get<double>()),
-                        a.contains("share_recovered_beyond_own")
-                            ? Percent(a["share_recovered_beyond_own"].get<double>())
-                            : std::string("—"));
-    }
-  }
-  return md;
 }
 
 }  // namespace linecloud

@@ -12,11 +12,10 @@
 #include <vector>
 
 #include <Eigen/Core>
-#include <nlohmann/json.hpp>
-
 #include "linecloud/io/colmap_model.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/lifting/line_cloud.h"
+#include "linecloud/privacy/audit_report.h"
 #include "linecloud/privacy/density_attack.h"
 
 namespace linecloud {
@@ -47,12 +46,9 @@ std::vector<Eigen::Vector3d> SecretPointsOfLines(const LineCloud& cloud,
                                                  const Reconstruction& model, const LiftingKey& key,
                                                  const std::string& map_name);
 
-// Runs the audit, writes the outputs, returns report.json's content.
-nlohmann::ordered_json RunAudit(const AuditOptions& options);
+// Runs the audit, writes the outputs, returns the report (report.json is its ToJson).
+AuditReport RunAudit(const AuditOptions& options);
 // The same on a map already read; `options.map_path` names it in the report.
-nlohmann::ordered_json RunAudit(const LineCloud& cloud, const AuditOptions& options);
-
-// report.md from report.json's content.
-std::string AuditMarkdown(const nlohmann::ordered_json& report);
+AuditReport RunAudit(const LineCloud& cloud, const AuditOptions& options);
 
 }  // namespace linecloud

@@ -64,25 +64,4 @@ double ShareWithinDiagonal(const RecoveryScore& score, double percent) {
   Fail("audit: no share within {} % of the diagonal", percent);
 }
 
-nlohmann::ordered_json RecoveryJson(const RecoveryScore& s) {
-  nlohmann::ordered_json within_d = nlohmann::ordered_json::object();
-  for (const auto& [p, share] : s.within_diagonal_percent) within_d[fmt::format("{}", p)] = share;
-  nlohmann::ordered_json j = {
-      {"points", s.points},
-      {"diagonal", s.diagonal},
-      {"median_error", s.median_error},
-      {"median_error_diagonal_percent", s.diagonal > 0 ? 100 * s.median_error / s.diagonal : 0.0},
-      {"within_diagonal_percent", within_d}};
-  if (s.metric_scale > 0) {
-    nlohmann::ordered_json within_m = nlohmann::ordered_json::object();
-    for (const auto& [m, share] : s.within_metres) within_m[fmt::format("{}", m)] = share;
-    j["metric_scale"] = s.metric_scale;
-    j["median_error_m"] = s.median_error * s.metric_scale;
-    j["within_m"] = within_m;
-  } else {
-    j["metric_scale"] = nullptr;
-  }
-  return j;
-}
-
 }  // namespace linecloud

@@ -6,7 +6,6 @@
 #include <vector>
 
 #include <Eigen/Core>
-#include <nlohmann/json.hpp>
 
 namespace linecloud {
 
@@ -32,7 +31,5 @@ RecoveryScore ScoreRecovery(std::span<const Eigen::Vector3d> recovered,
 
 // Share within `percent` % of the diagonal (one of the thresholds above).
 double ShareWithinDiagonal(const RecoveryScore& score, double percent);
-
-nlohmann::ordered_json RecoveryJson(const RecoveryScore& score);
 
 }  // namespace linecloud

@@ -85,7 +85,7 @@ py::dict Audit(py::handle cloud_or_path, const std::filesystem::path& model_dir,
   nlohmann::ordered_json report;
   {
     GilReleased release;
-    report = RunAudit(cloud, options);
+    report = ToJson(RunAudit(cloud, options));
   }
   return FromJson(report).cast<py::dict>();
 }
