@@ -583,6 +583,39 @@ TEST(EvalPrivacy, RenderReadsTheTypedReport) {
   bad["liftings"][0]["lifting"] = "resist 0.2";
   EXPECT_EQ(ErrorOf([&] { PrivacyTradeoffFromJson(bad, "t.json"); }),
             "t.json.liftings: liftings must start with the plain one");
+  // Figures no run can give are refused, naming the field, not rendered.
+  auto error_with = [&](const nlohmann::json::json_pointer& at, const nlohmann::json& value) {
+    nlohmann::json j = ToJson(r);
+    j[at] = value;
+    return ErrorOf([&] { PrivacyTradeoffFromJson(j, "t.json"); });
+  };
+  using P = nlohmann::json::json_pointer;
+  EXPECT_EQ(error_with(P("/liftings/1/attack/within_1_percent"), -0.2),
+            "t.json.liftings[1].attack.within_1_percent: -0.2 is not a share in [0, 1]");
+  EXPECT_EQ(error_with(P("/liftings/1/localization/paper_protocol/p6L/localized"), 11),
+            "t.json.liftings[1].localization.paper_protocol.p6L.localized: 11 localized of 10 "
+            "queries");
+  EXPECT_EQ(error_with(P("/liftings/1/lifting"), "a | b"),
+            "t.json.liftings[1].lifting: \"a | b\" is not a name (1 to 100 characters, no '|' "
+            "or control character)");
+  EXPECT_EQ(error_with(P("/methods/0"), "p6L\n# x"),
+            "t.json.methods[0]: \"p6L\\n# x\" is not a name (1 to 100 characters, no '|' or "
+            "control character)");
+  EXPECT_EQ(error_with(P("/liftings/0/localization/paper_protocol/p6L/median_translation"), -1),
+            "t.json.liftings[0].localization.paper_protocol.p6L.median_translation: -1 is not a "
+            "finite number >= 0");
+  // Many rows are refused before any is read.
+  nlohmann::json many = ToJson(r);
+  for (int i = 0; i < 200000; ++i) many["liftings"].push_back(many["liftings"][1]);
+  EXPECT_EQ(ErrorOf([&] { PrivacyTradeoffFromJson(many, "t.json"); }),
+            "t.json.liftings: 200002 liftings (at most 1000)");
+  // No localized query: no median (null), shown as such.
+  r.liftings[1].paper_protocol["p6L"] = {0, 10, NAN, NAN};
+  WriteFileAtomically(tmp.Path("tradeoff.json"),
+                      [&](std::ostream& o) { o << ToJson(r).dump(2) << "\n"; });
+  RenderPrivacyTradeoff(tmp.Path(""));
+  EXPECT_NE(ReadFileToString(tmp.Path("tradeoff.md")).find("| 0/10, – / – |"), std::string::npos)
+      << ReadFileToString(tmp.Path("tradeoff.md"));
 }
 
 // `eval privacy --quick` on fountain-P11 in CI ([privacy]): the attack works on

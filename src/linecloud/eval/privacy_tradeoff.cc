@@ -99,8 +99,12 @@ std::string Cell(const std::map<std::string, TradeoffLocalization>& by_method,
                  const std::string& method) {
   const TradeoffLocalization* m = FindIn(by_method, method);
   if (!m) return "–";
-  return fmt::format("{}/{}, {:.4f}° / {:.4f}", m->localized, m->queries, m->median_rotation_deg,
-                     m->median_translation);
+  // No median without a localized query (null in the report).
+  auto median = [](double v, const char* unit) {
+    return std::isfinite(v) ? fmt::format("{:.4f}{}", v, unit) : std::string("–");
+  };
+  return fmt::format("{}/{}, {} / {}", m->localized, m->queries,
+                     median(m->median_rotation_deg, "°"), median(m->median_translation, ""));
 }
 
 std::string TradeoffTable(const PrivacyTradeoffReport& r) {
@@ -208,26 +212,50 @@ ojson ToJson(const std::map<std::string, TradeoffLocalization>& by_method) {
   return j;
 }
 
+double NonNegativeOrNull(const JsonFields& f, const char* key) {
+  return f.At(key).is_null() ? NAN : f.NonNegative(key);
+}
+
 std::map<std::string, TradeoffLocalization> LocalizationFrom(const JsonFields& f) {
   std::map<std::string, TradeoffLocalization> out;
   for (const auto& [name, value] : f.raw().items()) {
     const JsonFields m = f.Object(name.c_str());
-    out[name] = {m.Int("localized"), m.Int("queries"), m.NumberOrNull("median_rotation_deg", NAN),
-                 m.NumberOrNull("median_translation", NAN)};
+    TradeoffLocalization l;
+    l.queries = m.Int("queries");
+    l.localized = m.Int("localized");
+    if (l.queries < 0 || l.localized < 0 || l.localized > l.queries) {
+      Fail("{}: {} localized of {} queries", m.Where("localized"), l.localized, l.queries);
+    }
+    l.median_rotation_deg = NonNegativeOrNull(m, "median_rotation_deg");
+    l.median_translation = NonNegativeOrNull(m, "median_translation");
+    out[name] = l;
   }
   return out;
 }
 
+// A lifting's or method's name as the report's table shows it: no cell
+// separator, no line break, not a page long.
+std::string CheckedName(const std::string& name, const std::string& where) {
+  const bool plain = std::none_of(name.begin(), name.end(), [](char c) {
+    return c == '|' || static_cast<unsigned char>(c) < 0x20;
+  });
+  if (name.empty() || name.size() > 100 || !plain) {
+    Fail("{}: {} is not a name (1 to 100 characters, no '|' or control character)", where,
+         ShownInMessage(nlohmann::json(name)));
+  }
+  return name;
+}
+
 TradeoffRow RowFrom(const JsonFields& f) {
   TradeoffRow row;
-  row.lifting = f.String("lifting");
+  row.lifting = CheckedName(f.String("lifting"), f.Where("lifting"));
   const JsonFields a = f.Object("attack");
-  row.attack.lines_per_map = a.Number("lines_per_map");
-  row.attack.within_half_percent = a.Number("within_0.5_percent");
-  row.attack.within_1_percent = a.Number("within_1_percent");
-  row.attack.within_2_percent = a.Number("within_2_percent");
-  if (!a.At("within_5cm").is_null()) row.attack.within_5cm = a.Number("within_5cm");
-  row.attack.attack_seconds = a.Number("attack_seconds");
+  row.attack.lines_per_map = a.NonNegative("lines_per_map");
+  row.attack.within_half_percent = a.Share("within_0.5_percent");
+  row.attack.within_1_percent = a.Share("within_1_percent");
+  row.attack.within_2_percent = a.Share("within_2_percent");
+  if (!a.At("within_5cm").is_null()) row.attack.within_5cm = a.Share("within_5cm");
+  row.attack.attack_seconds = a.NonNegative("attack_seconds");
   const JsonFields l = f.Object("localization");
   if (l.Has("paper_protocol")) row.paper_protocol = LocalizationFrom(l.Object("paper_protocol"));
   if (l.Has("direct_matching")) row.direct_matching = LocalizationFrom(l.Object("direct_matching"));
@@ -331,11 +359,19 @@ PrivacyTradeoffReport PrivacyTradeoffFromJson(const nlohmann::json& j, const std
   r.dataset = f.String("dataset");
   r.units = f.String("units");
   r.methods = f.Strings("methods");
+  for (size_t i = 0; i < r.methods.size(); ++i)
+    CheckedName(r.methods[i], f.Where(fmt::format("methods[{}]", i)));
   const nlohmann::json& rows = f.Array("liftings");
+  // Checked before the rows are read: a forged file of many rows is refused at once.
+  constexpr size_t kMaxLiftings = 1000;
+  if (rows.size() > kMaxLiftings) {
+    Fail("{}: {} liftings (at most {})", f.Where("liftings"), rows.size(), kMaxLiftings);
+  }
+  if (rows.empty() || !rows[0].is_object() || !rows[0].contains("lifting") ||
+      rows[0]["lifting"] != "plain")
+    Fail("{}: liftings must start with the plain one", f.Where("liftings"));
   for (size_t i = 0; i < rows.size(); ++i)
     r.liftings.push_back(RowFrom(JsonFields(rows[i], f.Where(fmt::format("liftings[{}]", i)))));
-  if (r.liftings.empty() || r.liftings.front().lifting != "plain")
-    Fail("{}: liftings must start with the plain one", f.Where("liftings"));
   return r;
 }
 
