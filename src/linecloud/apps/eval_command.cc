@@ -123,7 +123,7 @@ void RegisterEvalScores(CLI::App* eval) {
       ->capture_default_str();
   scores_cmd->add_option("--bins", scores->bins, "histogram bins")->capture_default_str();
   scores_cmd->callback([scores] {
-    const auto report = RunMatchScores(*scores);
+    const nlohmann::ordered_json report = ToJson(RunMatchScores(*scores));
     std::cout << report["histogram"].dump() << "\n" << report["top_share"].dump() << "\n";
   });
 }

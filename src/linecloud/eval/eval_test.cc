@@ -21,6 +21,7 @@
 #include "linecloud/eval/photo_bench.h"
 #include "linecloud/eval/privacy_tradeoff.h"
 #include "linecloud/eval/eval_work.h"
+#include "linecloud/eval/match_scores.h"
 #include "linecloud/features/image.h"
 #include "linecloud/lifting/key.h"
 #include "linecloud/pipeline/image_query.h"
@@ -918,6 +919,48 @@ TEST(PhotoOrientation, RawPixelsGiveTheGreyOfTheEncodedPhoto) {
   EXPECT_EQ(from_grey.pixels, decoded.pixels);
   EXPECT_NE(ErrorOf([&] { GreyImageFromPixels(raw, w, h + 1, 4, "frame"); }).find("frame"),
             std::string::npos);
+}
+
+}  // namespace
+}  // namespace linecloud
+
+namespace linecloud {
+namespace {
+
+// `eval scores`' figures from scored matches: every match in one bin, the
+// inlier share among the best-ranked, and the file's layout.
+TEST(MatchScores, HistogramsAndTopSharesOfScoredImages) {
+  std::vector<ScoredImage> images(2);
+  images[0] = {"scene", "g", "a.jpg", {}};
+  images[1] = {"scene", "g", "b.jpg", {}};
+  // a: 20 matches, the 10 best (ratio 0.1 … 0.19) inliers, the rest (0.72 …) outliers.
+  for (int i = 0; i < 10; ++i) images[0].matches.push_back({0.1f + 0.01f * i, true});
+  for (int i = 0; i < 10; ++i) images[0].matches.push_back({0.72f + 0.005f * i, false});
+  // b: 12 matches, alternating, best first; a ratio above the range counts in the last bin.
+  for (int i = 0; i < 12; ++i) images[1].matches.push_back({0.05f * i, i % 2 == 0});
+  images[1].matches.push_back({5.0f, false});
+  const MatchScoreReport r = SummarizeMatchScores(images, 0.8, 8, 4.0);
+  ASSERT_EQ(r.edges.size(), 9u);
+  EXPECT_DOUBLE_EQ(r.edges[8], 0.8);
+  long in = 0, out = 0;
+  for (size_t b = 0; b < 8; ++b) in += r.inliers[b], out += r.outliers[b];
+  EXPECT_EQ(in, 16);
+  EXPECT_EQ(out, 17);
+  EXPECT_EQ(r.inliers[1], 10 + 1);     // a's ten in [0.1, 0.2), b's 0.1 (0.15 is an outlier)
+  EXPECT_EQ(r.outliers[7], 10 + 1);    // a's ten in [0.7, 0.8), b's 5.0 clamped
+  ASSERT_EQ(r.top_shares.size(), 1u);  // only top 10: no image has 25 matches
+  EXPECT_EQ(r.top_shares[0].top, 10);
+  EXPECT_EQ(r.top_shares[0].images, 2);
+  EXPECT_DOUBLE_EQ(r.top_shares[0].inlier_share, (1.0 + 0.5) / 2);
+  ASSERT_EQ(r.per_image.size(), 2u);
+  EXPECT_EQ(r.per_image[1].matches, 13u);
+  EXPECT_EQ(r.per_image[1].inliers, 6u);
+  const nlohmann::json j = ToJson(r);
+  EXPECT_EQ(j["datasets"], nlohmann::json({"scene"}));
+  EXPECT_EQ(j["top_share"]["10"]["inlier_share"], 0.75);
+  EXPECT_EQ(j["histogram"]["inliers"][1], 11);
+  EXPECT_DOUBLE_EQ(j["per_image"][0]["inlier_ratio"].get<double>(), 0.5);
+  EXPECT_EQ(j["per_image"][1]["image"], "b.jpg");
 }
 
 }  // namespace

@@ -20,11 +20,6 @@ namespace {
 
 using ojson = nlohmann::ordered_json;
 
-struct ScoredMatch {
-  float ratio = 0;
-  bool inlier = false;
-};
-
 // The matches of one photo with their ratio and whether the ground truth
 // makes them inliers.
 std::vector<ScoredMatch> ScoreImageMatches(const EvalWork& work, const EvalImage& im,
@@ -43,12 +38,13 @@ std::vector<ScoredMatch> ScoreImageMatches(const EvalWork& work, const EvalImage
   return out;
 }
 
-ojson TopShares(const std::vector<std::vector<ScoredMatch>>& images) {
-  ojson shares = ojson::object();
+std::vector<TopShare> TopShares(const std::vector<ScoredImage>& images) {
+  std::vector<TopShare> shares;
   for (const int top : {10, 25, 50, 100, 200, 500}) {
     double sum = 0;
     int counted = 0;
-    for (std::vector<ScoredMatch> m : images) {
+    for (const ScoredImage& image : images) {
+      std::vector<ScoredMatch> m = image.matches;
       if (m.size() < static_cast<size_t>(top)) continue;
       std::stable_sort(m.begin(), m.end(), [](const ScoredMatch& a, const ScoredMatch& b) {
         return a.ratio < b.ratio;
@@ -58,8 +54,7 @@ ojson TopShares(const std::vector<std::vector<ScoredMatch>>& images) {
       sum += static_cast<double>(in) / top;
       ++counted;
     }
-    if (counted > 0)
-      shares[fmt::format("{}", top)] = {{"images", counted}, {"inlier_share", sum / counted}};
+    if (counted > 0) shares.push_back({top, counted, sum / counted});
   }
   return shares;
 }
@@ -73,15 +68,57 @@ void MatchScoreOptions::Check() const {
   if (bins < 2 || bins > 1000) Fail("eval scores: --bins must be in [2, 1000]");
 }
 
-ojson RunMatchScores(const MatchScoreOptions& options) {
+MatchScoreReport SummarizeMatchScores(const std::vector<ScoredImage>& images, double max_ratio,
+                                      int bins, double inlier_px) {
+  if (bins < 1 || !(max_ratio > 0)) Fail("eval scores: {} bins over [0, {}]", bins, max_ratio);
+  MatchScoreReport r;
+  r.inlier_px = inlier_px;
+  for (int b = 0; b <= bins; ++b) r.edges.push_back(max_ratio * b / bins);
+  r.inliers.assign(static_cast<size_t>(bins), 0);
+  r.outliers.assign(static_cast<size_t>(bins), 0);
+  for (const ScoredImage& image : images) {
+    if (r.datasets.empty() || r.datasets.back() != image.dataset)
+      r.datasets.push_back(image.dataset);
+    size_t inliers = 0;
+    for (const ScoredMatch& s : image.matches) {
+      const int b = std::clamp(static_cast<int>(s.ratio / max_ratio * bins), 0, bins - 1);
+      (s.inlier ? r.inliers : r.outliers)[static_cast<size_t>(b)]++;
+      inliers += s.inlier;
+    }
+    r.per_image.push_back({image.dataset, image.group, image.image, image.matches.size(), inliers});
+  }
+  r.top_shares = TopShares(images);
+  return r;
+}
+
+ojson ToJson(const MatchScoreReport& r) {
+  ojson top = ojson::object();
+  for (const TopShare& s : r.top_shares)
+    top[fmt::format("{}", s.top)] = {{"images", s.images}, {"inlier_share", s.inlier_share}};
+  ojson per_image = ojson::array();
+  for (const ImageMatchCount& c : r.per_image) {
+    per_image.push_back({{"dataset", c.dataset},
+                         {"group", c.group},
+                         {"image", c.image},
+                         {"matches", c.matches},
+                         {"inliers", c.inliers},
+                         {"inlier_ratio", c.matches ? double(c.inliers) / c.matches : 0.0}});
+  }
+  return {{"datasets", r.datasets},
+          {"inlier_px", r.inlier_px},
+          {"histogram",
+           {{"score", "Lowe ratio (best / second-best descriptor angle)"},
+            {"edges", r.edges},
+            {"inliers", r.inliers},
+            {"outliers", r.outliers}}},
+          {"top_share", top},
+          {"per_image", per_image}};
+}
+
+MatchScoreReport RunMatchScores(const MatchScoreOptions& options) {
   options.Check();
-  const double max_ratio = DescriptorMatchOptions{}.max_ratio;
-  std::vector<double> edges;
-  for (int b = 0; b <= options.bins; ++b) edges.push_back(max_ratio * b / options.bins);
-  std::vector<long> hist_in(static_cast<size_t>(options.bins), 0);
-  std::vector<long> hist_out(static_cast<size_t>(options.bins), 0);
-  std::vector<std::vector<ScoredMatch>> all_images;
-  ojson per_image = ojson::array(), datasets = ojson::array();
+  std::vector<ScoredImage> images;
+  std::vector<std::string> datasets;
   for (const std::string& work_dir : options.work_dirs) {
     const EvalWork work = ReadPreparedWork(work_dir);
     datasets.push_back(work.dataset);
@@ -92,36 +129,20 @@ ojson RunMatchScores(const MatchScoreOptions& options) {
       const MapDescriptors map =
           MapDescriptorsExcluding(model, JoinPaths(work_dir, "colmap/database.db"), names);
       for (const EvalImage& im : g.images) {
-        std::vector<ScoredMatch> m = ScoreImageMatches(work, im, model, map, options.inlier_px);
-        int inliers = 0;
-        for (const ScoredMatch& s : m) {
-          const int b =
-              std::clamp(static_cast<int>(s.ratio / max_ratio * options.bins), 0, options.bins - 1);
-          (s.inlier ? hist_in : hist_out)[static_cast<size_t>(b)]++;
-          inliers += s.inlier;
-        }
-        per_image.push_back({{"dataset", work.dataset},
-                             {"group", g.name},
-                             {"image", im.name},
-                             {"matches", m.size()},
-                             {"inliers", inliers},
-                             {"inlier_ratio", m.empty() ? 0.0 : double(inliers) / m.size()}});
-        LogProgress("[scores] {} {}: {} matches, {} inliers", work.dataset, im.name, m.size(),
-                    inliers);
-        all_images.push_back(std::move(m));
+        ScoredImage image{work.dataset, g.name, im.name,
+                          ScoreImageMatches(work, im, model, map, options.inlier_px)};
+        LogProgress("[scores] {} {}: {} matches, {} inliers", work.dataset, im.name,
+                    image.matches.size(),
+                    std::count_if(image.matches.begin(), image.matches.end(),
+                                  [](const ScoredMatch& s) { return s.inlier; }));
+        images.push_back(std::move(image));
       }
     }
   }
-  ojson report;
-  report["datasets"] = datasets;
-  report["inlier_px"] = options.inlier_px;
-  report["histogram"] = {{"score", "Lowe ratio (best / second-best descriptor angle)"},
-                         {"edges", edges},
-                         {"inliers", hist_in},
-                         {"outliers", hist_out}};
-  report["top_share"] = TopShares(all_images);
-  report["per_image"] = per_image;
-  WriteFileAtomically(options.out, [&](std::ostream& os) { os << report.dump(2) << "\n"; });
+  MatchScoreReport report = SummarizeMatchScores(images, DescriptorMatchOptions{}.max_ratio,
+                                                 options.bins, options.inlier_px);
+  report.datasets = datasets;
+  WriteFileAtomically(options.out, [&](std::ostream& os) { os << ToJson(report).dump(2) << "\n"; });
   return report;
 }
 

@@ -25,8 +25,48 @@ struct MatchScoreOptions {
   void Check() const;
 };
 
-// Writes and returns {"datasets": [...], "histogram": {"edges", "inliers",
-// "outliers"}, "per_image": [...], "top_share": {...}}.
-nlohmann::ordered_json RunMatchScores(const MatchScoreOptions& options);
+// One match of a query photo: its Lowe ratio, and whether the ground truth makes it an inlier.
+struct ScoredMatch {
+  float ratio = 0;
+  bool inlier = false;
+};
+
+struct ScoredImage {
+  std::string dataset, group, image;
+  std::vector<ScoredMatch> matches;
+};
+
+// The inlier share among an image's `top` best-ranked matches, averaged over
+// the images with at least `top` matches.
+struct TopShare {
+  int top = 0;
+  int images = 0;
+  double inlier_share = 0;
+};
+
+struct ImageMatchCount {
+  std::string dataset, group, image;
+  size_t matches = 0, inliers = 0;
+};
+
+struct MatchScoreReport {
+  std::vector<std::string> datasets;
+  double inlier_px = 0;
+  std::vector<double> edges;            // bins + 1 ratios over [0, max_ratio]
+  std::vector<long> inliers, outliers;  // matches per bin
+  std::vector<TopShare> top_shares;     // top 10, 25, 50, 100, 200, 500
+  std::vector<ImageMatchCount> per_image;
+};
+
+// The histograms and top shares of scored images (ratios over [0, max_ratio] in `bins` bins).
+MatchScoreReport SummarizeMatchScores(const std::vector<ScoredImage>& images, double max_ratio,
+                                      int bins, double inlier_px);
+
+// {"datasets", "inlier_px", "histogram": {"score", "edges", "inliers", "outliers"},
+// "top_share": {"10": {"images", "inlier_share"}, ...}, "per_image": [...]}.
+nlohmann::ordered_json ToJson(const MatchScoreReport& report);
+
+// Scores every query photo of the work directories; writes `out` (ToJson).
+MatchScoreReport RunMatchScores(const MatchScoreOptions& options);
 
 }  // namespace linecloud
