@@ -51,4 +51,16 @@ std::vector<LocalizationBenchRow> RunLocalizationBench(
     const LocalizationBenchOptions& options,
     const std::function<void(const std::string&)>& progress);
 
+// What `bench localize` prints: the rows under the options that made them
+// (bench_tables.cc).
+struct LocalizationBenchReport {
+  LocalizationBenchOptions options;
+  std::vector<LocalizationBenchRow> rows;
+};
+
+// {"seed", "inlier_ratio", "match_scores", "progressive_sampling", "rows"}.
+nlohmann::json ToJson(const LocalizationBenchReport& report);
+// The settings line, the table (with each row's ratio to its counterpart) and its legend.
+std::string LocalizationBenchMarkdown(const LocalizationBenchReport& report);
+
 }  // namespace linecloud

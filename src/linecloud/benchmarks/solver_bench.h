@@ -51,4 +51,15 @@ std::vector<PeerSolver> AvailablePeers();
 std::vector<SolverBenchRow> RunSolverBench(const SolverBenchOptions& options,
                                            const std::function<void(const std::string&)>& progress);
 
+// What `bench solvers` prints: the rows under the options that made them
+// (bench_tables.cc).
+struct SolverBenchReport {
+  SolverBenchOptions options;
+  std::vector<SolverBenchRow> rows;  // each method's own solver first, then its peers
+};
+
+nlohmann::json ToJson(const SolverBenchReport& report);  // {"seed", "rows"}
+// The table: µs per call, solutions, % true, and ours / peer per peer row.
+std::string SolverBenchMarkdown(const SolverBenchReport& report);
+
 }  // namespace linecloud
