@@ -141,8 +141,8 @@ void RegisterBenchServe(CLI::App& app) {
       ->capture_default_str();
   bench->add_flag("--json", *load_json, "Print JSON");
   bench->callback([load, load_json] {
-    const nlohmann::json r = RunLoad(*load);
-    std::cout << (*load_json ? r.dump(2) + "\n" : LoadMarkdown(r));
+    const LoadReport r = RunLoad(*load);
+    std::cout << (*load_json ? ToJson(r).dump(2) + "\n" : LoadMarkdown(r));
   });
 }
 

@@ -72,17 +72,17 @@ Level Drive(int port, int clients, int requests, double max_seconds,
   return level;
 }
 
-json LevelJson(const std::string& kind, int clients, const Level& l) {
-  json statuses = json::object();
-  for (const auto& [s, n] : l.statuses) statuses[std::to_string(s)] = n;
-  return {{"body", kind},
-          {"concurrency", clients},
-          {"requests", l.ms.size()},
-          {"per_second", l.seconds > 0 ? l.ms.size() / l.seconds : 0.0},
-          {"p50_ms", Percentile(l.ms, 50)},
-          {"p99_ms", Percentile(l.ms, 99)},
-          {"statuses", statuses},
-          {"poses", l.poses}};
+LoadLevel LevelOf(const std::string& kind, int clients, const Level& l) {
+  LoadLevel level;
+  level.body = kind;
+  level.concurrency = clients;
+  level.requests = l.ms.size();
+  level.per_second = l.seconds > 0 ? l.ms.size() / l.seconds : 0.0;
+  level.p50_ms = Percentile(l.ms, 50);
+  level.p99_ms = Percentile(l.ms, 99);
+  level.statuses = l.statuses;
+  level.poses = l.poses;
+  return level;
 }
 
 // Requests an attacker would send without a proxy in front, each with a
@@ -184,8 +184,8 @@ Level Sequential(int port, double seconds, const std::string& path, const std::s
   });
 }
 
-json AttackJson(int port, const LoadOptions& o, const std::string& path,
-                const std::string& features) {
+AttackSoak AttackOf(int port, const LoadOptions& o, const std::string& path,
+                    const std::string& features) {
   const Level alone = Sequential(port, o.attack_seconds, path, features);
   const size_t before = ResidentBytes();
   std::atomic<bool> stop = false;
@@ -195,42 +195,18 @@ json AttackJson(int port, const LoadOptions& o, const std::string& path,
   const Level attacked = Sequential(port, o.attack_seconds, path, features);
   stop = true;
   attack.join();
-  const size_t after = ResidentBytes();
-  json kinds = json::object();
-  for (const auto& [kind, statuses] : soak.statuses) {
-    for (const auto& [status, n] : statuses) kinds[kind][std::to_string(status)] = n;
-  }
-  const double p99_alone = Percentile(alone.ms, 99);
-  return {{"seconds", o.attack_seconds},
-          {"attackers", o.attackers},
-          {"dribblers", o.dribblers},
-          {"alone", LevelJson("features", 1, alone)},
-          {"under_attack", LevelJson("features", 1, attacked)},
-          {"p99_ratio", p99_alone > 0 ? Percentile(attacked.ms, 99) / p99_alone : 0.0},
-          {"hostile_requests", soak.requests},
-          {"hostile_statuses", kinds},
-          {"rss_before_mb", before / 1e6},
-          {"rss_after_mb", after / 1e6}};
-}
-
-std::string AttackMarkdown(const json& a) {
-  std::string md = fmt::format(
-      "\nOne client's feature requests, {:.0f} s alone, then {:.0f} s while {} threads send "
-      "hostile requests ({} sent) and {} sockets dribble headers:\n\n"
-      "| | requests | p50 ms | p99 ms | statuses |\n|---|---|---|---|---|\n",
-      a["seconds"].get<double>(), a["seconds"].get<double>(), a["attackers"].get<int>(),
-      a["hostile_requests"].get<int>(), a["dribblers"].get<int>());
-  for (const char* phase : {"alone", "under_attack"}) {
-    const json& l = a[phase];
-    md += fmt::format("| {} | {} | {:.1f} | {:.1f} | {} |\n", phase, l["requests"].get<size_t>(),
-                      l["p50_ms"].get<double>(), l["p99_ms"].get<double>(), l["statuses"].dump());
-  }
-  md += fmt::format(
-      "\np99 under attack / alone: {:.2f}; resident memory {:.1f} -> {:.1f} MB; hostile "
-      "statuses by kind: {}\n",
-      a["p99_ratio"].get<double>(), a["rss_before_mb"].get<double>(),
-      a["rss_after_mb"].get<double>(), a["hostile_statuses"].dump());
-  return md;
+  AttackSoak a;
+  a.rss_after_mb = ResidentBytes() / 1e6;
+  a.rss_before_mb = before / 1e6;
+  a.seconds = o.attack_seconds;
+  a.attackers = o.attackers;
+  a.dribblers = o.dribblers;
+  a.alone = LevelOf("features", 1, alone);
+  a.under_attack = LevelOf("features", 1, attacked);
+  a.p99_ratio = a.alone.p99_ms > 0 ? a.under_attack.p99_ms / a.alone.p99_ms : 0.0;
+  a.hostile_requests = static_cast<size_t>(soak.requests);
+  a.hostile_statuses = soak.statuses;
+  return a;
 }
 
 }  // namespace
@@ -328,14 +304,14 @@ void LoadOptions::Check() const {
 }
 
 // Levels of rig requests: the frames' client features (JSON), then their photos (multipart).
-void RigLevels(int port, const LoadOptions& o, const std::string& path, json* report) {
+void RigLevels(int port, const LoadOptions& o, const std::string& path, LoadReport* report) {
   const RigFile rig = ReadRigJson(o.rig);
   const std::string features =
       ClientRigJson(o.rig_photos, {o.camera}, rig, SiftOptions{}.extractor, o.max_features);
   std::vector<std::string> photos;
   for (const std::string& p : o.rig_photos) photos.push_back(ReadFileToString(p));
   const httplib::MultipartFormDataItems parts = RigParts(photos, o.camera, rig);
-  (*report)["rig_frames"] = photos.size();
+  report->rig_frames = photos.size();
   for (const bool as_photos : {false, true}) {
     if (as_photos && !o.photos) continue;
     for (const int c : o.concurrency) {
@@ -343,13 +319,13 @@ void RigLevels(int port, const LoadOptions& o, const std::string& path, json* re
         return as_photos ? client.Post(path.c_str(), parts)
                          : client.Post(path.c_str(), features, "application/json");
       });
-      (*report)["levels"].push_back(LevelJson(
+      report->levels.push_back(LevelOf(
           fmt::format("rig of {} {}", photos.size(), as_photos ? "photos" : "features"), c, l));
     }
   }
 }
 
-json RunLoad(const LoadOptions& o) {
+LoadReport RunLoad(const LoadOptions& o) {
   o.Check();
   if (sodium_init() < 0) Fail("libsodium could not be initialised");
   ServeOptions so = o.serve;
@@ -363,12 +339,12 @@ json RunLoad(const LoadOptions& o) {
   const size_t num_features = json::parse(features)["keypoints"].size();
   const std::string photo = ReadFileToString(o.photo);
   const std::string path = "/v1/maps/" + o.map_id + "/localize";
-  json report = {{"map", o.map_id},
-                 {"client_features", num_features},
-                 {"workers", so.threads},
-                 {"queue", so.queue},
-                 {"hardware_threads", std::thread::hardware_concurrency()},
-                 {"levels", json::array()}};
+  LoadReport report;
+  report.map = o.map_id;
+  report.client_features = num_features;
+  report.workers = so.threads;
+  report.queue = so.queue;
+  report.hardware_threads = std::thread::hardware_concurrency();
   try {
     for (const bool photos : {false, true}) {
       if (photos && !o.photos) continue;
@@ -379,7 +355,7 @@ json RunLoad(const LoadOptions& o) {
                                                {"image", photo, "photo.jpg", "image/jpeg"},
                                                {"camera", o.camera, "", ""}});
         });
-        report["levels"].push_back(LevelJson(photos ? "photo" : "features", c, l));
+        report.levels.push_back(LevelOf(photos ? "photo" : "features", c, l));
       }
     }
     if (!o.rig.empty()) RigLevels(port, o, path, &report);
@@ -390,12 +366,9 @@ json RunLoad(const LoadOptions& o) {
             return client.Post(path.c_str(), features, "application/json");
           });
       const size_t after = ResidentBytes();
-      report["leak_check"] = {{"requests", l.ms.size()},
-                              {"rss_before_mb", before / 1e6},
-                              {"rss_after_mb", after / 1e6},
-                              {"statuses", LevelJson("features", 2, l)["statuses"]}};
+      report.leak_check = LeakCheck{l.ms.size(), before / 1e6, after / 1e6, l.statuses};
     }
-    if (o.attack_seconds > 0) report["attack"] = AttackJson(port, o, path, features);
+    if (o.attack_seconds > 0) report.attack = AttackOf(port, o, path, features);
   } catch (...) {
     server.Stop();
     runner.join();
@@ -404,33 +377,6 @@ json RunLoad(const LoadOptions& o) {
   server.Stop();
   runner.join();
   return report;
-}
-
-std::string LoadMarkdown(const json& r) {
-  std::string md = fmt::format(
-      "bench serve: map {}, {} client features a request, {} workers, queue {}, {} hardware "
-      "threads; client and server on 127.0.0.1\n\n| body | concurrency | requests | req/s | p50 ms "
-      "| p99 ms | statuses | poses |\n"
-      "|---|---|---|---|---|---|---|---|\n",
-      r["map"].get<std::string>(), r["client_features"].get<size_t>(), r["workers"].get<int>(),
-      r["queue"].get<int>(), r["hardware_threads"].get<unsigned>());
-  for (const json& l : r["levels"]) {
-    md += fmt::format("| {} | {} | {} | {:.1f} | {:.0f} | {:.0f} | {} | {} |\n",
-                      l["body"].get<std::string>(), l["concurrency"].get<int>(),
-                      l["requests"].get<size_t>(), l["per_second"].get<double>(),
-                      l["p50_ms"].get<double>(), l["p99_ms"].get<double>(), l["statuses"].dump(),
-                      l["poses"].get<int>());
-  }
-  if (r.contains("leak_check")) {
-    const json& k = r["leak_check"];
-    md += fmt::format(
-        "\n{} more feature requests: resident memory {:.1f} MB before, {:.1f} MB "
-        "after; statuses {}\n",
-        k["requests"].get<size_t>(), k["rss_before_mb"].get<double>(),
-        k["rss_after_mb"].get<double>(), k["statuses"].dump());
-  }
-  if (r.contains("attack")) md += AttackMarkdown(r["attack"]);
-  return md;
 }
 
 }  // namespace linecloud

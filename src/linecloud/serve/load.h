@@ -14,6 +14,7 @@
 
 #include "linecloud/features/sift.h"
 #include "linecloud/localize/query_json.h"
+#include "linecloud/serve/load_report.h"
 #include "linecloud/serve/server.h"
 
 namespace linecloud {
@@ -47,7 +48,7 @@ struct LoadOptions {
   void Check() const;
 };
 
-nlohmann::json RunLoad(const LoadOptions& options);
+LoadReport RunLoad(const LoadOptions& options);
 
 // The JSON body of a client-features request (docs/http_api.md) for a photo:
 // its SIFT by `extractor`, keypoints in COLMAP's pixel convention,
@@ -64,6 +65,5 @@ std::string ClientRigJson(const std::vector<std::string>& photos,
                           const std::vector<std::string>& cameras, const RigFile& rig,
                           SiftExtractor extractor = SiftExtractor::kColmap,
                           int max_features = 8192);
-std::string LoadMarkdown(const nlohmann::json& report);
 
 }  // namespace linecloud
