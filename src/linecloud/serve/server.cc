@@ -35,6 +35,7 @@
 #include "linecloud/pipeline/localizer_option_table.h"
 #include "linecloud/pipeline/localizer_result_json.h"
 #include "linecloud/serve/geo.h"
+#include "linecloud/serve/geopose_request.h"
 #include "linecloud/serve/http.h"
 #include "linecloud/serve/localize_body.h"
 #include "linecloud/serve/map_registry.h"
@@ -127,37 +128,6 @@ struct HttpError {
 
 [[noreturn]] void Throw(int status, std::string message, double retry_after = 0) {
   throw HttpError{status, std::move(message), retry_after};
-}
-
-// A GeoPoseReq's fields beyond OSCP's (v2) would be ignored: an "options" or a "threshold" the
-// client believes it set. Refused, naming the field (Error). An imageOrientation other than
-// upright is refused too: the photo is used as its pixels stand.
-void CheckGeoPoseReqFields(const json& request, const json& reading) {
-  const auto only = [](const json& j, std::initializer_list<std::string_view> known,
-                       std::string_view where) {
-    for (const auto& [key, value] : j.items()) {
-      if (std::find(known.begin(), known.end(), key) == known.end()) {
-        Fail("{}unknown field {} ({})", where, ShownInMessage(key), fmt::join(known, ", "));
-      }
-    }
-  };
-  only(request, {"id", "timestamp", "type", "sensors", "sensorReadings", "priorPose"}, "");
-  only(reading,
-       {"timestamp", "sensorId", "privacy", "sequenceNumber", "imageFormat", "size", "imageBytes",
-        "imageOrientation", "params"},
-       "cameraReadings[0]: ");
-  if (reading.contains("imageOrientation")) {
-    const json& o = reading["imageOrientation"];
-    const bool upright =
-        o.is_object() && (!o.contains("mirrored") || o["mirrored"] == false) &&
-        (!o.contains("rotation") || (o["rotation"].is_number() && o["rotation"] == 0));
-    if (!upright) {
-      Fail(
-          "cameraReadings[0].imageOrientation: {} is not applied by this server; send the photo "
-          "upright (rotation 0, not mirrored)",
-          ShownInMessage(o));
-    }
-  }
 }
 
 // The pose (cam_from_world, or rig_from_world for a device's frames; with
@@ -671,21 +641,12 @@ struct Server::Impl {
     const Clock::time_point deadline = Deadline(req);
     json j = ParseBody(req.body, "GeoPoseReq", deadline);
     const json* reading = nullptr;
-    if (j.is_object() && j.contains("sensorReadings") && j["sensorReadings"].is_object() &&
-        j["sensorReadings"].contains("cameraReadings") &&
-        j["sensorReadings"]["cameraReadings"].is_array() &&
-        !j["sensorReadings"]["cameraReadings"].empty()) {
-      reading = &j["sensorReadings"]["cameraReadings"][0];
-    }
-    if (!reading || !reading->is_object()) {
-      Throw(400, "GeoPoseReq: sensorReadings.cameraReadings[0] is missing");
-    }
-    const json& c = *reading;
     Camera camera;
     auto image = std::make_shared<GreyImage>();
     auto bytes = std::make_shared<std::string>();
     try {
-      CheckGeoPoseReqFields(j, c);
+      reading = &CheckGeoPoseReq(j);
+      const json& c = *reading;
       if (!c.contains("imageBytes") || !c["imageBytes"].is_string()) Fail("imageBytes is missing");
       if (!c.contains("size") || !c["size"].is_array() || c["size"].size() != 2 ||
           !c["size"][0].is_number_unsigned() || !c["size"][1].is_number_unsigned()) {
@@ -715,6 +676,7 @@ struct Server::Impl {
     } catch (const Error& e) {
       Throw(400, std::string("GeoPoseReq: ") + e.what());
     }
+    const json& c = *reading;
     *bytes = Base64Decode(c["imageBytes"].get<std::string>(), "imageBytes");
     const auto* b = reinterpret_cast<const unsigned char*>(bytes->data());
     const bool encoded =
