@@ -103,13 +103,17 @@ std::vector<PluckerLine> JsonLineList(const nlohmann::json& j, const std::string
 }
 
 Rigid3d JsonPose(const nlohmann::json& j, const std::string& where) {
-  if (!j.is_object() || !j.contains("q") || !j.contains("t")) {
-    Fail("{}: expected {{\"q\": [w, x, y, z], \"t\": [x, y, z]}}", where);
-  }
-  // Another field (a "scale", a "center", a misspelling) would be ignored: a rigid pose is q and t.
+  if (!j.is_object()) Fail("{}: expected {{\"q\": [w, x, y, z], \"t\": [x, y, z]}}", where);
+  // Another field (a "scale", a "center", a misspelling such as "Q") would be ignored: a rigid
+  // pose is q and t. Checked first, so that a misspelt field is named rather than "q" missing.
   for (const auto& [key, value] : j.items()) {
     if (key != "q" && key != "t")
       Fail("{}: unknown field {} (a rigid pose has q and t only)", where, ShownInMessage(key));
+  }
+  for (const char* key : {"q", "t"}) {
+    if (!j.contains(key)) {
+      Fail("{}.{}: missing (expected {{\"q\": [w, x, y, z], \"t\": [x, y, z]}})", where, key);
+    }
   }
   const std::vector<double> q = Numbers(j["q"], 4, where + ".q");
   Eigen::Quaterniond quat(q[0], q[1], q[2], q[3]);

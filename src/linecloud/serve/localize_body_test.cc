@@ -138,6 +138,14 @@ TEST(LocalizeBody, WhatAStrangerSendsIsRefusedNamingThePart) {
                        {"camera", kCamera},
                        {"cam_from_rig[0]", R"({"q": [1, 0, 0, 0], "t": [0, 0, 0], "T": 1})"}}),
             "cam_from_rig[0]: unknown field \"T\" (a rigid pose has q and t only)");
+  // A misspelt "Q" is named (not "q is missing"); a pose without t says so.
+  j = {{"frames", {Frame(1, 0), Frame(1, 0)}}};
+  j["frames"][0]["cam_from_rig"] = {{"Q", {1, 0, 0, 0}}, {"t", {0, 0, 0}}};
+  EXPECT_EQ(body(j), "frames[0].cam_from_rig: unknown field \"Q\" (a rigid pose has q and t only)");
+  j["frames"][0]["cam_from_rig"] = {{"q", {1, 0, 0, 0}}};
+  EXPECT_EQ(body(j),
+            "frames[0].cam_from_rig.t: missing (expected {\"q\": [w, x, y, z], \"t\": [x, y, "
+            "z]})");
   EXPECT_EQ(body({{"frames", json::array()}}),
             "frames: expected [{camera, keypoints, descriptors, cam_from_rig}, ...]");
   EXPECT_EQ(body({{"frames", {Frame(1, 0)}}, {"points_local", {{{"frame", -1}}}}}),
