@@ -238,7 +238,13 @@ ColmapRegistrationReport RunColmapRegistration(const ColmapRegistrationOptions& 
   const EvalWork work = ReadPreparedWork(o.work_dir);
   std::optional<DirectMatchingReport> ours;
   if (!o.ours.empty()) {
-    ours = ReadEvalReport(o.ours).direct_matching;
+    const EvalReport report = ReadEvalReport(o.ours);
+    // Checked before COLMAP runs: another dataset's figures would sit beside these images.
+    if (report.dataset != work.dataset) {
+      Fail("{}: a report of dataset '{}', not of {} ('{}')", o.ours, report.dataset, o.work_dir,
+           work.dataset);
+    }
+    ours = report.direct_matching;
     if (!ours)
       Fail("{}: no direct_matching section (run eval run without --no-direct-matching)", o.ours);
   }

@@ -382,6 +382,21 @@ TEST(EvalRun, SyntheticWorkLocalizesEveryQueryWithAllMethods) {
   ::testing::internal::GetCapturedStdout();
   EXPECT_EQ(ReadFileToString(tmp.Path("work/lifting.key")), key);
 
+  // `eval colmap --ours` refuses this report beside another dataset's images, before COLMAP runs.
+  EvalWork other = w;
+  other.dataset = "castle-P19";
+  CreateDirectories(tmp.Path("work2"));
+  WriteFileAtomically(tmp.Path("work2/prepared.json"),
+                      [&](std::ostream& o) { o << EvalWorkToJson(other).dump(); });
+  ColmapRegistrationOptions co;
+  co.work_dir = tmp.Path("work2");
+  co.out_dir = tmp.Path("colmap");
+  co.ours = tmp.Path("out/report.json");
+  EXPECT_EQ(ErrorOf([&] { RunColmapRegistration(co); }),
+            fmt::format("{}: a report of dataset 'synthetic', not of {} ('castle-P19')", co.ours,
+                        co.work_dir));
+  EXPECT_FALSE(FileExists(tmp.Path("colmap")));
+
   ro.work_dir = tmp.Path("nowhere");
   EXPECT_NE(ErrorOf([&] { RunEvaluation(ro); }).find("eval prepare"), std::string::npos);
   ro.work_dir = tmp.Path("work");
