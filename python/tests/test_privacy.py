@@ -1,6 +1,7 @@
 """attack and audit: what a line cloud gives away, as the CLI measures it."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -33,6 +34,36 @@ def test_audit_equals_the_cli(demo, tmp_path):
     assert report["density_attack"]["recovery"]["within_diagonal_percent"]["2"] > 0.1
     assert (tmp_path / "audit" / "report.json").exists()
     assert (tmp_path / "audit" / "audit.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def _without_seconds(report):
+    """The report without its timings (the fields that differ run to run)."""
+    if isinstance(report, dict):
+        return {k: _without_seconds(v) for k, v in report.items() if k != "seconds"}
+    return report
+
+
+def test_audit_takes_every_option_of_the_cli(demo, tmp_path):
+    """Python's audit has a keyword for each of the CLI's audit flags, and gives the same report."""
+    flags = set(re.findall(r"^\s+(--[a-z-]+)", run_cli("audit", "--help"), re.M))
+    keywords = {f[2:].replace("-", "_") for f in flags - {"--help", "--map", "--model", "--quiet"}}
+    keywords = {"density_attack" if k == "no_density_attack" else k for k in keywords}
+    doc = lc.audit.__doc__ + lc.attack.__doc__  # audit takes "those of attack"
+    assert keywords, flags
+    for k in keywords:
+        assert re.search(rf"\b{k}\b", doc), f"audit has no keyword for the CLI's {k}"
+    options = {"crossing_tolerance": 2e-3, "recovered_within": 2e-4, "metric_scale": 0.5,
+               "threads": 2, "neighbours": 12}
+    report = lc.audit(demo / "map.lcm", demo / "model", **options)
+    cli = json.loads(run_cli("audit", "--map", demo / "map.lcm", "--model", demo / "model",
+                             "--crossing-tolerance", 2e-3, "--recovered-within", 2e-4,
+                             "--metric-scale", 0.5, "--threads", 2, "--neighbours", 12,
+                             "--quiet"))
+    assert _without_seconds(report) == _without_seconds(cli)
+    assert report["pairing_attacks"]["crossing_tolerance_diagonal"] == 2e-3
+    assert report["density_attack"]["line_neighbours"] == 12
+    with pytest.raises(ValueError, match="recovered-within|recovered_within"):
+        lc.audit(demo / "map.lcm", demo / "model", recovered_within=0.5)
 
 
 def test_attack_and_audit_reject_bad_options(demo, tmp_path):

@@ -63,11 +63,12 @@ py::array_t<double> Attack(py::handle cloud_or_path, const py::kwargs& kwargs) {
 
 py::dict Audit(py::handle cloud_or_path, const std::filesystem::path& model_dir,
                const py::kwargs& kwargs) {
-  const nlohmann::json o = Options(
-      kwargs,
-      {"neighbours", "refine_rounds", "refine_neighbours", "min_shared", "threads", "max_seconds",
-       "other", "out", "key_file", "key_store", "metric_scale", "density_attack"},
-      "audit");
+  const nlohmann::json o =
+      Options(kwargs,
+              {"neighbours", "refine_rounds", "refine_neighbours", "min_shared", "threads",
+               "max_seconds", "other", "out", "key_file", "key_store", "metric_scale",
+               "density_attack", "crossing_tolerance", "recovered_within"},
+              "audit");
   AuditOptions options;
   nlohmann::json attack = nlohmann::json::object();
   for (const char* key : kAttackKeys) {
@@ -81,6 +82,10 @@ py::dict Audit(py::handle cloud_or_path, const std::filesystem::path& model_dir,
   options.key_store = StringOption(o, "key_store", "audit").value_or("");
   options.metric_scale = NumberOption(o, "metric_scale", "audit").value_or(0);
   options.skip_density_attack = !BoolOption(o, "density_attack", "audit").value_or(true);
+  options.crossing_tolerance =
+      NumberOption(o, "crossing_tolerance", "audit").value_or(options.crossing_tolerance);
+  options.recovered_within =
+      NumberOption(o, "recovered_within", "audit").value_or(options.recovered_within);
   const LineCloud cloud = CloudOf(cloud_or_path, &options.map_path);
   nlohmann::ordered_json report;
   {
@@ -101,8 +106,9 @@ void BindPrivacy(py::module_& m) {
         "The map owner's audit: the attacks run on the map and scored against the secret model's "
         "points (found through the model's key). Options: those of attack, and other (a second "
         "lifting's .lcm: the two-key attack), out (a folder for report.json, recovered.ply, "
-        "audit.png), key_file, key_store, metric_scale, density_attack (False: skip it). "
-        "Returns report.json's content.");
+        "audit.png), key_file, key_store, metric_scale, density_attack (False: skip it), "
+        "crossing_tolerance and recovered_within (the pairing attacks' shares of the scene "
+        "diagonal). Returns report.json's content.");
 }
 
 }  // namespace linecloud::python
