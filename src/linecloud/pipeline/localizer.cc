@@ -1,5 +1,6 @@
 #include "linecloud/pipeline/localizer.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 
@@ -60,6 +61,37 @@ QueryPhoto OnePhoto(const Camera& camera, const std::string& name) {
   photo.camera = camera;
   photo.name = name;
   return photo;
+}
+
+// A rig's photos are different photos: one sent twice would count its
+// matches twice (a pose as confident as two views would make it, from one).
+// Refused when two photos bring the same bytes, pixels or descriptors.
+void CheckDistinctPhotos(std::span<const QueryPhoto> photos) {
+  auto same = [](const QueryPhoto& a, const QueryPhoto& b) -> const char* {
+    if (!a.encoded.empty() && a.encoded.size() == b.encoded.size() &&
+        std::equal(a.encoded.begin(), a.encoded.end(), b.encoded.begin())) {
+      return "bytes";
+    }
+    if (a.image && b.image && a.image->width == b.image->width &&
+        a.image->height == b.image->height && a.image->pixels == b.image->pixels) {
+      return "pixels";
+    }
+    if (a.features && b.features && !a.features->descriptors.empty() &&
+        a.features->descriptors == b.features->descriptors) {
+      return "descriptors";
+    }
+    return nullptr;
+  };
+  for (size_t j = 1; j < photos.size(); ++j) {
+    for (size_t i = 0; i < j; ++i) {
+      if (const char* what = same(photos[i], photos[j])) {
+        Fail(
+            "{} is {} again (the same {}): a rig's photos must be different photos, a repeated "
+            "one would count its matches twice",
+            photos[j].name, photos[i].name, what);
+      }
+    }
+  }
 }
 
 }  // namespace
@@ -280,6 +312,7 @@ const MethodInfo& Localizer::PhotosMethod(std::span<const QueryPhoto> photos,
          method.name);
   }
   CheckLocalPoints(request.points_local, photos);
+  CheckDistinctPhotos(photos);
   CheckMethodAndMap(method, state_->map);
   return method;
 }

@@ -232,6 +232,30 @@ TEST(Localizer, BadRequestsGetErrorsNamingTheirPart) {
   p3p.method = "p3P";
   EXPECT_NE(ErrorOf([&] { localizer.LocalizePhotos(two, p3p); }).find("use an m- method"),
             std::string::npos);
+  // A rig's photos sent twice would count their matches twice: refused, whatever the source.
+  std::vector<QueryPhoto> twice(2, one);
+  twice[0].name = "frames[0]";
+  twice[1].name = "frames[1]";
+  twice[1].cam_from_rig.translation.x() = 0.1;
+  EXPECT_EQ(ErrorOf([&] { localizer.LocalizePhotos(twice); }),
+            "frames[1] is frames[0] again (the same pixels): a rig's photos must be different "
+            "photos, a repeated one would count its matches twice");
+  twice[0].image = twice[1].image = nullptr;
+  twice[0].features = twice[1].features = &features;
+  EXPECT_NE(ErrorOf([&] { localizer.LocalizePhotos(twice); }).find("(the same descriptors)"),
+            std::string::npos);
+  const std::vector<uint8_t> jpeg = {0xFF, 0xD8, 0xFF, 0xE0, 1, 2, 3};
+  twice[0].features = twice[1].features = nullptr;
+  twice[0].encoded = twice[1].encoded = jpeg;
+  EXPECT_NE(ErrorOf([&] { localizer.LocalizePhotos(twice); }).find("(the same bytes)"),
+            std::string::npos);
+  // Different photos pass this check (and fail later, on their content).
+  GreyImage other = small;
+  other.pixels[0] = 1;
+  twice[0].encoded = twice[1].encoded = {};
+  twice[0].image = &small;
+  twice[1].image = &other;
+  EXPECT_EQ(ErrorOf([&] { localizer.LocalizePhotos(twice); }).find("again"), std::string::npos);
   // Few matches: no pose, a reason, no exception.
   features.keypoints[1].x = 3;
   const LocalizerResult r = localizer.LocalizeFeatures(features, camera);

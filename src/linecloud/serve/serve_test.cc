@@ -213,6 +213,18 @@ TEST(Serve, ClientFeaturesGiveTheTruePoseAndOnlyThePose) {
     }
   }
   EXPECT_TRUE(logged);
+  // The same frame twice in a rig would count its matches twice: 400, naming it.
+  json frame = FeaturesBody(f.scene);
+  frame["cam_from_rig"] = {{"q", {1, 0, 0, 0}}, {"t", {0, 0, 0}}};
+  json twice = {{"frames", {frame, frame}}};
+  twice["frames"][1]["cam_from_rig"]["t"] = {0.1, 0, 0};
+  const auto dup =
+      c.Post("/v1/maps/synth/localize", Bearer("alice-secret"), twice.dump(), "application/json");
+  ASSERT_TRUE(dup);
+  EXPECT_EQ(dup->status, 400) << dup->body;
+  EXPECT_NE(dup->body.find("frames[1] is frames[0] again (the same descriptors)"),
+            std::string::npos)
+      << dup->body;
 }
 
 // The console's routes: a map's info, its segments (on the lines, inside the
