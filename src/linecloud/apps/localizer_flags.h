@@ -11,6 +11,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include "linecloud/apps/option_flags.h"
 #include "linecloud/pipeline/localizer_option_table.h"
 
 namespace linecloud {

@@ -1,16 +1,33 @@
-// `linecloud options`: the Localizer's option table (localizer_option_table.h),
+// `linecloud options`: the Localizer's option table (localizer_option_table.h) and
+// the attack's and audit's (attack_option_table.h):
 // the one description the CLI's flags, Python's keyword arguments and the
 // service's request fields are made from; docs/options.md is its Markdown.
 #include <iostream>
 #include <memory>
+#include <span>
 
 #include <fmt/format.h>
 
 #include "linecloud/apps/commands.h"
 #include "linecloud/pipeline/localizer_option_table.h"
+#include "linecloud/privacy/attack_option_table.h"
 
 namespace linecloud {
 namespace {
+
+// attack / audit: the same columns without the scope.
+template <typename Options>
+std::string TableMarkdown(std::span<const OptionField<Options>> table) {
+  std::string out =
+      "| name (Python) | flag (CLI) | value | default | what it does |\n"
+      "|---|---|---|---|---|\n";
+  for (const OptionField<Options>& s : table) {
+    const nlohmann::json d = s.Default();
+    out += fmt::format("| `{}` | `{}` | {} | {} | {} |\n", s.name, s.Flag(), s.Describe(),
+                       d.is_string() ? d.get<std::string>() : d.dump(), s.help);
+  }
+  return out;
+}
 
 std::string OptionsMarkdown() {
   std::string out =
@@ -32,14 +49,28 @@ std::string OptionsMarkdown() {
 
 void RegisterOptionsCommand(CLI::App& app) {
   auto json = std::make_shared<bool>(false);
+  auto table = std::make_shared<std::string>("localizer");
   CLI::App* cmd = app.add_subcommand(
       "options",
-      "The Localizer's options: each one's name (Python keyword, HTTP field), flag, scope (map: "
-      "fixed when a map is loaded; request: a default each request may change), range and "
-      "default");
-  cmd->add_flag("--json", *json, "Print JSON (as Python's linecloud.localizer_options())");
-  cmd->callback([json] {
-    std::cout << (*json ? LocalizerOptionTableJson().dump(2) + "\n" : OptionsMarkdown());
+      "An option table: each option's name (Python keyword, HTTP field), flag, range and default. "
+      "The Localizer's (with its scope — map: fixed when a map is loaded; request: a default "
+      "each request may change), the density attack's or the audit's");
+  cmd->add_flag("--json", *json,
+                "Print JSON (as Python's linecloud.localizer_options(), attack_options(), "
+                "audit_options())");
+  cmd->add_option("--table", *table, "Which table")
+      ->check(CLI::IsMember({"localizer", "attack", "audit"}))
+      ->capture_default_str();
+  cmd->callback([json, table] {
+    if (*table == "attack") {
+      std::cout << (*json ? OptionTableJson(std::span(AttackOptionTable())).dump(2) + "\n"
+                          : TableMarkdown(std::span(AttackOptionTable())));
+    } else if (*table == "audit") {
+      std::cout << (*json ? OptionTableJson(std::span(AuditOptionTable())).dump(2) + "\n"
+                          : TableMarkdown(std::span(AuditOptionTable())));
+    } else {
+      std::cout << (*json ? LocalizerOptionTableJson().dump(2) + "\n" : OptionsMarkdown());
+    }
   });
 }
 

@@ -4,8 +4,10 @@
 #include <fmt/format.h>
 
 #include "linecloud/apps/commands.h"
+#include "linecloud/apps/option_flags.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/io/ply.h"
+#include "linecloud/privacy/attack_option_table.h"
 #include "linecloud/privacy/audit.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
@@ -16,27 +18,9 @@ namespace {
 struct AttackArgs {
   std::string map_path, out_path;
   DensityAttackOptions attack;
+  OptionFlags<DensityAttackOptions> flags;  // the attack's options (attack_option_table.h)
   bool quiet = false;
 };
-
-void AddAttackOptions(CLI::App* cmd, DensityAttackOptions& o) {
-  cmd->add_option("--neighbours", o.line_neighbours,
-                  "K nearest lines voting for each line's point (0: min(500, 5 % of the lines), "
-                  "as published)")
-      ->capture_default_str();
-  cmd->add_option("--refine-rounds", o.refine_rounds, "refinement rounds")->capture_default_str();
-  cmd->add_option("--refine-neighbours", o.refine_neighbours,
-                  "neighbours of the refinement (line-to-point and point-to-line)")
-      ->capture_default_str();
-  cmd->add_option("--min-shared", o.min_shared,
-                  "use the two refinement sets' intersection when larger than this")
-      ->capture_default_str();
-  cmd->add_option("--threads", o.threads, "threads (0: all cores)")->capture_default_str();
-  cmd->add_option("--max-seconds", o.max_seconds,
-                  "stop (with an error giving the projected time) after this long; the cost "
-                  "grows as the square of the lines (0: no limit)")
-      ->capture_default_str();
-}
 
 void SetProgress(DensityAttackOptions& o, bool quiet) {
   if (quiet) return;
@@ -47,6 +31,7 @@ void SetProgress(DensityAttackOptions& o, bool quiet) {
 }
 
 void RunAttack(AttackArgs args) {
+  args.flags.Apply(&args.attack);
   RefuseOutputOverInputs(args.out_path, {args.map_path}, "--out");
   SetProgress(args.attack, args.quiet);
   const LineCloud cloud = ReadLineCloud(args.map_path);
@@ -80,7 +65,7 @@ void RegisterAttackCommand(CLI::App& app) {
       "CVPR 2021)");
   cmd->add_option("--map", args->map_path, "line-cloud map (.lcm)")->required();
   cmd->add_option("--out", args->out_path, "recovered points (.ply)")->required();
-  AddAttackOptions(cmd, args->attack);
+  args->flags.Add(cmd, AttackOptionTable());
   cmd->add_flag("--quiet", args->quiet, "no progress on standard error");
   cmd->callback([args] { RunAttack(*args); });
 }
@@ -102,21 +87,14 @@ void RegisterAuditCommand(CLI::App& app) {
   cmd->add_option("--out", options->out_dir, "output folder");
   cmd->add_option("--key-file", options->key_file, "the model's key (default: the key store's)");
   cmd->add_option("--key-store", options->key_store, "per-user key store");
-  cmd->add_option("--metric-scale", options->metric_scale,
-                  "metres per model unit: also report errors in metres")
-      ->capture_default_str();
-  cmd->add_flag("--no-density-attack", options->skip_density_attack,
-                "only the two-key attack (with --other)");
-  cmd->add_option("--crossing-tolerance", options->crossing_tolerance,
-                  "pairing attacks: intersect lines passing within this share of the scene "
-                  "diagonal of each other")
-      ->capture_default_str();
-  cmd->add_option("--recovered-within", options->recovered_within,
-                  "pairing attacks: a point counts as recovered within this share of the diagonal")
-      ->capture_default_str();
-  AddAttackOptions(cmd, options->attack);
+  auto flags = std::make_shared<OptionFlags<AuditOptions>>();
+  flags->Add(cmd, AuditOptionTable());
   cmd->add_flag("--quiet", *quiet, "no progress on standard error");
-  cmd->callback([options, quiet] { RunAuditCommand(*options, *quiet); });
+  cmd->callback([options, quiet, flags] {
+    AuditOptions o = *options;
+    flags->Apply(&o);
+    RunAuditCommand(o, *quiet);
+  });
 }
 
 }  // namespace linecloud

@@ -14,6 +14,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "linecloud/io/option_table.h"
 #include "linecloud/pipeline/localizer.h"
 
 namespace linecloud {
@@ -23,35 +24,9 @@ enum class OptionScope {
   kRequest,  // the Localizer holds a default; each request may change it (RANSAC, success)
 };
 
-enum class OptionType {
-  kBool,
-  kInteger,    // a whole number within [min, max]
-  kNumber,     // a finite number within the range
-  kChoice,     // one of `choices`
-  kDirection,  // a finite non-zero 3-vector: [x, y, z], or "x,y,z" as text
-};
-
-struct OptionSpec {
-  std::string name;  // snake_case; the flag is --name-with-dashes
-  OptionType type = OptionType::kNumber;
+// A Localizer's option, and its scope.
+struct OptionSpec : OptionField<LocalizerOptions> {
   OptionScope scope = OptionScope::kRequest;
-  std::string help;
-  double min = 0, max = 0;           // kInteger, kNumber
-  bool min_open = false;             // kNumber: (min, max] instead of [min, max]
-  bool max_open = false;             // kNumber: [min, max) (or (min, max))
-  std::vector<std::string> choices;  // kChoice
-  // null is a value: "not set" (the map's gravity, the method's inlier count).
-  bool nullable = false;
-  std::string null_means;  // what null stands for, in the help
-  std::function<nlohmann::json(const LocalizerOptions&)> get;
-  std::function<void(LocalizerOptions&, const nlohmann::json&)> set;  // value already checked
-
-  // --max-ratio; a switch on by default is turned off by --no-NAME.
-  std::string Flag() const;
-  // The value on a default LocalizerOptions.
-  nlohmann::json Default() const;
-  // "a number in (0, 1]", "one of colmap, opencv", ...
-  std::string Describe() const;
 };
 
 // Every option, in the order the help lists them.
@@ -62,13 +37,9 @@ const OptionSpec* FindLocalizerOption(std::string_view name);
 std::vector<std::string> LocalizerOptionNames(std::span<const OptionScope> scopes);
 
 // Checks `value` (type, range, choices; errors "WHERE: NAME must be ...,
-// got ...") and sets it on `options`.
+// got ...") and sets it on `options` (ParseOptionText in io/option_table.h reads text).
 void SetLocalizerOption(LocalizerOptions* options, const OptionSpec& spec,
                         const nlohmann::json& value, std::string_view where);
-// A value written as text (a flag's argument, a multipart part): true/false
-// (also 1/0), numbers, a choice, "x,y,z", "null" where null is allowed.
-nlohmann::json ParseOptionText(const OptionSpec& spec, std::string_view text,
-                               std::string_view where);
 // Sets every option of the JSON object `fields` whose scope is in `scopes`;
 // a key of another scope or no option at all fails naming it (unless listed
 // in `other_keys`, the caller's own fields, which are skipped here).

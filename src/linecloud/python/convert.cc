@@ -1,9 +1,11 @@
 #include "linecloud/python/convert.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include "linecloud/io/json_util.h"
 #include "linecloud/localize/query_json.h"
@@ -212,6 +214,11 @@ py::array_t<double> DoubleArray(const double* data, size_t rows, size_t cols) {
 
 nlohmann::json Options(const py::kwargs& kwargs, std::initializer_list<const char*> allowed,
                        const std::string& function) {
+  return Options(kwargs, std::vector<std::string>(allowed.begin(), allowed.end()), function);
+}
+
+nlohmann::json Options(const py::kwargs& kwargs, const std::vector<std::string>& allowed,
+                       const std::string& function) {
   nlohmann::json j = nlohmann::json::object();
   for (const auto& [key, value] : kwargs) {
     const std::string name = key.cast<std::string>();
@@ -223,15 +230,17 @@ nlohmann::json Options(const py::kwargs& kwargs, std::initializer_list<const cha
 
 void CheckKeys(const nlohmann::json& options, std::initializer_list<const char*> allowed,
                const std::string& where) {
+  CheckKeys(options, std::vector<std::string>(allowed.begin(), allowed.end()), where);
+}
+
+void CheckKeys(const nlohmann::json& options, const std::vector<std::string>& allowed,
+               const std::string& where) {
   if (!options.is_object()) Fail("{}: expected a dict", where);
   for (auto it = options.begin(); it != options.end(); ++it) {
-    bool known = false;
-    for (const char* a : allowed) known = known || it.key() == a;
-    if (known) continue;
-    std::string list;
-    for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
-    throw py::type_error(fmt::format("{}: unknown option '{}' (options: {})", where, it.key(),
-                                     list.empty() ? "none" : list));
+    if (std::find(allowed.begin(), allowed.end(), it.key()) != allowed.end()) continue;
+    throw py::type_error(
+        fmt::format("{}: unknown option '{}' (options: {})", where, it.key(),
+                    allowed.empty() ? "none" : fmt::format("{}", fmt::join(allowed, ", "))));
   }
 }
 

@@ -52,6 +52,8 @@ py::array_t<double> DoubleArray(const double* data, size_t rows, size_t cols);
 // `allowed` (a typo is an error, not a silently ignored option).
 nlohmann::json Options(const py::kwargs& kwargs, std::initializer_list<const char*> allowed,
                        const std::string& function);
+nlohmann::json Options(const py::kwargs& kwargs, const std::vector<std::string>& allowed,
+                       const std::string& function);
 
 // Typed values of an options object (Options() or a dict argument); nullopt
 // when absent or None, ValueError naming `where` and the key when mistyped.
@@ -65,6 +67,8 @@ std::optional<std::string> StringOption(const nlohmann::json& options, const cha
                                         const std::string& where);
 // Refuses keys of a dict argument not in `allowed`.
 void CheckKeys(const nlohmann::json& options, std::initializer_list<const char*> allowed,
+               const std::string& where);
+void CheckKeys(const nlohmann::json& options, const std::vector<std::string>& allowed,
                const std::string& where);
 
 }  // namespace linecloud::python
