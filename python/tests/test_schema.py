@@ -316,13 +316,21 @@ def test_generated_files_are_the_tables():
 
 
 def test_lift_takes_every_option_of_the_cli(demo, tmp_path):
-    """Python's lift has a keyword for each of the CLI's lift flags, and gives the same map."""
-    flags = set(re.findall(r"^\s+(--[a-z-]+)", run_cli("lift", "--help"), re.M))
-    doc = lc.lift.__doc__.splitlines()[0]
-    for flag in flags - {"--help", "--quiet"}:
-        name = {"--model": "model_dir", "--resist-attack": "resist_attack"}.get(
-            flag, flag[2:].replace("-", "_"))
-        assert f"{name}:" in doc, (flag, doc)
+    """lift's options are one table: the CLI's flags and defaults are the table's, Python takes
+    each keyword, and both give the same map."""
+    table = lc.lift_options()
+    help_text = run_cli("lift", "--help")
+    flags = set(re.findall(r"^\s+(--[a-z-]+)", help_text, re.M))
+    own = {"--help", "--quiet", "--model", "--out", "--database", "--key-file", "--key-store"}
+    assert flags - own == {o["flag"] for o in table}
+    for o in table:
+        if o["type"].startswith("a number") and not o.get("null_means"):
+            shown = re.search(rf"^\s+{o['flag']} \S+=(\S+)", help_text, re.M)
+            assert shown and float(shown.group(1)) == o["default"], o["name"]
+    with pytest.raises(TypeError, match="lift: unknown option 'sparsity'"):
+        lc.lift(demo / "model", sparsity=0.3)
+    with pytest.raises(ValueError, match=r"lift: same_place must be a number in \(0, 0.1\)"):
+        lc.lift(demo / "model", same_place=0.5)
     # The same lifting through both: sparsified (balanced), attack-aware, with gravity.
     options = {"sparsify": 0.3, "sparsify_mode": "balanced", "resist_attack": 0.5,
                "gravity": [0.0, 0.0, -1.0], "descriptor": "mean"}

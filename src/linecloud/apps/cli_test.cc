@@ -447,7 +447,8 @@ TEST(Cli, MapGravityFromLiftToLocalize) {
   };
   ExpectError(RunCli({"lift", "--model", demo + "/model", "--out", tmp.Path("m.lcm"), "--key-store",
                       tmp.Path("keys"), "--gravity", "1,2"}),
-              "--gravity '1,2'");
+              "--gravity: gravity must be a finite non-zero direction [x, y, z] (\"x,y,z\" as "
+              "text) or null, got \"1,2\"");
   ASSERT_EQ(RunCli({"lift", "--model", demo + "/model", "--out", tmp.Path("m.lcm"), "--key-store",
                     tmp.Path("keys"), "--key-file", FixedKeyFile(tmp, "g.key", 10), "--gravity",
                     csv(3 * g_map)})

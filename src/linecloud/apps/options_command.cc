@@ -1,5 +1,5 @@
 // `linecloud options`: the Localizer's option table (localizer_option_table.h) and
-// the attack's and audit's (attack_option_table.h):
+// lift's, the attack's and audit's (lift_option_table.h, attack_option_table.h):
 // the one description the CLI's flags, Python's keyword arguments and the
 // service's request fields are made from; docs/options.md is its Markdown.
 #include <iostream>
@@ -11,6 +11,7 @@
 #include "linecloud/apps/commands.h"
 #include "linecloud/pipeline/localizer_option_table.h"
 #include "linecloud/privacy/attack_option_table.h"
+#include "linecloud/privacy/lift_option_table.h"
 
 namespace linecloud {
 namespace {
@@ -54,15 +55,18 @@ void RegisterOptionsCommand(CLI::App& app) {
       "options",
       "An option table: each option's name (Python keyword, HTTP field), flag, range and default. "
       "The Localizer's (with its scope — map: fixed when a map is loaded; request: a default "
-      "each request may change), the density attack's or the audit's");
+      "each request may change), lift's, the density attack's or the audit's");
   cmd->add_flag("--json", *json,
-                "Print JSON (as Python's linecloud.localizer_options(), attack_options(), "
-                "audit_options())");
+                "Print JSON (as Python's linecloud.localizer_options(), lift_options(), "
+                "attack_options(), audit_options())");
   cmd->add_option("--table", *table, "Which table")
-      ->check(CLI::IsMember({"localizer", "attack", "audit"}))
+      ->check(CLI::IsMember({"localizer", "lift", "attack", "audit"}))
       ->capture_default_str();
   cmd->callback([json, table] {
-    if (*table == "attack") {
+    if (*table == "lift") {
+      std::cout << (*json ? OptionTableJson(std::span(LiftOptionTable())).dump(2) + "\n"
+                          : TableMarkdown(std::span(LiftOptionTable())));
+    } else if (*table == "attack") {
       std::cout << (*json ? OptionTableJson(std::span(AttackOptionTable())).dump(2) + "\n"
                           : TableMarkdown(std::span(AttackOptionTable())));
     } else if (*table == "audit") {

@@ -10,6 +10,7 @@
 #include "linecloud/io/lift_model.h"
 #include "linecloud/io/track_descriptors.h"
 #include "linecloud/lifting/sparsify.h"
+#include "linecloud/privacy/lift_option_table.h"
 #include "linecloud/privacy/map_lifting.h"
 #include "linecloud/io/line_cloud_info.h"
 #include "linecloud/lifting/line_cloud.h"
@@ -77,41 +78,19 @@ LineCloud MakeCloud(py::handle lines, py::handle ids, py::handle descriptors) {
   return cloud;
 }
 
-// `lift` with the CLI's options (the same use case: LiftModelWith).
-struct PyLiftOptions {
-  std::optional<std::string> database, out, key_store, key_file;
-  bool compact = false, force = false, allow_shared_key = false;
-  std::string descriptor = "medoid";
-  std::optional<std::vector<double>> gravity;
-  double sparsify = 0;
-  std::string sparsify_mode = "uniform";
-  std::optional<double> resist_attack;
-  std::optional<double> same_place;
-};
-
-LineCloud Lift(const std::string& model_dir, const PyLiftOptions& p) {
-  LiftModelOptions o;
-  o.model_dir = model_dir;
-  o.database = p.database.value_or("");
-  o.out_path = p.out.value_or("");
-  o.key_store = p.key_store.value_or("");
-  o.key_file = p.key_file.value_or("");
-  o.force = p.force;
-  o.allow_shared_key = p.allow_shared_key;
-  o.aggregation = DescriptorAggregationFromName(p.descriptor);
-  if (p.gravity) {
-    if (p.gravity->size() != 3)
-      Fail("lift: gravity must be [x, y, z], got {} values", p.gravity->size());
-    o.gravity = Eigen::Vector3d((*p.gravity)[0], (*p.gravity)[1], (*p.gravity)[2]);
-  }
-  if (p.same_place) o.identity.same_place = *p.same_place;
-  MapLifting lifting;
-  lifting.sparsify = p.sparsify;
-  lifting.sparsify_mode = SparsifyModeFromName(p.sparsify_mode, "sparsify_mode");
-  lifting.resist_attack = p.resist_attack.value_or(-1);
-  lifting.compact = p.compact;
+// `lift` with the CLI's options (lift_option_table.h; the same use case: LiftModelWith).
+LineCloud Lift(const std::filesystem::path& model_dir, const py::kwargs& kwargs) {
+  LiftSettings s;
+  const nlohmann::json paths =
+      SetFromTable(kwargs, std::span(LiftOptionTable()),
+                   {"database", "out", "key_store", "key_file"}, "lift", &s);
+  s.options.model_dir = model_dir.string();
+  s.options.database = StringOption(paths, "database", "lift").value_or("");
+  s.options.out_path = StringOption(paths, "out", "lift").value_or("");
+  s.options.key_store = StringOption(paths, "key_store", "lift").value_or("");
+  s.options.key_file = StringOption(paths, "key_file", "lift").value_or("");
   GilReleased release;
-  return LiftModelWith(o, lifting).cloud;
+  return LiftModelWith(s.options, s.lifting).cloud;
 }
 
 py::dict ModelToDict(const Reconstruction& model) {
@@ -217,45 +196,33 @@ void BindLineCloud(py::module_& m) {
 
   m.def(
       "lift",
-      [](const std::filesystem::path& model_dir, std::optional<std::filesystem::path> database,
-         std::optional<std::filesystem::path> out, std::optional<std::filesystem::path> key_store,
-         std::optional<std::filesystem::path> key_file, bool compact, bool force,
-         const std::string& descriptor, std::optional<std::vector<double>> gravity, double sparsify,
-         const std::string& sparsify_mode, std::optional<double> resist_attack,
-         std::optional<double> same_place, bool allow_shared_key) {
-        auto str = [](const std::optional<std::filesystem::path>& p) {
-          return p ? std::optional<std::string>(p->string()) : std::nullopt;
-        };
-        PyLiftOptions p;
-        p.database = str(database);
-        p.out = str(out);
-        p.key_store = str(key_store);
-        p.key_file = str(key_file);
-        p.compact = compact;
-        p.force = force;
-        p.descriptor = descriptor;
-        p.gravity = std::move(gravity);
-        p.sparsify = sparsify;
-        p.sparsify_mode = sparsify_mode;
-        p.resist_attack = resist_attack;
-        p.same_place = same_place;
-        p.allow_shared_key = allow_shared_key;
-        return Lift(model_dir.string(), p);
+      [](const std::filesystem::path& model_dir, py::handle database, py::handle out,
+         py::handle key_store, py::handle key_file, py::handle compact, py::handle force,
+         py::kwargs kwargs) {
+        // The positional parameters of SPEC's lift(model_dir, database, out, key_store,
+        // key_file, compact, force); the rest keywords of LiftOptionTable.
+        const std::pair<const char*, py::handle> given[] = {
+            {"database", database}, {"out", out},         {"key_store", key_store},
+            {"key_file", key_file}, {"compact", compact}, {"force", force}};
+        for (const auto& [name, value] : given) {
+          if (!value.is_none()) kwargs[name] = value;
+        }
+        return Lift(model_dir, kwargs);
       },
       py::arg("model_dir"), py::arg("database") = py::none(), py::arg("out") = py::none(),
       py::arg("key_store") = py::none(), py::arg("key_file") = py::none(),
-      py::arg("compact") = false, py::arg("force") = false, py::kw_only(),
-      py::arg("descriptor") = "medoid", py::arg("gravity") = py::none(), py::arg("sparsify") = 0.0,
-      py::arg("sparsify_mode") = "uniform", py::arg("resist_attack") = py::none(),
-      py::arg("same_place") = py::none(), py::arg("allow_shared_key") = false,
+      py::arg("compact") = py::none(), py::arg("force") = py::none(),
       "Lift a COLMAP model to a line cloud under the model's one key (the CLI's `lift`, its "
       "key-store rules and options: one point, one line). database: descriptors from COLMAP's "
       "database; out: also write the .lcm; key_store: the store's folder (default "
-      "LINECLOUD_KEY_STORE or ~/.local/share/linecloud/keys); descriptor: medoid or mean; "
-      "gravity: the model frame's [x, y, z]; sparsify: the share of points dropped, "
-      "sparsify_mode uniform or balanced; resist_attack: drop the points the density attack "
-      "recovers until at most this share is; same_place: points closer than this share of the "
-      "diagonal get parallel lines; allow_shared_key: accept a key file others can read.");
+      "LINECLOUD_KEY_STORE or ~/.local/share/linecloud/keys); key_file: the model's key file. "
+      "Keywords: those of lift_options() (descriptor, compact, force, gravity, sparsify, "
+      "sparsify_mode, resist_attack, same_place, allow_shared_key), as `linecloud lift` takes "
+      "them.");
+  m.def(
+      "lift_options", [] { return FromJson(OptionTableJson(std::span(LiftOptionTable()))); },
+      "lift's options (name, flag, type, default, range, help), as lift and `linecloud lift` "
+      "take them.");
 
   m.def(
       "read_colmap_model",

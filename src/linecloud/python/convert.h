@@ -5,9 +5,11 @@
 // shapes, dtypes and finiteness are checked here, naming the argument.
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <initializer_list>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -18,6 +20,7 @@
 #include <pybind11/pybind11.h>
 
 #include "linecloud/geometry/camera.h"
+#include "linecloud/io/option_table.h"
 #include "linecloud/geometry/rigid3.h"
 
 namespace linecloud::python {
@@ -70,5 +73,29 @@ void CheckKeys(const nlohmann::json& options, std::initializer_list<const char*>
                const std::string& where);
 void CheckKeys(const nlohmann::json& options, const std::vector<std::string>& allowed,
                const std::string& where);
+
+// Keyword arguments set through an option table (io/option_table.h): the
+// CLI's flags by their Python names; None keeps the default of a
+// non-nullable option and is null ("not set") for a nullable one. `own`: the
+// function's other keywords, returned as they came.
+template <typename T>
+nlohmann::json SetFromTable(const py::kwargs& kwargs, std::span<const OptionField<T>> table,
+                            std::initializer_list<const char*> own, const std::string& where,
+                            T* options) {
+  std::vector<std::string> allowed(own.begin(), own.end());
+  for (const OptionField<T>& f : table) allowed.push_back(f.name);
+  const nlohmann::json all = Options(kwargs, allowed, where);
+  nlohmann::json own_values = nlohmann::json::object(), table_values = nlohmann::json::object();
+  for (const auto& [key, value] : all.items()) {
+    const bool is_own = std::find(own.begin(), own.end(), key) != own.end();
+    if (is_own) {
+      own_values[key] = value;
+    } else if (!value.is_null() || FindOption(table, key)->nullable) {
+      table_values[key] = value;
+    }
+  }
+  SetOptions(options, table, table_values, where);
+  return own_values;
+}
 
 }  // namespace linecloud::python

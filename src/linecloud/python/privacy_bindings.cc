@@ -15,29 +15,6 @@
 namespace linecloud::python {
 namespace {
 
-// Keyword arguments set through an option table (attack_option_table.h): the
-// CLI's flags by their Python names; None keeps the default. `own`: the
-// function's other keywords, returned as they came.
-template <typename T>
-nlohmann::json SetFromTable(const py::kwargs& kwargs, std::span<const OptionField<T>> table,
-                            std::initializer_list<const char*> own, const std::string& where,
-                            T* options) {
-  std::vector<std::string> allowed(own.begin(), own.end());
-  for (const OptionField<T>& f : table) allowed.push_back(f.name);
-  const nlohmann::json all = Options(kwargs, allowed, where);
-  nlohmann::json own_values = nlohmann::json::object(), table_values = nlohmann::json::object();
-  for (const auto& [key, value] : all.items()) {
-    const bool is_own = std::find(own.begin(), own.end(), key) != own.end();
-    if (is_own) {
-      own_values[key] = value;
-    } else if (!value.is_null()) {
-      table_values[key] = value;
-    }
-  }
-  SetOptions(options, table, table_values, where);
-  return own_values;
-}
-
 // A LineCloud or a .lcm path.
 LineCloud CloudOf(py::handle cloud, std::string* name) {
   if (py::isinstance<LineCloud>(cloud)) {
