@@ -117,6 +117,7 @@ ojson ToJson(const MatchScoreReport& r) {
 
 MatchScoreReport RunMatchScores(const MatchScoreOptions& options) {
   options.Check();
+  RefuseOutputOverInputs(options.out, options.work_dirs, "--out");
   std::vector<ScoredImage> images;
   std::vector<std::string> datasets;
   for (const std::string& work_dir : options.work_dirs) {

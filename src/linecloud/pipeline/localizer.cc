@@ -1,6 +1,7 @@
 #include "linecloud/pipeline/localizer.h"
 
 #include <algorithm>
+#include <unordered_map>
 #include <chrono>
 #include <cmath>
 
@@ -89,6 +90,37 @@ void CheckDistinctPhotos(std::span<const QueryPhoto> photos) {
             "{} is {} again (the same {}): a rig's photos must be different photos, a repeated "
             "one would count its matches twice",
             photos[j].name, photos[i].name, what);
+      }
+    }
+  }
+}
+
+// The same photo re-encoded, shuffled or trimmed passes CheckDistinctPhotos
+// but matches the same map points at the same pixels. Two photos of a rig are
+// one view twice when most matches of one (at least 20, and half of the
+// smaller photo's) find a match of the other to the same map point within
+// half a pixel: a second camera, or the same camera having moved, puts them
+// elsewhere.
+void CheckDistinctViews(std::span<const ImageQuery> photos, std::span<const QueryPhoto> sources) {
+  std::vector<std::unordered_multimap<uint64_t, Eigen::Vector2d>> by_id(photos.size());
+  for (size_t k = 0; k < photos.size(); ++k) {
+    for (const QueryObservation& o : photos[k].query.observations) by_id[k].emplace(o.id, o.xy);
+  }
+  for (size_t j = 1; j < photos.size(); ++j) {
+    for (size_t i = 0; i < j; ++i) {
+      size_t same = 0;
+      for (const QueryObservation& o : photos[j].query.observations) {
+        const auto [begin, end] = by_id[i].equal_range(o.id);
+        same +=
+            std::any_of(begin, end, [&](const auto& e) { return (e.second - o.xy).norm() < 0.5; });
+      }
+      const size_t smaller =
+          std::min(photos[i].query.observations.size(), photos[j].query.observations.size());
+      if (same >= 20 && 2 * same >= smaller) {
+        Fail(
+            "{} shows what {} shows ({} of its {} matches are the other's, at the same pixels): a "
+            "rig's photos must be different views, a repeated one would count its matches twice",
+            sources[j].name, sources[i].name, same, photos[j].query.observations.size());
       }
     }
   }
@@ -397,6 +429,7 @@ LocalizerResult Localizer::LocalizePhotos(std::span<const QueryPhoto> photos,
     result.times.extract_ms += t.extract_ms;
     result.times.match_ms += t.match_ms;
   }
+  if (photos.size() > 1) CheckDistinctViews(result.photos, photos);
   result.query = !IsRig(photos) && request.points_local.empty()
                      ? result.photos[0].query
                      : CombineImageQueries(result.photos, rig, request.points_local);

@@ -192,6 +192,36 @@ TEST(Localizer, EightThreadsOnOneLocalizerGiveWhatOneGives) {
   }
 }
 
+// The same photo re-encoded (a JPEG comment added: other bytes, the same
+// pixels) as a second frame of a rig: the same map points at the same pixels,
+// refused after matching; two different photos of the rig are not.
+TEST(Localizer, ARigRefusesTheSameViewTwice) {
+  LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
+  const Maupertuis m = LoadMaupertuis();
+  const Localizer localizer(m.model, m.database, SmallPhotos());
+  const std::string a = ReadFileToString(m.photos[0].first);
+  ASSERT_GT(a.size(), 2u);
+  const std::string comment("\xFF\xFE\x00\x07hello", 9);  // COM segment, 5 bytes of text
+  const std::string a_again = a.substr(0, 2) + comment + a.substr(2);
+  const std::string b = ReadFileToString(m.photos[1].first);
+  auto frame = [&](const std::string& bytes, const Camera* camera, const char* name, double x) {
+    QueryPhoto p;
+    p.encoded = std::span(reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size());
+    p.camera = *camera;
+    p.name = name;
+    p.cam_from_rig.translation.x() = x;
+    return p;
+  };
+  const std::vector<QueryPhoto> twice = {frame(a, m.photos[0].second, "frames[0]", 0),
+                                         frame(a_again, m.photos[0].second, "frames[1]", 0.1)};
+  const std::string error = ErrorOf([&] { localizer.LocalizePhotos(twice); });
+  EXPECT_EQ(error.rfind("frames[1] shows what frames[0] shows (", 0), 0u) << error;
+  EXPECT_NE(error.find("a rig's photos must be different views"), std::string::npos) << error;
+  const std::vector<QueryPhoto> two = {frame(a, m.photos[0].second, "frames[0]", 0),
+                                       frame(b, m.photos[1].second, "frames[1]", 0.1)};
+  EXPECT_EQ(ErrorOf([&] { localizer.LocalizePhotos(two); }), "");
+}
+
 TEST(Localizer, BadRequestsGetErrorsNamingTheirPart) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
   const Maupertuis m = LoadMaupertuis();
