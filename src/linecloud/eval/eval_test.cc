@@ -620,6 +620,24 @@ TEST(EvalPrivacy, RenderReadsTheTypedReport) {
   EXPECT_EQ(error_with(P("/liftings/0/localization/paper_protocol/p6L/median_translation"), -1),
             "t.json.liftings[0].localization.paper_protocol.p6L.median_translation: -1 is not a "
             "finite number >= 0");
+  EXPECT_EQ(error_with(P("/dataset"), "foo|bar\n# hi"),
+            "t.json.dataset: \"foo|bar\\n# hi\" is not a name (1 to 100 characters, no '|' or "
+            "control character)");
+  EXPECT_EQ(error_with(P("/liftings/1/attack/within_2_percent"), 0.05),
+            "t.json.liftings[1].attack: within 0.5 / 1 / 2 % (0.1 / 0.15 / 0.05) must not "
+            "decrease");
+  EXPECT_EQ(error_with(P("/liftings/1/lifting"), "plain"),
+            "t.json.liftings[1].lifting: plain twice (liftings[0])");
+  EXPECT_EQ(error_with(P("/liftings/0/attack/lines_per_map"), 1e300),
+            "t.json.liftings[0].attack.lines_per_map: 1e+300 lines per map is not a map's");
+  EXPECT_EQ(error_with(P("/liftings/0/localization/paper_protocol/p6L/median_rotation_deg"), 1e308),
+            "t.json.liftings[0].localization.paper_protocol.p6L.median_rotation_deg: 1e+308 is not "
+            "an angle in [0, 180]");
+  nlohmann::json wide = ToJson(r);
+  for (int i = 0; i < 100; ++i) wide["methods"].push_back(fmt::format("m{}", i));
+  EXPECT_EQ(ErrorOf([&] { PrivacyTradeoffFromJson(wide, "t.json"); }),
+            "t.json.methods: 101 methods (1 to 64)");
+  EXPECT_EQ(error_with(P("/methods/1"), "p6L"), "t.json.methods[1]: p6L twice");
   // Many rows are refused before any is read.
   nlohmann::json many = ToJson(r);
   for (int i = 0; i < 200000; ++i) many["liftings"].push_back(many["liftings"][1]);

@@ -227,6 +227,10 @@ std::map<std::string, TradeoffLocalization> LocalizationFrom(const JsonFields& f
       Fail("{}: {} localized of {} queries", m.Where("localized"), l.localized, l.queries);
     }
     l.median_rotation_deg = NonNegativeOrNull(m, "median_rotation_deg");
+    if (l.median_rotation_deg > 180) {
+      Fail("{}: {} is not an angle in [0, 180]", m.Where("median_rotation_deg"),
+           l.median_rotation_deg);
+    }
     l.median_translation = NonNegativeOrNull(m, "median_translation");
     out[name] = l;
   }
@@ -251,9 +255,18 @@ TradeoffRow RowFrom(const JsonFields& f) {
   row.lifting = CheckedName(f.String("lifting"), f.Where("lifting"));
   const JsonFields a = f.Object("attack");
   row.attack.lines_per_map = a.NonNegative("lines_per_map");
+  if (row.attack.lines_per_map > 1e10) {
+    Fail("{}: {} lines per map is not a map's", a.Where("lines_per_map"), row.attack.lines_per_map);
+  }
   row.attack.within_half_percent = a.Share("within_0.5_percent");
   row.attack.within_1_percent = a.Share("within_1_percent");
   row.attack.within_2_percent = a.Share("within_2_percent");
+  // Shares within growing thresholds cannot shrink.
+  if (!(row.attack.within_half_percent <= row.attack.within_1_percent &&
+        row.attack.within_1_percent <= row.attack.within_2_percent)) {
+    Fail("{}: within 0.5 / 1 / 2 % ({} / {} / {}) must not decrease", a.where(),
+         row.attack.within_half_percent, row.attack.within_1_percent, row.attack.within_2_percent);
+  }
   if (!a.At("within_5cm").is_null()) row.attack.within_5cm = a.Share("within_5cm");
   row.attack.attack_seconds = a.NonNegative("attack_seconds");
   const JsonFields l = f.Object("localization");
@@ -358,9 +371,20 @@ PrivacyTradeoffReport PrivacyTradeoffFromJson(const nlohmann::json& j, const std
   PrivacyTradeoffReport r;
   r.dataset = f.String("dataset");
   r.units = f.String("units");
+  r.dataset = CheckedName(r.dataset, f.Where("dataset"));
+  const nlohmann::json& methods = f.Array("methods");
+  constexpr size_t kMaxMethods = 64;  // the table's columns
+  if (methods.empty() || methods.size() > kMaxMethods) {
+    Fail("{}: {} methods (1 to {})", f.Where("methods"), methods.size(), kMaxMethods);
+  }
   r.methods = f.Strings("methods");
-  for (size_t i = 0; i < r.methods.size(); ++i)
+  for (size_t i = 0; i < r.methods.size(); ++i) {
     CheckedName(r.methods[i], f.Where(fmt::format("methods[{}]", i)));
+    if (std::find(r.methods.begin(), r.methods.begin() + i, r.methods[i]) !=
+        r.methods.begin() + i) {
+      Fail("{}: {} twice", f.Where(fmt::format("methods[{}]", i)), r.methods[i]);
+    }
+  }
   const nlohmann::json& rows = f.Array("liftings");
   // Checked before the rows are read: a forged file of many rows is refused at once.
   constexpr size_t kMaxLiftings = 1000;
@@ -370,8 +394,15 @@ PrivacyTradeoffReport PrivacyTradeoffFromJson(const nlohmann::json& j, const std
   if (rows.empty() || !rows[0].is_object() || !rows[0].contains("lifting") ||
       rows[0]["lifting"] != "plain")
     Fail("{}: liftings must start with the plain one", f.Where("liftings"));
-  for (size_t i = 0; i < rows.size(); ++i)
+  for (size_t i = 0; i < rows.size(); ++i) {
     r.liftings.push_back(RowFrom(JsonFields(rows[i], f.Where(fmt::format("liftings[{}]", i)))));
+    for (size_t k = 0; k < i; ++k) {
+      if (r.liftings[k].lifting == r.liftings[i].lifting) {
+        Fail("{}: {} twice (liftings[{}])", f.Where(fmt::format("liftings[{}].lifting", i)),
+             r.liftings[i].lifting, k);
+      }
+    }
+  }
   return r;
 }
 

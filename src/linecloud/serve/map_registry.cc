@@ -16,6 +16,7 @@
 #include "linecloud/io/ply.h"
 #include "linecloud/pipeline/localizer_option_table.h"
 #include "linecloud/serve/wire.h"
+#include "linecloud/io/json_util.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
@@ -130,7 +131,12 @@ std::shared_ptr<const LoadedMap> MapRegistry::LoadMap(const std::string& id,
       const json audit = ParseRequestJson(ReadFilePrefix(audit_path, 1 << 22), audit_path);
       const json share = audit.value(
           json::json_pointer("/density_attack/recovery/within_diagonal_percent/1"), json());
-      if (share.is_number()) m->details["audit_recovered_share"] = share;
+      if (share.is_number() && share.get<double>() >= 0 && share.get<double>() <= 1) {
+        m->details["audit_recovered_share"] = share;
+      } else if (!share.is_null()) {  // a share no audit gives: not shown to readers
+        Fail("density_attack.recovery.within_diagonal_percent.1: {} is not a share in [0, 1]",
+             ShownInMessage(share));
+      }
     } catch (const std::exception& e) {
       Log(DumpJson(json{{"notice", fmt::format("map {}: audit not read: {}", id, e.what())}}));
     }

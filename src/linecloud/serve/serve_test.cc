@@ -301,6 +301,14 @@ TEST(Serve, ConsoleRoutesRevealNothingTheMapDoesNot) {
   const json published = json::parse(c.Get("/v1/maps/synth", Bearer("alice-secret"))->body);
   EXPECT_EQ(published["publish_lines"], true);
   EXPECT_EQ(published["audit_recovered_share"], 0.6325);
+  // A share no audit gives (7.5) is not shown to readers.
+  WriteFileAtomically(f.tmp.Path("maps/synth.audit.json"), [&](std::ostream& os) {
+    os << json{{"density_attack", {{"recovery", {{"within_diagonal_percent", {{"1", 7.5}}}}}}}}
+              .dump();
+  });
+  server.server().Reload();
+  const json implausible = json::parse(c.Get("/v1/maps/synth", Bearer("alice-secret"))->body);
+  EXPECT_FALSE(implausible.contains("audit_recovered_share")) << implausible.dump();
   WriteFileAtomically(f.tmp.Path("maps/synth.audit.json"),
                       [&](std::ostream& os) { os << audit.dump(); });
 
@@ -734,6 +742,30 @@ TEST(Serve, FountainPhotoThroughEveryRoute) {
   const Eigen::Quaterniond cam_from_map =
       (anchor.enu_from_map.rotation.inverse() * enu_from_cam).inverse();
   expect_near(cam_from_map, centre, "geopose");
+}
+
+// A map's geo-anchor: a field the pose does not have is refused, naming it, as is a missing one.
+TEST(Geo, AnAnchorsPoseHasQTAndScaleOnly) {
+  json j = {{"geo_anchor",
+             {{"lat", 48.85},
+              {"lon", 2.35},
+              {"h", 35},
+              {"enu_from_map", {{"q", {1, 0, 0, 0}}, {"t", {0, 0, 0}}, {"scale", 1.0}}}}}};
+  EXPECT_EQ(GeoAnchorFromJson(j, "m.json").enu_from_map.scale, 1.0);
+  auto error = [&](const json& anchor) {
+    try {
+      GeoAnchorFromJson(anchor, "m.json");
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  json extra = j;
+  extra["geo_anchor"]["enu_from_map"]["Q"] = {1, 0, 0, 0};
+  EXPECT_EQ(error(extra), "m.json: geo_anchor.enu_from_map: unknown field \"Q\" (q, t, scale)");
+  json no_t = j;
+  no_t["geo_anchor"]["enu_from_map"].erase("t");
+  EXPECT_EQ(error(no_t), "m.json: geo_anchor.enu_from_map.t: missing");
 }
 
 TEST(Geo, GeodeticRoundTripsAndPosesComeBack) {
