@@ -30,21 +30,29 @@ void Only(const json& j, const std::string& where, std::initializer_list<std::st
   }
 }
 
-enum class Type { kString, kNumber, kBool, kArray, kObject };
+enum class Type { kString, kNumber, kInteger, kBool, kArray, kObject, kStrings, kNumbers };
 
 // Each of `keys` present in `j` has type `type`.
 void Typed(const json& j, const std::string& where, Type type,
            std::initializer_list<const char*> keys) {
-  static constexpr const char* kNames[] = {"a string", "a number", "true or false", "an array",
-                                           "an object"};
+  static constexpr const char* kNames[] = {
+      "a string", "a number",  "an integer",          "true or false",
+      "an array", "an object", "an array of strings", "an array of numbers"};
+  const auto all_of = [](const json& a, bool (json::*is)() const noexcept) {
+    return a.is_array() &&
+           std::all_of(a.begin(), a.end(), [&](const json& x) { return (x.*is)(); });
+  };
   for (const char* key : keys) {
     if (!j.contains(key)) continue;
     const json& v = j[key];
-    const bool ok = type == Type::kString   ? v.is_string()
-                    : type == Type::kNumber ? v.is_number()
-                    : type == Type::kBool   ? v.is_boolean()
-                    : type == Type::kArray  ? v.is_array()
-                                            : v.is_object();
+    const bool ok = type == Type::kString    ? v.is_string()
+                    : type == Type::kNumber  ? v.is_number()
+                    : type == Type::kInteger ? v.is_number_integer()
+                    : type == Type::kBool    ? v.is_boolean()
+                    : type == Type::kArray   ? v.is_array()
+                    : type == Type::kObject  ? v.is_object()
+                    : type == Type::kStrings ? all_of(v, &json::is_string)
+                                             : all_of(v, &json::is_number);
     if (!ok) {
       Fail("{}: {} is not {}", Path(where, key), ShownInMessage(v), kNames[static_cast<int>(type)]);
     }
@@ -66,28 +74,45 @@ void CheckPrivacy(const json& reading, const std::string& where) {
   Only(reading["privacy"], at,
        {"dataRetention", "dataAcceptableUse", "dataSanitizationApplied",
         "dataSanitizationRequested"});
-  Typed(reading["privacy"], at, Type::kArray,
+  Typed(reading["privacy"], at, Type::kStrings,
         {"dataRetention", "dataAcceptableUse", "dataSanitizationApplied",
          "dataSanitizationRequested"});
 }
 
 // A reading the server does not use: its fields as the protocol names them.
+// Its fields are numbers but for the text ones (`strings`).
 void CheckOtherReading(const json& r, const std::string& where,
-                       std::initializer_list<std::string_view> fields) {
+                       std::initializer_list<std::string_view> fields,
+                       std::initializer_list<std::string_view> strings = {}) {
   Only(r, where, fields);
-  Typed(r, where, Type::kNumber, {"timestamp"});
+  Typed(r, where, Type::kInteger, {"timestamp"});
   Typed(r, where, Type::kString, {"sensorId"});
   CheckPrivacy(r, where);
+  for (const std::string_view field : fields) {
+    const std::string key(field);
+    // null too: a browser's Geolocation API gives null heading and speed when standing still.
+    if (key == "timestamp" || key == "sensorId" || key == "privacy" ||
+        (r.contains(key) && r[key].is_null())) {
+      continue;
+    }
+    const bool text = std::find(strings.begin(), strings.end(), field) != strings.end();
+    Typed(r, where, text ? Type::kString : Type::kNumber, {key.c_str()});
+  }
 }
 
 void CheckCameraReading(const json& r, const std::string& where) {
   Only(r, where,
        {"timestamp", "sensorId", "privacy", "sequenceNumber", "imageFormat", "size", "imageBytes",
         "imageOrientation", "params"});
-  Typed(r, where, Type::kNumber, {"timestamp", "sequenceNumber"});
+  Typed(r, where, Type::kInteger, {"timestamp", "sequenceNumber"});
   Typed(r, where, Type::kString, {"sensorId", "imageFormat", "imageBytes"});
   Typed(r, where, Type::kArray, {"size"});
   Typed(r, where, Type::kObject, {"params"});
+  if (r.contains("params")) {
+    Typed(r["params"], Path(where, "params"), Type::kString, {"model"});
+    Typed(r["params"], Path(where, "params"), Type::kNumbers,
+          {"modelParams", "minMaxDepth", "minMaxDisparity"});
+  }
   CheckPrivacy(r, where);
   if (r.contains("imageOrientation")) {
     const json& o = r["imageOrientation"];
@@ -121,7 +146,7 @@ void CheckSensor(const json& s, const std::string& where) {
 void CheckPriorPose(const json& p, const std::string& where) {
   Only(p, where, {"id", "timestamp", "type", "accuracy", "geopose", "position", "quaternion"});
   Typed(p, where, Type::kString, {"id", "type"});
-  Typed(p, where, Type::kNumber, {"timestamp"});
+  Typed(p, where, Type::kInteger, {"timestamp"});
   const auto check_geopose = [](const json& g, const std::string& at) {
     if (g.contains("position")) {
       Only(g["position"], Path(at, "position"), {"lat", "lon", "h"});
@@ -149,7 +174,7 @@ const json& CheckGeoPoseReq(const json& j) {
   if (!j.is_object()) Fail("the body is not a JSON object");
   Only(j, "", {"id", "timestamp", "type", "sensors", "sensorReadings", "priorPoses", "priorPose"});
   Typed(j, "", Type::kString, {"id", "type"});
-  Typed(j, "", Type::kNumber, {"timestamp"});
+  Typed(j, "", Type::kInteger, {"timestamp"});
   EachOf(j, "", "sensors", CheckSensor);
   EachOf(j, "", "priorPoses", CheckPriorPose);
   if (j.contains("priorPose")) CheckPriorPose(j["priorPose"], "priorPose");
@@ -168,10 +193,12 @@ const json& CheckGeoPoseReq(const json& j) {
   EachOf(readings, "sensorReadings", "wiFiReadings", [](const json& r, const std::string& w) {
     CheckOtherReading(r, w,
                       {"timestamp", "sensorId", "privacy", "BSSID", "frequency", "RSSI", "SSID",
-                       "scanTimeStart", "scanTimeEnd"});
+                       "scanTimeStart", "scanTimeEnd"},
+                      {"BSSID", "SSID"});
   });
   EachOf(readings, "sensorReadings", "bluetoothReadings", [](const json& r, const std::string& w) {
-    CheckOtherReading(r, w, {"timestamp", "sensorId", "privacy", "address", "RSSI", "name"});
+    CheckOtherReading(r, w, {"timestamp", "sensorId", "privacy", "address", "RSSI", "name"},
+                      {"address", "name"});
   });
   for (const char* motion :
        {"accelerometerReadings", "gyroscopeReadings", "magnetometerReadings"}) {

@@ -100,7 +100,21 @@ TEST(GeoPoseReq, FieldsTheProtocolDoesNotHaveAreNamed) {
 
 TEST(GeoPoseReq, FieldsOfTheWrongTypeAreNamed) {
   using P = json::json_pointer;
-  EXPECT_EQ(ErrorWith(P("/timestamp"), "x"), "timestamp: \"x\" is not a number");
+  EXPECT_EQ(ErrorWith(P("/timestamp"), "x"), "timestamp: \"x\" is not an integer");
+  EXPECT_EQ(ErrorWith(P("/timestamp"), 1.5), "timestamp: 1.5 is not an integer");
+  EXPECT_EQ(ErrorWith(P("/sensorReadings/cameraReadings/0/privacy/dataRetention"), {1}),
+            "sensorReadings.cameraReadings[0].privacy.dataRetention: [1] is not an array of "
+            "strings");
+  EXPECT_EQ(ErrorWith(P("/sensorReadings/cameraReadings/0/params/minMaxDepth"), "0,1"),
+            "sensorReadings.cameraReadings[0].params.minMaxDepth: \"0,1\" is not an array of "
+            "numbers");
+  EXPECT_EQ(ErrorWith(P("/sensorReadings/cameraReadings/0/params/model"), 1),
+            "sensorReadings.cameraReadings[0].params.model: 1 is not a string");
+  EXPECT_EQ(ErrorWith(P("/sensorReadings/geolocationReadings/0/latitude"), "48"),
+            "sensorReadings.geolocationReadings[0].latitude: \"48\" is not a number");
+  EXPECT_EQ(ErrorWith(P("/sensorReadings/geolocationReadings/0/heading"), nullptr), "");
+  EXPECT_EQ(ErrorWith(P("/sensorReadings/wiFiReadings"), {{{"BSSID", 1}}}),
+            "sensorReadings.wiFiReadings[0].BSSID: 1 is not a string");
   EXPECT_EQ(ErrorWith(P("/id"), 5), "id: 5 is not a string");
   EXPECT_EQ(ErrorWith(P("/sensors"), {{"id", "cam"}}), "sensors: {\"id\":\"cam\"} is not an array");
   EXPECT_EQ(ErrorWith(P("/sensors/0"), "cam"), "sensors[0]: \"cam\" is not an object");
