@@ -247,6 +247,24 @@ ColmapRegistrationReport RunColmapRegistration(const ColmapRegistrationOptions& 
     ours = report.direct_matching;
     if (!ours)
       Fail("{}: no direct_matching section (run eval run without --no-direct-matching)", o.ours);
+    // Every query photo of the work, in its group: another run's photos (renamed, regrouped,
+    // fewer) would leave these images without figures or give them another run's.
+    size_t missing = 0;
+    std::string first;
+    for (const EvalGroup& g : work.groups) {
+      for (const EvalImage& im : g.images) {
+        const bool found = std::any_of(
+            ours->per_query.begin(), ours->per_query.end(),
+            [&](const DirectMatchingPhoto& p) { return p.group == g.name && p.image == im.name; });
+        if (!found && missing++ == 0) first = g.name + "/" + im.name;
+      }
+    }
+    if (missing > 0) {
+      Fail(
+          "{}: {} of {}'s query photos have no direct-matching row (first: {}): not a report of "
+          "this work",
+          o.ours, missing, o.work_dir, first);
+    }
   }
   CreateDirectories(o.out_dir);
   ColmapOptions colmap = o.colmap;

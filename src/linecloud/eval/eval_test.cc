@@ -396,6 +396,27 @@ TEST(EvalRun, SyntheticWorkLocalizesEveryQueryWithAllMethods) {
             fmt::format("{}: a report of dataset 'synthetic', not of {} ('castle-P19')", co.ours,
                         co.work_dir));
   EXPECT_FALSE(FileExists(tmp.Path("colmap")));
+  // A report of this dataset whose rows are not this work's photos (one renamed): refused too.
+  EvalReport renamed = read;
+  renamed.direct_matching = DirectMatchingReport{};
+  for (const EvalGroup& g : w.groups) {
+    for (const EvalImage& im : g.images) {
+      DirectMatchingPhoto row;
+      row.group = g.name;
+      row.image = im.name;
+      renamed.direct_matching->per_query.push_back(row);
+    }
+  }
+  renamed.direct_matching->per_query[1].image = "IMG_0001.jpg";
+  WriteFileAtomically(tmp.Path("renamed.json"),
+                      [&](std::ostream& o) { o << ToJson(renamed).dump(); });
+  co.work_dir = tmp.Path("work");
+  co.ours = tmp.Path("renamed.json");
+  EXPECT_EQ(ErrorOf([&] { RunColmapRegistration(co); }),
+            fmt::format("{}: 1 of {}'s query photos have no direct-matching row (first: g00/{}): "
+                        "not a report of this work",
+                        co.ours, co.work_dir, w.groups[0].images[1].name));
+  EXPECT_FALSE(FileExists(tmp.Path("colmap")));
 
   ro.work_dir = tmp.Path("nowhere");
   EXPECT_NE(ErrorOf([&] { RunEvaluation(ro); }).find("eval prepare"), std::string::npos);
