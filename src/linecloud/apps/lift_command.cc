@@ -16,7 +16,7 @@ namespace {
 
 struct LiftArgs {
   LiftSettings settings;  // the paths here, the rest from the flags
-  OptionFlags<LiftSettings> flags;
+  OptionFlags<OptionField<LiftSettings>> flags;
   bool quiet = false;
 };
 

@@ -23,11 +23,10 @@ class LocalizerFlags {
            const std::set<std::string>& skip = {});
   // Sets the options given on the command line on `options`, in the table's
   // order; a bad value fails naming its flag.
-  void Apply(LocalizerOptions* options) const;
+  void Apply(LocalizerOptions* options) const { flags_.Apply(options); }
 
  private:
-  std::map<std::string, std::string> text_;  // option name → argument as typed
-  std::set<std::string> switches_;           // bool options whose flag was given
+  OptionFlags<OptionSpec> flags_;
 };
 
 }  // namespace linecloud

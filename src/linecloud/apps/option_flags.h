@@ -23,13 +23,18 @@ void AddOptionFlag(CLI::App* cmd, const OptionDescription& option,
                    const nlohmann::json& default_value, std::function<void()> on_switch,
                    std::function<void(const std::string&)> on_text);
 
-template <typename Options>
+// `Field`: OptionField<Options>, or a type derived from it (the Localizer's OptionSpec).
+template <typename Field>
 class OptionFlags {
  public:
-  // One flag per option of `table`.
-  void Add(CLI::App* cmd, std::span<const OptionField<Options>> table) {
+  using Options = typename Field::OptionsType;
+
+  // One flag per option of `table` (those `include` accepts, when given).
+  void Add(CLI::App* cmd, std::span<const Field> table,
+           const std::function<bool(const Field&)>& include = nullptr) {
     table_ = table;
-    for (const OptionField<Options>& f : table) {
+    for (const Field& f : table) {
+      if (include && !include(f)) continue;
       const std::string name = f.name;
       AddOptionFlag(
           cmd, f, f.Default(), [this, name] { switches_.insert(name); },
@@ -39,7 +44,7 @@ class OptionFlags {
   // Sets the options given on the command line, in the table's order; a bad
   // value fails naming its flag.
   void Apply(Options* options) const {
-    for (const OptionField<Options>& f : table_) {
+    for (const Field& f : table_) {
       if (switches_.count(f.name)) {
         SetOption(options, f, !f.Default().template get<bool>(), f.Flag());
       } else if (const auto it = text_.find(f.name); it != text_.end()) {
@@ -49,7 +54,7 @@ class OptionFlags {
   }
 
  private:
-  std::span<const OptionField<Options>> table_;
+  std::span<const Field> table_;
   std::map<std::string, std::string> text_;  // option name → argument as typed
   std::set<std::string> switches_;           // bool options whose flag was given
 };

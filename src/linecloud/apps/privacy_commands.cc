@@ -18,7 +18,8 @@ namespace {
 struct AttackArgs {
   std::string map_path, out_path;
   DensityAttackOptions attack;
-  OptionFlags<DensityAttackOptions> flags;  // the attack's options (attack_option_table.h)
+  OptionFlags<OptionField<DensityAttackOptions>>
+      flags;  // the attack's options (attack_option_table.h)
   bool quiet = false;
 };
 
@@ -87,7 +88,7 @@ void RegisterAuditCommand(CLI::App& app) {
   cmd->add_option("--out", options->out_dir, "output folder");
   cmd->add_option("--key-file", options->key_file, "the model's key (default: the key store's)");
   cmd->add_option("--key-store", options->key_store, "per-user key store");
-  auto flags = std::make_shared<OptionFlags<AuditOptions>>();
+  auto flags = std::make_shared<OptionFlags<OptionField<AuditOptions>>>();
   flags->Add(cmd, AuditOptionTable());
   cmd->add_flag("--quiet", *quiet, "no progress on standard error");
   cmd->callback([options, quiet, flags] {

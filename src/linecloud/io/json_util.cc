@@ -5,6 +5,8 @@
 #include <limits>
 #include <optional>
 
+#include <fmt/ranges.h>
+
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
@@ -100,6 +102,16 @@ std::vector<PluckerLine> JsonLineList(const nlohmann::json& j, const std::string
     out.emplace_back(Eigen::Vector3d(v[0], v[1], v[2]), Eigen::Vector3d(v[3], v[4], v[5]));
   }
   return out;
+}
+
+void RefuseUnknownFields(const nlohmann::json& object,
+                         std::initializer_list<std::string_view> known, std::string_view where) {
+  for (const auto& [key, value] : object.items()) {
+    if (std::find(known.begin(), known.end(), key) == known.end()) {
+      Fail("{}{}unknown field {} ({})", where, where.empty() ? "" : ": ",
+           ShownInMessage(nlohmann::json(key)), fmt::join(known, ", "));
+    }
+  }
 }
 
 Rigid3d JsonPose(const nlohmann::json& j, const std::string& where) {

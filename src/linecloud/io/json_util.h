@@ -1,6 +1,7 @@
 // Reading linecloud's JSON inputs with errors that name the file and field.
 #pragma once
 
+#include <initializer_list>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -26,6 +27,11 @@ nlohmann::json ParseJsonUniqueKeys(std::string_view text, const std::string& whe
 // A value or name as an error message shows what a client sent: JSON text
 // (escaped: no raw NUL, line break or invalid UTF-8), at most ~80 characters.
 std::string ShownInMessage(const nlohmann::json& value);
+
+// Refuses an object field not in `known` (it would be ignored): "WHERE: unknown field "x"
+// (known, ...)"; without `where`, "unknown field ...".
+void RefuseUnknownFields(const nlohmann::json& object,
+                         std::initializer_list<std::string_view> known, std::string_view where);
 
 // Field accessors: `where` names the file and field path in errors
 // ("problem.json: bearings[2]").

@@ -63,6 +63,7 @@ nlohmann::json OptionDescriptionJson(const OptionDescription& option,
 // One option of `Options`: its description and the member it reads and writes.
 template <typename Options>
 struct OptionField : OptionDescription {
+  using OptionsType = Options;
   std::function<nlohmann::json(const Options&)> get;
   std::function<void(Options&, const nlohmann::json&)> set;  // the value already checked
 

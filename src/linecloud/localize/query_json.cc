@@ -140,11 +140,7 @@ std::vector<LocalPoint> ParseLocalPointsJson(const nlohmann::json& j, const std:
     const std::string at = fmt::format("{}[{}]", where, i);
     const nlohmann::json& e = j[i];
     if (!e.is_object()) Fail("{}: expected {{\"frame\", \"keypoint\", \"xyz\"}}", at);
-    for (const auto& [key, value] : e.items()) {
-      if (key != "frame" && key != "keypoint" && key != "xyz") {
-        Fail("{}: unknown field {} (frame, keypoint, xyz)", at, ShownInMessage(key));
-      }
-    }
+    RefuseUnknownFields(e, {"frame", "keypoint", "xyz"}, at);
     LocalPoint p;
     for (const char* key : {"frame", "keypoint"}) {
       if (!e.contains(key)) Fail("{}: field '{}' is missing", at, key);
@@ -178,13 +174,7 @@ RigFile ParseRigJson(const nlohmann::json& j, const std::string& where) {
     Fail("{}: expected {{\"cam_from_rig\": [{{\"q\": [w, x, y, z], \"t\": [x, y, z]}}, ...]}}",
          where);
   }
-  for (const auto& [key, value] : j.items()) {
-    if (key != "cam_from_rig" && key != "points_local" && key != "scale_known" &&
-        key != "gravity") {
-      Fail("{}: unknown field {} (cam_from_rig, points_local, scale_known, gravity)", where,
-           ShownInMessage(key));
-    }
-  }
+  RefuseUnknownFields(j, {"cam_from_rig", "points_local", "scale_known", "gravity"}, where);
   RigFile rig;
   for (size_t i = 0; i < j["cam_from_rig"].size(); ++i) {
     rig.cam_from_rig.push_back(

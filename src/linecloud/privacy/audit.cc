@@ -164,8 +164,6 @@ PairingAttacksReport PairingAttacksOf(const LineCloud& cloud, const LineCloud* o
   return p;
 }
 
-std::string Percent(double share) { return fmt::format("{:.1f} %", 100 * share); }
-
 }  // namespace
 
 void AuditOptions::Check() const {
@@ -272,8 +270,8 @@ AuditReport RunAudit(const LineCloud& cloud, const AuditOptions& o) {
                        std::filesystem::path(o.map_path).filename().string(), cloud.size()),
            fmt::format("density attack: {} of the points within 1 % of the scene diagonal, {} "
                        "within 0.5 %; median error {:.2f} % of the diagonal",
-                       Percent(ShareWithinDiagonal(score, 1.0)),
-                       Percent(ShareWithinDiagonal(score, 0.5)),
+                       SharePercent(ShareWithinDiagonal(score, 1.0)),
+                       SharePercent(ShareWithinDiagonal(score, 0.5)),
                        100 * score.median_error / diagonal)});
     }
   }

@@ -187,8 +187,6 @@ PairingAttacksReport PairingAttacksFrom(const JsonFields& f, size_t lines) {
   return p;
 }
 
-std::string Percent(double share) { return fmt::format("{:.1f} %", 100 * share); }
-
 // Markdown table cells and headings: what came from a file (a path, a
 // pairing's name) must not break the table or start a new line.
 std::string Cell(const std::string& text) {
@@ -214,10 +212,10 @@ std::string DensityAttackMarkdown(const DensityAttackReport& a) {
       a.line_neighbours, a.refine_rounds, a.seconds);
   md += "| recovered within | share of the points |\n|---|---|\n";
   for (const auto& [p, share] : rec.within_diagonal_percent) {
-    md += fmt::format("| {} % of the diagonal | {} |\n", p, Percent(share));
+    md += fmt::format("| {} % of the diagonal | {} |\n", p, SharePercent(share));
   }
   for (const auto& [m, share] : rec.within_m) {
-    md += fmt::format("| {:.0f} cm | {} |\n", 100 * m, Percent(share));
+    md += fmt::format("| {:.0f} cm | {} |\n", 100 * m, SharePercent(share));
   }
   if (!a.why_nothing.empty())
     md += fmt::format("Nothing to vote with: {}.\n\n", Cell(a.why_nothing));
@@ -236,7 +234,7 @@ std::string TwoKeyMarkdown(const TwoKeyReport& t) {
       "With {} as well, an attacker pairs the lines by {} and intersects them: "
       "{} points recovered, {} of them exactly ({} of the map's points).\n",
       Cell(t.other_map), Cell(t.pairing), t.recovered, t.recovered_exactly,
-      Percent(t.share_recovered_exactly));
+      SharePercent(t.share_recovered_exactly));
   if (!t.why_nothing.empty()) md += fmt::format("Nothing recovered: {}.\n", Cell(t.why_nothing));
   md += "\nThis is why a model must only ever be lifted with its one key.\n";
   return md;
@@ -253,10 +251,10 @@ std::string PairingAttacksMarkdown(const PairingAttacksReport& p) {
   for (const std::optional<PairingReport>& a :
        {std::optional<PairingReport>(p.self_crossings), p.by_id, p.by_descriptor, p.by_crossing}) {
     if (!a) continue;
-    md +=
-        fmt::format("| {} | {} | {} | {} | {} |\n", Cell(a->pairing), a->pairs, a->recovered,
-                    Percent(a->share_recovered),
-                    a->share_recovered_beyond_own ? Percent(*a->share_recovered_beyond_own) : "—");
+    md += fmt::format(
+        "| {} | {} | {} | {} | {} |\n", Cell(a->pairing), a->pairs, a->recovered,
+        SharePercent(a->share_recovered),
+        a->share_recovered_beyond_own ? SharePercent(*a->share_recovered_beyond_own) : "—");
   }
   return md;
 }
@@ -312,6 +310,8 @@ AuditReport AuditReportFromJson(const nlohmann::json& j, const std::string& wher
   }
   return r;
 }
+
+std::string SharePercent(double share) { return fmt::format("{:.1f} %", 100 * share); }
 
 std::string AuditMarkdown(const AuditReport& r) {
   std::string md = fmt::format("# Privacy audit of {}\n\n", Cell(r.map));

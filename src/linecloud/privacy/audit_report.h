@@ -85,4 +85,7 @@ AuditReport AuditReportFromJson(const nlohmann::json& j, const std::string& wher
 // report.md.
 std::string AuditMarkdown(const AuditReport& report);
 
+// A share as report.md and audit.png show it: "12.3 %".
+std::string SharePercent(double share);
+
 }  // namespace linecloud

@@ -73,11 +73,7 @@ GeoAnchor GeoAnchorFromJson(const nlohmann::json& j, const std::string& source) 
   const nlohmann::json& p = a["enu_from_map"];
   const std::string pw = where + ".enu_from_map";
   // Another field (a misspelt "Q", a "center") would be ignored: refused, named.
-  for (const auto& [key, value] : p.items()) {
-    if (key != "q" && key != "t" && key != "scale") {
-      Fail("{}: unknown field {} (q, t, scale)", pw, ShownInMessage(nlohmann::json(key)));
-    }
-  }
+  RefuseUnknownFields(p, {"q", "t", "scale"}, pw);
   auto vec = [&](const char* key, int n) {
     if (!p.contains(key)) Fail("{}.{}: missing", pw, key);
     if (!p[key].is_array() || p[key].size() != static_cast<size_t>(n)) {

@@ -22,12 +22,7 @@ std::string Path(const std::string& where, std::string_view key) {
 // `j` is an object whose fields are among `known`.
 void Only(const json& j, const std::string& where, std::initializer_list<std::string_view> known) {
   if (!j.is_object()) Fail("{}: {} is not an object", where, ShownInMessage(j));
-  for (const auto& [key, value] : j.items()) {
-    if (std::find(known.begin(), known.end(), key) == known.end()) {
-      Fail("{}{}unknown field {} ({})", where, where.empty() ? "" : ": ", ShownInMessage(key),
-           fmt::join(known, ", "));
-    }
-  }
+  RefuseUnknownFields(j, known, where);
 }
 
 enum class Type { kString, kNumber, kInteger, kBool, kArray, kObject, kStrings, kNumbers };
@@ -109,6 +104,10 @@ void CheckCameraReading(const json& r, const std::string& where) {
   Typed(r, where, Type::kArray, {"size"});
   Typed(r, where, Type::kObject, {"params"});
   if (r.contains("params")) {
+    // A distortion or size given here would be dropped: refused, like a camera's other fields
+    // (minMaxDepth and minMaxDisparity are OSCP's, accepted and not used).
+    RefuseUnknownFields(r["params"], {"model", "modelParams", "minMaxDepth", "minMaxDisparity"},
+                        Path(where, "params"));
     Typed(r["params"], Path(where, "params"), Type::kString, {"model"});
     Typed(r["params"], Path(where, "params"), Type::kNumbers,
           {"modelParams", "minMaxDepth", "minMaxDisparity"});

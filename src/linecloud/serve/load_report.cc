@@ -24,9 +24,13 @@ json ToJson(const LoadLevel& l) {
           {"poses", l.poses}};
 }
 
-json ToJson(const AttackSoak& a) {
+json HostileStatusesJson(const AttackSoak& a) {
   json kinds = json::object();
   for (const auto& [kind, statuses] : a.hostile_statuses) kinds[kind] = StatusesJson(statuses);
+  return kinds;
+}
+
+json ToJson(const AttackSoak& a) {
   return {{"seconds", a.seconds},
           {"attackers", a.attackers},
           {"dribblers", a.dribblers},
@@ -34,7 +38,7 @@ json ToJson(const AttackSoak& a) {
           {"under_attack", ToJson(a.under_attack)},
           {"p99_ratio", a.p99_ratio},
           {"hostile_requests", a.hostile_requests},
-          {"hostile_statuses", kinds},
+          {"hostile_statuses", HostileStatusesJson(a)},
           {"rss_before_mb", a.rss_before_mb},
           {"rss_after_mb", a.rss_after_mb}};
 }
@@ -50,12 +54,10 @@ std::string AttackMarkdown(const AttackSoak& a) {
     md += fmt::format("| {} | {} | {:.1f} | {:.1f} | {} |\n", phase, l->requests, l->p50_ms,
                       l->p99_ms, StatusesJson(l->statuses).dump());
   }
-  json kinds = json::object();
-  for (const auto& [kind, statuses] : a.hostile_statuses) kinds[kind] = StatusesJson(statuses);
   md += fmt::format(
       "\np99 under attack / alone: {:.2f}; resident memory {:.1f} -> {:.1f} MB; hostile "
       "statuses by kind: {}\n",
-      a.p99_ratio, a.rss_before_mb, a.rss_after_mb, kinds.dump());
+      a.p99_ratio, a.rss_before_mb, a.rss_after_mb, HostileStatusesJson(a).dump());
   return md;
 }
 

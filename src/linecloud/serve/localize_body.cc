@@ -248,13 +248,7 @@ LocalizeBody ReadJsonBody(const json& j, int max_frames) {
     for (size_t k = 0; k < frames.size(); ++k) {
       const std::string where = fmt::format("frames[{}]", k);
       ReadFeatures(frames[k], where, &body.frames[k]);
-      for (const auto& [key, value] : frames[k].items()) {
-        if (key != "camera" && key != "keypoints" && key != "descriptors" &&
-            key != "cam_from_rig") {
-          Fail("{}: unknown field {} (camera, keypoints, descriptors, cam_from_rig)", where,
-               ShownInMessage(json(key)));
-        }
-      }
+      RefuseUnknownFields(frames[k], {"camera", "keypoints", "descriptors", "cam_from_rig"}, where);
       if (frames[k].contains("cam_from_rig")) {
         body.frames[k].cam_from_rig = JsonPose(frames[k]["cam_from_rig"], where + ".cam_from_rig");
       } else if (frames.size() > 1) {

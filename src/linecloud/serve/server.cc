@@ -657,16 +657,6 @@ struct Server::Impl {
       if (!p.contains("model") || !p["model"].is_string() || !p.contains("modelParams")) {
         Fail("params: 'model' (a COLMAP camera name) and 'modelParams' are required");
       }
-      // A distortion or size given here would be dropped: refused, like a camera's other fields.
-      for (const auto& [key, value] : p.items()) {
-        if (key != "model" && key != "modelParams" && key != "minMaxDepth" &&
-            key != "minMaxDisparity") {
-          Fail(
-              "params: unknown field {} (model, modelParams; OSCP's minMaxDepth and "
-              "minMaxDisparity are accepted and not used)",
-              ShownInMessage(key));
-        }
-      }
       camera = CameraFromJson({{"model", p["model"]},
                                {"width", c["size"][0]},
                                {"height", c["size"][1]},
