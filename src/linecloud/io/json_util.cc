@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <unordered_set>
 
 #include <fmt/ranges.h>
 
@@ -36,7 +37,8 @@ std::string ShownInMessage(const nlohmann::json& value) {
 
 nlohmann::json ParseJsonUniqueKeys(std::string_view text, const std::string& where) {
   using Event = nlohmann::json::parse_event_t;
-  std::vector<std::vector<std::string>> open_objects;  // the keys seen in each open object
+  // The keys seen in each open object, hashed: 100 000 keys in one object took 23 s of scanning.
+  std::vector<std::unordered_set<std::string>> open_objects;
   std::optional<std::string> twice;
   const nlohmann::json::parser_callback_t seen = [&](int, Event event, nlohmann::json& parsed) {
     if (event == Event::object_start) {
@@ -44,14 +46,8 @@ nlohmann::json ParseJsonUniqueKeys(std::string_view text, const std::string& whe
     } else if (event == Event::object_end) {
       open_objects.pop_back();
     } else if (event == Event::key && !twice) {
-      std::vector<std::string>& keys = open_objects.back();
       const std::string& key = parsed.get_ref<const std::string&>();
-      // Request objects have a handful of keys: a scan beats a set.
-      if (std::find(keys.begin(), keys.end(), key) != keys.end()) {
-        twice = key;
-      } else {
-        keys.push_back(key);
-      }
+      if (!open_objects.back().insert(key).second) twice = key;
     }
     return true;
   };

@@ -77,7 +77,8 @@ TEST(GeoPoseReq, FieldsTheProtocolDoesNotHaveAreNamed) {
             "(mirrored, rotation)");
   EXPECT_EQ(ErrorWith(P("/sensorReadings/foo"), json::array()),
             "sensorReadings: unknown field \"foo\" (cameraReadings, geolocationReadings, "
-            "wiFiReadings, bluetoothReadings, accelerometerReadings, gyroscopeReadings, "
+            "wiFiReadings, wifiReadings, bluetoothReadings, accelerometerReadings, "
+            "gyroscopeReadings, "
             "magnetometerReadings)");
   EXPECT_EQ(ErrorWith(P("/sensors/1/foo"), 1),
             "sensors[1]: unknown field \"foo\" (id, name, model, rigIdentifier, rigRotation, "
@@ -100,8 +101,19 @@ TEST(GeoPoseReq, FieldsTheProtocolDoesNotHaveAreNamed) {
 
 TEST(GeoPoseReq, FieldsOfTheWrongTypeAreNamed) {
   using P = json::json_pointer;
-  EXPECT_EQ(ErrorWith(P("/timestamp"), "x"), "timestamp: \"x\" is not an integer");
-  EXPECT_EQ(ErrorWith(P("/timestamp"), 1.5), "timestamp: 1.5 is not an integer");
+  EXPECT_EQ(ErrorWith(P("/timestamp"), "x"), "timestamp: \"x\" is not a number");
+  // OSCP types timestamps and sequence numbers `number`: its Python client sends
+  // time.time() * 1000; its C++ client leaves optional values null.
+  EXPECT_EQ(ErrorWith(P("/timestamp"), 1795907585315.311), "");
+  EXPECT_EQ(ErrorWith(P("/sensorReadings/cameraReadings/0/sequenceNumber"), 2.5), "");
+  EXPECT_EQ(ErrorWith(P("/sensorReadings/cameraReadings/0/params/minMaxDepth"), nullptr), "");
+  EXPECT_EQ(ErrorWith(P("/sensorReadings/cameraReadings/0/privacy"), nullptr), "");
+  EXPECT_EQ(ErrorWith(P("/priorPoses"), nullptr), "");
+  EXPECT_EQ(ErrorWith(P("/sensorReadings/wifiReadings"),
+                      {{{"timestamp", 1.5}, {"BSSID", "aa"}, {"RSSI", -40.5}}}),
+            "");  // both reference clients' spelling of wiFiReadings
+  EXPECT_EQ(ErrorWith(P("/sensorReadings/wifiReadings"), {{{"BSSID", 1}}}),
+            "sensorReadings.wifiReadings[0].BSSID: 1 is not a string");
   EXPECT_EQ(ErrorWith(P("/sensorReadings/cameraReadings/0/privacy/dataRetention"), {1}),
             "sensorReadings.cameraReadings[0].privacy.dataRetention: [1] is not an array of "
             "strings");
@@ -122,7 +134,7 @@ TEST(GeoPoseReq, FieldsOfTheWrongTypeAreNamed) {
             "sensorReadings.cameraReadings[0].imageOrientation.mirrored: \"no\" is not true or "
             "false");
   EXPECT_EQ(ErrorWith(P("/sensorReadings/cameraReadings/0/size"), "640x480"),
-            "sensorReadings.cameraReadings[0].size: \"640x480\" is not an array");
+            "sensorReadings.cameraReadings[0].size: \"640x480\" is not an array of numbers");
   EXPECT_EQ(ErrorWith(P("/sensorReadings/cameraReadings"), {{"imageBytes", "AAAA"}}),
             "sensorReadings.cameraReadings: {\"imageBytes\":\"AAAA\"} is not an array");
 }

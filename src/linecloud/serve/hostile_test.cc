@@ -711,22 +711,26 @@ TEST(Hostile, BodiesAndTheirParsingAreBounded) {
   EXPECT_NE(ErrorOf(a).find("JSON values"), std::string::npos) << a.body;
   EXPECT_LT(ProcessBytes(s.pid(), "VmHWM"), peak + (32 << 20));  // parsing it: +200 MB
 
-  // Two slow bodies of 15 MB hold 30 of the 40 MB budget from their heads on:
-  // a third is refused at once, with Retry-After.
-  const std::string head =
-      "POST /v1/maps/synth/localize HTTP/1.1\r\nHost: x\r\n" + kRoot +
-      "\r\nContent-Type: application/json\r\nContent-Length: 15000000\r\n\r\n{";
+  // Two slow bodies of 15 MB (two tokens) hold 30 of the 40 MB budget from their heads on:
+  // a third is refused at once, with Retry-After; so is a token's second while its first
+  // holds its share (a quarter of the budget, at least one body).
+  const auto head = [](const std::string& token) {
+    return "POST /v1/maps/synth/localize HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer " + token +
+           "\r\nContent-Type: application/json\r\nContent-Length: 15000000\r\n\r\n{";
+  };
   std::vector<int> slow;
-  for (int i = 0; i < 2; ++i) {
+  for (const char* token : {"alice-secret", "slow-secret"}) {
     slow.push_back(ConnectLoopback(s.port(), 5));
-    ASSERT_EQ(::send(slow.back(), head.data(), head.size(), MSG_NOSIGNAL),
-              static_cast<ssize_t>(head.size()));
+    ASSERT_EQ(::send(slow.back(), head(token).data(), head(token).size(), MSG_NOSIGNAL),
+              static_cast<ssize_t>(head(token).size()));
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  a = Send(s.port(), head);
-  EXPECT_EQ(a.status, 503) << a.body;
-  EXPECT_NE(ErrorOf(a).find("fill its memory for bodies"), std::string::npos) << a.body;
-  EXPECT_EQ(a.Header("Retry-After"), "1");
+  for (const char* token : {"root-secret", "alice-secret"}) {
+    a = Send(s.port(), head(token));
+    EXPECT_EQ(a.status, 503) << token << a.body;
+    EXPECT_NE(ErrorOf(a).find("fill its memory for bodies"), std::string::npos) << a.body;
+    EXPECT_EQ(a.Header("Retry-After"), "1");
+  }
   EXPECT_EQ(Send(s.port(), Request("GET", "/healthz")).status, 200);  // small requests pass
 
   // A refusal found inside a body is answered once the body has arrived.

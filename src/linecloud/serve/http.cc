@@ -192,6 +192,7 @@ struct HttpServer::Impl {
   int in_flight = 0;        // requests between their head and their completion
   int dispatched = 0;       // of which handed to a handler
   uint64_t body_bytes = 0;  // reserved by requests in flight (ReserveBody)
+  std::unordered_map<std::string, uint64_t> account_bytes;  // of which per account
   std::unordered_map<std::string, int> per_address;
 
   explicit Impl(HttpServerOptions o)
@@ -199,13 +200,48 @@ struct HttpServer::Impl {
 
   // Body bytes of all requests being read, at most body_budget_bytes: a
   // request's announced length from its head, more if it sends more.
+  // request's announced length from its head, more if it sends more; an
+  // account's requests at most account_budget_bytes of it.
   bool ReserveBody(RequestState* state, uint64_t bytes) {
     if (bytes <= state->reserved) return true;
+    const uint64_t more = bytes - state->reserved;
     std::lock_guard<std::mutex> lock(mutex);
-    if (body_bytes + (bytes - state->reserved) > options.body_budget_bytes) return false;
-    body_bytes += bytes - state->reserved;
+    uint64_t& account = account_bytes[state->request.account];
+    if (body_bytes + more > options.body_budget_bytes ||
+        account + more > options.account_budget_bytes) {
+      if (account == 0) account_bytes.erase(state->request.account);
+      return false;
+    }
+    body_bytes += more;
+    account += more;
     state->reserved = bytes;
     return true;
+  }
+
+  // Gives a request's reservation back (its lock held).
+  void ReleaseBody(const RequestState& state) {
+    if (state.reserved == 0) return;
+    body_bytes -= state.reserved;
+    const auto it = account_bytes.find(state.request.account);
+    if (it != account_bytes.end() && (it->second -= state.reserved) == 0) account_bytes.erase(it);
+  }
+
+  // A refusal of the library's own after the screen admitted the request.
+  MHD_Result Answer(MHD_Connection* connection, RequestState* state, HttpResponse r) const {
+    if (options.answered) options.answered(state->request, r);
+    return Queue(connection, std::move(r));
+  }
+
+  // A refusal decided from the head is answered after the body it announced
+  // has been read and dropped (bounded), unless the client waits for a 100
+  // Continue or announced no body at all.
+  bool DrainBeforeRefusal(const HttpRequest& req) const {
+    const uint64_t announced = req.BodyLength();
+    const bool chunked = req.HeaderCount("Transfer-Encoding") > 0;
+    if (announced == UINT64_MAX || announced / 4 > options.max_body_bytes) return false;
+    // Chunks of unknown total are not waited for (the server takes none).
+    if (!req.Header("Expect").empty() || chunked) return false;
+    return announced > 0;
   }
 
   void Notice(const std::string& text) const {
@@ -286,10 +322,19 @@ struct HttpServer::Impl {
         ++in_flight;
       }
       ReadHead(connection, url, method, state);
+      if (state->request.account.empty()) state->request.account = state->request.client;
       if (options.screen) {
         if (std::optional<HttpResponse> refusal = options.screen(state->request)) {
+          // A body announced is not read further: the connection closes after it.
+          if (state->request.BodyLength() > 0 ||
+              state->request.HeaderCount("Transfer-Encoding") > 0) {
+            refusal->close = true;
+          }
+          if (DrainBeforeRefusal(state->request)) {
+            state->pending = std::move(*refusal);  // its body read and dropped first
+            return MHD_YES;
+          }
           state->refused = true;
-          refusal->close = true;  // its body (if any) is never read
           return Queue(connection, std::move(*refusal));
         }
       }
@@ -297,27 +342,35 @@ struct HttpServer::Impl {
       state->too_large = announced > options.max_body_bytes;
       if (announced / 4 > options.max_body_bytes) {
         state->refused = true;  // far over: not worth reading to answer politely
-        return Queue(connection,
-                     ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true));
+        return Answer(connection, state,
+                      ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true));
       }
-      if (!state->too_large && !ReserveBody(state, announced)) {
+      if (state->too_large) {
+        state->pending = ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true);
+        if (!DrainBeforeRefusal(state->request)) {
+          state->refused = true;
+          return Answer(connection, state, std::move(*state->pending));
+        }
+        if (options.answered) options.answered(state->request, *state->pending);
+        return MHD_YES;
+      }
+      if (!ReserveBody(state, announced)) {
+        // Busy: answered at once (reading a body to drop it is no help to a busy server).
         state->refused = true;
         HttpResponse r = ErrorResponse(
             503, "the server is busy: request bodies being read fill its memory for bodies", true);
         r.headers = {{"Retry-After", "1"}};
-        return Queue(connection, std::move(r));
+        return Answer(connection, state, std::move(r));
       }
       const std::string type = state->request.Header("Content-Type");
-      if (!state->too_large && type.rfind("multipart/form-data", 0) != 0) {
-        state->request.body.reserve(announced);
-      }
+      if (type.rfind("multipart/form-data", 0) != 0) state->request.body.reserve(announced);
       if (type.rfind("multipart/form-data", 0) == 0) {
         state->request.multipart = true;
         state->post = MHD_create_post_processor(connection, 64 * 1024, &CollectPart, state);
         if (state->post == nullptr) {
           state->refused = true;
-          return Queue(
-              connection,
+          return Answer(
+              connection, state,
               ErrorResponse(400, "Content-Type: multipart/form-data needs a boundary", true));
         }
       }
@@ -328,8 +381,17 @@ struct HttpServer::Impl {
       // found here waits for its end (bounded: Content-Length <= 4 x the cap).
       const size_t n = *upload_size;
       *upload_size = 0;
-      if (state->refused || state->pending) return MHD_YES;
       state->received += n;
+      // A drip is cut off: no answer could be given before the request's deadline anyway.
+      if (std::chrono::steady_clock::now() - state->request.arrived > options.body_time) {
+        Notice(fmt::format("{}: a body still arriving {} ms after its head: closed",
+                           state->request.client, options.body_time.count()));
+        return MHD_NO;
+      }
+      if (state->refused || state->pending) {
+        // Dropped; a body beyond what it announced (or endless chunks) ends the connection.
+        return state->received / 4 > options.max_body_bytes ? MHD_NO : MHD_YES;
+      }
       if (state->received > options.max_body_bytes) state->too_large = true;
       if (state->too_large || !ReserveBody(state, state->received)) {
         state->pending = state->too_large
@@ -338,6 +400,7 @@ struct HttpServer::Impl {
                                              "the server is busy: request bodies being read "
                                              "fill its memory for bodies",
                                              true);
+        if (options.answered) options.answered(state->request, *state->pending);
         return MHD_YES;
       }
       if (state->post != nullptr) {
@@ -347,6 +410,7 @@ struct HttpServer::Impl {
                                         "boundary its Content-Type names"
                                       : state->post_error;
           state->pending = ErrorResponse(400, why, true);
+          if (options.answered) options.answered(state->request, *state->pending);
         }
       } else {
         state->request.body.append(upload, n);
@@ -357,6 +421,7 @@ struct HttpServer::Impl {
     if (state->dispatched || state->refused) return MHD_YES;
     if (state->too_large && !state->pending) {
       state->pending = ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true);
+      if (options.answered) options.answered(state->request, *state->pending);
     }
     if (state->post != nullptr && !state->pending) {
       const MHD_Result complete = MHD_destroy_post_processor(state->post);
@@ -364,6 +429,7 @@ struct HttpServer::Impl {
       if (complete != MHD_YES) {
         state->pending =
             ErrorResponse(400, "multipart: the body ends before its closing boundary", true);
+        if (options.answered) options.answered(state->request, *state->pending);
       }
     }
     if (state->pending) {
@@ -375,6 +441,7 @@ struct HttpServer::Impl {
       state->refused = true;
       HttpResponse r = ErrorResponse(503, "the server is stopping", true);
       r.headers = {{"Retry-After", "1"}};
+      if (options.answered) options.answered(state->request, r);
       return Queue(connection, std::move(r));
     }
     state->dispatched = true;
@@ -401,7 +468,7 @@ struct HttpServer::Impl {
     if (state->post != nullptr) MHD_destroy_post_processor(state->post);
     auto* impl = static_cast<Impl*>(cls);
     std::lock_guard<std::mutex> lock(impl->mutex);
-    impl->body_bytes -= state->reserved;
+    impl->ReleaseBody(*state);
     impl->dispatched -= state->dispatched;
     delete state;
     --impl->in_flight;

@@ -35,6 +35,9 @@ struct HttpRequest {
   std::map<std::string, std::string> parts;  // multipart/form-data fields by name
   // When its head arrived (before its body was read): deadlines run from here.
   std::chrono::steady_clock::time_point arrived{};
+  // Whom the screen admitted it for (a token's id, else the peer's address):
+  // its body is charged to that account's share of the body budget.
+  std::string account;
 
   // The first field of that name (case-insensitive), "" when absent.
   std::string Header(std::string_view name) const;
@@ -74,8 +77,14 @@ struct HttpServerOptions {
   size_t head_bytes = 32 * 1024;  // a connection's request line + header fields (then 431 / 414)
   uint64_t max_body_bytes = 16 << 20;  // then 413, the connection closed
   // Bodies of all requests being read or handled at once (then 503): a
-  // slow client holds its announced length from its head on.
+  // request admitted by `screen` holds its announced length from its head on,
+  // charged to its account, which may hold at most `account_budget_bytes` of
+  // it (one client cannot fill the budget for the others).
   uint64_t body_budget_bytes = uint64_t{256} << 20;
+  uint64_t account_budget_bytes = uint64_t{64} << 20;
+  // A body still arriving this long after its head is cut off (the
+  // connection closed): silence is bounded by `idle_seconds`, a drip by this.
+  std::chrono::milliseconds body_time{10000};
   unsigned idle_seconds = 5;  // a connection silent this long is closed
   int handler_threads = 64;   // at most; made as requests come
   // Stop(): how long requests in flight may take to finish (their handlers
@@ -85,8 +94,16 @@ struct HttpServerOptions {
   std::chrono::milliseconds grace{5000};
   HttpFields headers;  // added to every answer (security headers)
   // On each request's head (path, query, header fields; no body yet): an
-  // answer refuses the request before its body is read.
-  std::function<std::optional<HttpResponse>(const HttpRequest&)> screen;
+  // answer refuses the request before its body is read (or answers a cheap
+  // bodiless one on the connections' thread); else it sets the request's
+  // `account`. A refused request's body (when it announced one,
+  // within 4 x max_body_bytes and without Expect: 100-continue) is read and
+  // dropped before the answer, so that clients which send their whole body
+  // before they read (Python's urllib) see the status, not a broken pipe.
+  std::function<std::optional<HttpResponse>(HttpRequest&)> screen;
+  // An answer the library gave itself after `screen` admitted the request
+  // (413, 503, a malformed multipart body): for the log and the counters.
+  std::function<void(const HttpRequest&, const HttpResponse&)> answered;
   // The whole request, on a handler thread.
   std::function<HttpResponse(HttpRequest&)> handle;
   // The library's own messages (a request it refused unparsed, ...).

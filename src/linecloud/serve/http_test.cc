@@ -11,6 +11,7 @@
 #include <atomic>
 #include <chrono>
 #include <future>
+#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -95,8 +96,16 @@ TEST(Http, AnswersHeadsQueriesBodiesAndMultipart) {
                   "Content-Length: 4\r\n\r\nabcd");
   EXPECT_EQ(a.status, 400) << a.body;
   EXPECT_NE(a.body.find("boundary"), std::string::npos) << a.body;
-  // Refused on its head: the body is never read, the connection closed.
-  a = RawExchange(port, "POST /refuse HTTP/1.1\r\nHost: x\r\nContent-Length: 1000000\r\n\r\n");
+  // Refused on its head: a client waiting for 100 Continue gets the answer at once, the
+  // connection closed; one that sends its body first (Python's urllib) gets it after the body
+  // is read and dropped, not a reset in the middle of its write.
+  a = RawExchange(port,
+                  "POST /refuse HTTP/1.1\r\nHost: x\r\nExpect: 100-continue\r\n"
+                  "Content-Length: 1000000\r\n\r\n");
+  EXPECT_EQ(a.status, 403);
+  EXPECT_EQ(a.Header("Connection"), "close");
+  a = RawExchange(port, "POST /refuse HTTP/1.1\r\nHost: x\r\nContent-Length: 1000000\r\n\r\n" +
+                            std::string(1000000, 'x'));
   EXPECT_EQ(a.status, 403);
   EXPECT_EQ(a.Header("Connection"), "close");
 }
@@ -112,6 +121,72 @@ TEST(Http, ABodyOverTheCapIsReadThen413AndFarOverAtOnce) {
   a = RawExchange(port, "POST /p HTTP/1.1\r\nHost: x\r\nContent-Length: 99999999999\r\n\r\nabc");
   EXPECT_EQ(a.status, 413) << a.head;
   EXPECT_LT(a.seconds, 2.0);
+}
+
+// [siege]: one account (the screen's: a token) holds at most its share of the body budget,
+// whoever else is uploading; the layer's own refusals reach `answered`.
+TEST(Http, AnAccountHoldsOnlyItsShareOfTheBodyBudget) {
+  HttpServerOptions o = TestOptions();
+  o.body_budget_bytes = 4 << 20;
+  o.account_budget_bytes = 1 << 20;
+  o.max_body_bytes = 1 << 20;
+  o.screen = [](HttpRequest& req) -> std::optional<HttpResponse> {
+    req.account = req.Header("X-Account");
+    return std::nullopt;
+  };
+  std::mutex mutex;
+  std::vector<int> answered;
+  o.answered = [&](const HttpRequest&, const HttpResponse& r) {
+    std::lock_guard<std::mutex> lock(mutex);
+    answered.push_back(r.status);
+  };
+  HttpServer server(o);
+  const int port = server.Bind();
+  // Account a announces 800 KB and sends nothing yet: it holds 800 KB of its 1 MB.
+  const int held = ConnectLoopback(port);
+  const std::string head =
+      "POST /p HTTP/1.1\r\nHost: x\r\nX-Account: a\r\nContent-Length: 800000\r\n\r\n";
+  ASSERT_EQ(::send(held, head.data(), head.size(), MSG_NOSIGNAL),
+            static_cast<ssize_t>(head.size()));
+  std::this_thread::sleep_for(100ms);
+  const std::string body(400000, 'x');
+  const auto post = [&](const std::string& account) {
+    return RawExchange(port, fmt::format("POST /p HTTP/1.1\r\nHost: x\r\nX-Account: {}\r\n"
+                                         "Content-Length: {}\r\n\r\n",
+                                         account, body.size()) +
+                                 body);
+  };
+  const RawAnswer a = post("a");
+  EXPECT_EQ(a.status, 503) << a.body;  // a's share is taken by its own upload
+  EXPECT_EQ(post("b").status, 200);    // b's is not
+  ::close(held);
+  std::lock_guard<std::mutex> lock(mutex);
+  EXPECT_EQ(answered, std::vector<int>{503});
+}
+
+// [siege]: a body that drips (a byte a second, never silent for the idle
+// timeout) is cut off at body_time after its head.
+TEST(Http, ADrippingBodyIsCutOffAtItsTimeBound) {
+  HttpServerOptions o = TestOptions();
+  o.idle_seconds = 5;
+  o.body_time = 1500ms;
+  HttpServer server(o);
+  const int port = server.Bind();
+  const int fd = ConnectLoopback(port, 10);
+  const std::string head = "POST /p HTTP/1.1\r\nHost: x\r\nContent-Length: 100\r\n\r\n";
+  ASSERT_EQ(::send(fd, head.data(), head.size(), MSG_NOSIGNAL), static_cast<ssize_t>(head.size()));
+  const auto start = std::chrono::steady_clock::now();
+  bool closed = false;
+  for (int i = 0; i < 10 && !closed; ++i) {
+    std::this_thread::sleep_for(500ms);
+    closed = ::send(fd, "x", 1, MSG_NOSIGNAL) != 1;
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  ::close(fd);
+  EXPECT_TRUE(closed);
+  EXPECT_LT(seconds, 3.5);
+  EXPECT_EQ(Get(port, "/echo").status, 200);
 }
 
 // Row 5: 500 000 header fields (6 MB). cpp-httplib: no answer, +55 MB.

@@ -126,6 +126,12 @@ void CheckServedCamera(const Camera& camera, const std::string& where) {
            side);
     }
   }
+  // Inside the image (a principal point of 1e12 kept RANSAC busy until the deadline).
+  const Eigen::Vector2d c = camera.PrincipalPoint();
+  if (!(c.x() >= 0 && c.x() <= camera.width && c.y() >= 0 && c.y() <= camera.height)) {
+    Fail("{}: principal point ({}, {}) is outside the {}x{} image", where, c.x(), c.y(),
+         camera.width, camera.height);
+  }
 }
 
 std::vector<QueryPhoto> LocalizeBody::Photos() const {

@@ -15,11 +15,13 @@
 #include <cmath>
 #include <filesystem>
 #include <future>
+#include <limits>
 #include <iostream>
 #include <map>
 #include <mutex>
 #include <semaphore>
 #include <thread>
+#include <unordered_map>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -59,6 +61,10 @@ namespace fs = std::filesystem;
 // Header fields a request may carry (their bytes are bounded by
 // HttpServerOptions::head_bytes before this count is taken).
 constexpr size_t kMaxHeaders = 100;
+
+// The smallest RANSAC threshold a request may ask for (pixels): SIFT locates
+// keypoints to ~0.1 px; 1e-300 made every draw fail until the deadline.
+constexpr double kMinServedThreshold = 0.05;
 
 // The API's routes by path: their method ("GET" / "POST"), "" for any other
 // path (the console's files).
@@ -304,6 +310,41 @@ struct Server::Impl {
   int port = -1;
   std::string web_dir;  // the console's files ("": none)
   std::atomic<int> in_flight{0};
+  std::mutex running_mutex;                      // running
+  std::unordered_map<std::string, int> running;  // readers' localizations, per token (TokenSlot)
+  int PerTokenRequests() const { return std::max(1, options.threads / 2); }
+
+  // A reader's localizations being handled (parsed, queued or running) at
+  // most PerTokenRequests() at once, then 429: one token holds at most half
+  // the workers and the parse slots, whatever its requests cost.
+  class TokenSlot {
+   public:
+    TokenSlot(Impl& impl, const std::optional<TokenEntry>& token) : impl_(impl) {
+      if (!token || token->admin) return;
+      std::lock_guard<std::mutex> lock(impl.running_mutex);
+      int& n = impl.running[token->id];
+      if (n >= impl.PerTokenRequests()) {
+        Throw(429,
+              fmt::format("this token has {} request(s) being localized, the most it may have at "
+                          "once: send the next when one is answered",
+                          n),
+              1);
+      }
+      ++n;
+      account_ = token->id;
+    }
+    TokenSlot(const TokenSlot&) = delete;
+    TokenSlot& operator=(const TokenSlot&) = delete;
+    ~TokenSlot() {
+      if (account_.empty()) return;
+      std::lock_guard<std::mutex> lock(impl_.running_mutex);
+      if (--impl_.running[account_] <= 0) impl_.running.erase(account_);
+    }
+
+   private:
+    Impl& impl_;
+    std::string account_;
+  };
   std::unique_ptr<MapRegistry> registry;
 
   std::shared_ptr<const MapSet> Maps() const { return registry->Maps(); }
@@ -345,7 +386,9 @@ struct Server::Impl {
   // A request body's JSON, parsed by at most workers + 2 requests at once (a
   // parse costs up to ~50 MB: kMaxRequestJsonValues); 503 when no slot frees
   // before the deadline.
-  json ParseBody(std::string_view body, std::string_view what, Clock::time_point deadline) {
+  // `parse()` (a body's JSON, or a multipart body's JSON parts) in a parse slot.
+  template <typename Parse>
+  auto Parsing(Clock::time_point deadline, Parse parse) -> decltype(parse()) {
     if (!parse_slots->try_acquire_until(deadline)) {
       Throw(503, "the server is busy: every JSON parsing slot is taken", 1);
     }
@@ -353,7 +396,11 @@ struct Server::Impl {
       std::counting_semaphore<>& slots;
       ~Release() { slots.release(); }
     } release{*parse_slots};
-    return ParseRequestJson(body, what);
+    return parse();
+  }
+
+  json ParseBody(std::string_view body, std::string_view what, Clock::time_point deadline) {
+    return Parsing(deadline, [&] { return ParseRequestJson(body, what); });
   }
 
   // When a request that arrives now must be answered (--request-seconds).
@@ -423,6 +470,19 @@ struct Server::Impl {
           o.localize.Check();  // combinations (min_iterations <= max_iterations) before any work
         } catch (const Error& e) {
           Fail("{}: {}", where, e.what());
+        }
+        // What would only hold a worker until the deadline: draws no deadline allows (p6L
+        // takes ~1 ms a draw), a threshold below what any keypoint is located to.
+        const double most_draws = 1000 * options.request_seconds;
+        if (o.localize.ransac.min_iterations > most_draws) {
+          Fail(
+              "{}.options.min_iterations: {} draws do not fit this server's {} s deadline (at "
+              "most {:g})",
+              where, o.localize.ransac.min_iterations, options.request_seconds, most_draws);
+        }
+        if (o.localize.ransac.max_error < kMinServedThreshold) {
+          Fail("{}.options.threshold: {} px is below the {} px keypoints are located to", where,
+               o.localize.ransac.max_error, kMinServedThreshold);
         }
         r.options = o.localize;
       }
@@ -497,17 +557,18 @@ struct Server::Impl {
     if (token) (*log)["token"] = token->id;
     const auto map = FindMap(id, token);
     (*log)["map"] = id;
-    Throttle(token);
-    const Clock::time_point deadline = Deadline(req);
+    const TokenSlot slot(*this, token);
+    const Clock::time_point deadline = Deadline(req);  // rate charged at the head (Screen)
     const std::string type = req.Header("Content-Type");
     if (!req.multipart && type.rfind("application/json", 0) != 0) {
       Throw(415, "send multipart/form-data (image + camera) or application/json (features)");
     }
     auto body = std::make_shared<LocalizeBody>();
     try {
-      *body = req.multipart
-                  ? ReadMultipartBody(req.parts, options.max_frames)
-                  : ReadJsonBody(ParseBody(req.body, "body", deadline), options.max_frames);
+      *body =
+          req.multipart
+              ? Parsing(deadline, [&] { return ReadMultipartBody(req.parts, options.max_frames); })
+              : ReadJsonBody(ParseBody(req.body, "body", deadline), options.max_frames);
     } catch (const FramesOverLimit& e) {
       Throw(413, e.what());
     } catch (const Error& e) {
@@ -567,7 +628,6 @@ struct Server::Impl {
     if (token && !token->admin && !map->publish_lines) {
       Throw(403, "the map's lines are for admin tokens: its owner has not published them");
     }
-    Throttle(token);
     const size_t total = map->segments.size() / 6;
     size_t limit = std::min<size_t>(total, 20000);
     if (const auto limit_param = req.Query("limit")) {
@@ -616,14 +676,11 @@ struct Server::Impl {
     return body;
   }
 
-  // POST /geopose (OSCP GeoPose Protocol v2)
-  json GeoPoseRoute(const HttpRequest& req, json* log) {
-    // Who, which map and how often before the body is read: a stranger's or
-    // a throttled client's body costs no parsing.
-    const auto token = Authorize(req);
-    if (token) (*log)["token"] = token->id;
+  // /geopose's map: ?map=ID, else the token's only geo-anchored map (404 otherwise).
+  std::shared_ptr<const LoadedMap> GeoPoseMap(const HttpRequest& req,
+                                              const std::optional<TokenEntry>& token) const {
     std::string id = req.Query("map").value_or("");
-    if (id.empty()) {  // the token's only geo-anchored map
+    if (id.empty()) {
       std::vector<std::string> anchored;
       for (const auto& [mid, m] : *Maps()) {
         if (m->anchor && (!token || token->MayUse(mid))) anchored.push_back(mid);
@@ -634,11 +691,21 @@ struct Server::Impl {
       }
       id = anchored.front();
     }
-    const auto map = FindMap(id, token);
-    (*log)["map"] = id;
+    auto map = FindMap(id, token);
     if (!map->anchor) Throw(404, "the map has no geo-anchor");
-    Throttle(token);
-    const Clock::time_point deadline = Deadline(req);
+    return map;
+  }
+
+  // POST /geopose (OSCP GeoPose Protocol v2)
+  json GeoPoseRoute(const HttpRequest& req, json* log) {
+    // Who, which map and how often before the body is read: a stranger's or
+    // a throttled client's body costs no parsing.
+    const auto token = Authorize(req);
+    if (token) (*log)["token"] = token->id;
+    const auto map = GeoPoseMap(req, token);
+    (*log)["map"] = map->id;
+    const TokenSlot slot(*this, token);
+    const Clock::time_point deadline = Deadline(req);  // rate charged at the head (Screen)
     json j = ParseBody(req.body, "GeoPoseReq", deadline);
     const json* reading = nullptr;
     Camera camera;
@@ -648,18 +715,27 @@ struct Server::Impl {
       reading = &CheckGeoPoseReq(j);
       const json& c = *reading;
       if (!c.contains("imageBytes") || !c["imageBytes"].is_string()) Fail("imageBytes is missing");
+      // OSCP types size as number[]: 1536.0 is a width too.
+      const auto whole = [](const json& v) {
+        return v.is_number() && v.get<double>() >= 0 && v.get<double>() <= 1e9 &&
+               v.get<double>() == std::floor(v.get<double>());
+      };
       if (!c.contains("size") || !c["size"].is_array() || c["size"].size() != 2 ||
-          !c["size"][0].is_number_unsigned() || !c["size"][1].is_number_unsigned()) {
-        Fail("size: expected [width, height]");
+          !whole(c["size"][0]) || !whole(c["size"][1])) {
+        Fail("size: expected [width, height] in whole pixels");
       }
       if (!c.contains("params") || !c["params"].is_object()) Fail("params is missing");
       const json& p = c["params"];
-      if (!p.contains("model") || !p["model"].is_string() || !p.contains("modelParams")) {
+      if (!p.contains("model") || !p["model"].is_string() || !p.contains("modelParams") ||
+          !p["modelParams"].is_array()) {
         Fail("params: 'model' (a COLMAP camera name) and 'modelParams' are required");
       }
-      camera = CameraFromJson({{"model", p["model"]},
-                               {"width", c["size"][0]},
-                               {"height", c["size"][1]},
+      // The reference clients read "pinhole" as PINHOLE.
+      std::string model = p["model"].get<std::string>();
+      for (char& ch : model) ch = static_cast<char>(std::toupper(static_cast<unsigned char>(ch)));
+      camera = CameraFromJson({{"model", model},
+                               {"width", c["size"][0].get<uint64_t>()},
+                               {"height", c["size"][1].get<uint64_t>()},
                                {"params", p["modelParams"]}},
                               "cameraReadings[0]");
       CheckServedCamera(camera, "cameraReadings[0]");
@@ -709,14 +785,19 @@ struct Server::Impl {
     const Sim3d& p = result.pose.query_from_world;
     const GeoPose g = GeoPoseOfCamera(*map->anchor, Rigid3d(p.rotation, p.translation));
     const double scale = map->anchor->enu_from_map.scale;
-    return {{"id", j.contains("id") ? j["id"] : json("")},
+    // Every field a GeoPoseResp has, of its type: the reference clients read each (a null id
+    // or accuracy fails their parsing).
+    const auto finite_or_max = [](double v) {
+      return std::isfinite(v) ? v : std::numeric_limits<double>::max();
+    };
+    return {{"id", j.contains("id") && j["id"].is_string() ? j["id"] : json("")},
             {"timestamp", std::chrono::duration_cast<std::chrono::milliseconds>(
                               std::chrono::system_clock::now().time_since_epoch())
                               .count()},
             {"type", "geopose"},
             {"accuracy",
-             {{"position", result.pose.uncertainty.position * scale},
-              {"orientation", result.pose.uncertainty.rotation_deg}}},
+             {{"position", finite_or_max(result.pose.uncertainty.position * scale)},
+              {"orientation", finite_or_max(result.pose.uncertainty.rotation_deg)}}},
             {"geopose",
              {{"position", {{"lat", g.lat_deg}, {"lon", g.lon_deg}, {"h", g.h_m}}},
               {"quaternion",
@@ -779,10 +860,30 @@ struct Server::Impl {
     });
   }
 
+  // A map route's checks that need no body, at its head: who (401), which
+  // map (404), may they (403), how often (429: every request that gets this
+  // far is charged, whether its body then arrives or not).
+  void HeadChecks(HttpRequest& req) {
+    const std::string& path = req.path;
+    const bool map_route = path == "/geopose" || path.rfind("/v1/maps/", 0) == 0;
+    if (!map_route) return;
+    const auto token = Authorize(req);
+    req.account = token ? "token " + token->id : "address " + req.client;
+    const std::string rest = path.substr(std::min(path.size(), std::string("/v1/maps/").size()));
+    const size_t slash = rest.find('/');
+    const std::string tail = slash == std::string::npos ? "" : rest.substr(slash);
+    const auto map =
+        path == "/geopose" ? GeoPoseMap(req, token) : FindMap(rest.substr(0, slash), token);
+    if (tail == "/segments" && token && !token->admin && !map->publish_lines) {
+      Throw(403, "the map's lines are for admin tokens: its owner has not published them");
+    }
+    if (path == "/geopose" || tail == "/localize" || tail == "/segments") Throttle(token);
+  }
+
   // Before a request's body is read: what no route answers with a body,
   // refused at once (the connection then closes). Answered through Handle
   // (logged, counted).
-  std::optional<HttpResponse> Screen(const HttpRequest& req) {
+  std::optional<HttpResponse> Screen(HttpRequest& req) {
     std::optional<HttpError> refusal;
     const std::string allowed = AllowedMethods(req.path);
     const std::string length = req.Header("Content-Length");
@@ -811,13 +912,42 @@ struct Server::Impl {
     } else if (range.find(',') != std::string::npos || req.HeaderCount("Range") > 1) {
       // 500 ranges of one file answered 808 MB (cpp-httplib).
       refusal = HttpError{416, "one range per request"};
-    } else if (const auto tokens = Tokens(); req.method == "POST" && !tokens->open() &&
-                                             !tokens->Authenticate(Authorization(req))) {
-      refusal = HttpError{401, "a valid 'Authorization: Bearer TOKEN' header is required"};
     }
-    if (!refusal) return std::nullopt;
     const std::string route = allowed.empty() ? "static" : RouteName(req.path);
-    return Handle(route, req, [&](json*, HttpResponse*) -> json { throw *refusal; });
+    if (refusal) return Handle(route, req, [&](json*, HttpResponse*) -> json { throw *refusal; });
+    // Whoever may send a body is known before any of it is read or held.
+    try {
+      HeadChecks(req);
+      if (allowed != "POST" && (req.BodyLength() > 0 || req.HeaderCount("Transfer-Encoding") > 0)) {
+        Throw(400, fmt::format("{} {} takes no body", req.method, route));
+      }
+      // The probes answered here, on the connections' thread: never behind
+      // requests waiting for a handler, a parse slot or a worker.
+      if (req.path == "/healthz" || req.path == "/readyz") return Dispatch(req);
+      return std::nullopt;
+    } catch (const HttpError& e) {
+      return Handle(route, req, [&](json*, HttpResponse*) -> json { throw e; });
+    }
+  }
+
+  // An answer the HTTP layer gave itself (413, 503, a broken multipart
+  // body): logged and counted as the routes' are.
+  void Answered(const HttpRequest& req, const HttpResponse& res) {
+    const std::string route = AllowedMethods(req.path).empty() ? "static" : RouteName(req.path);
+    metrics.Request(route, res.status);
+    json log = {{"time", std::chrono::duration_cast<std::chrono::milliseconds>(
+                             std::chrono::system_clock::now().time_since_epoch())
+                             .count()},
+                {"route", route},
+                {"method", req.method},
+                {"client", req.client},
+                {"status", res.status},
+                {"by", "http"}};
+    try {
+      log["error"] = json::parse(res.body).value("error", "");
+    } catch (const std::exception&) {
+    }
+    Log(DumpJson(log));
   }
 
   // Content-Security-Policy of every answer (ConsolePolicy).
@@ -1047,6 +1177,13 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   h.connections_per_address = o.connections_per_address;
   h.max_body_bytes = static_cast<uint64_t>(o.max_body_mb * 1024 * 1024);
   h.body_budget_bytes = static_cast<uint64_t>(o.body_budget_mb * 1024 * 1024);
+  // One token's (or, without tokens, one address's) bodies: a quarter of the budget, at least
+  // one body of the largest size.
+  h.account_budget_bytes = std::max(h.max_body_bytes, h.body_budget_bytes / 4);
+  // A body still arriving a socket timeout after the request's deadline is cut off (until
+  // then it is answered 504).
+  h.body_time = std::chrono::milliseconds(
+      static_cast<int64_t>(1000 * (o.request_seconds + o.read_timeout_s)));
   h.idle_seconds = static_cast<unsigned>(std::max(1.0, std::ceil(o.read_timeout_s)));
   // Handlers wait for a worker (or their deadline): the workers, the queue and
   // a few for cheap routes; more requests wait in line, read and suspended.
@@ -1060,7 +1197,10 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
                {"X-Frame-Options", "DENY"},
                {"Referrer-Policy", "no-referrer"},
                {"Content-Security-Policy", impl->security_policy}};
-  h.screen = [impl](const HttpRequest& req) { return impl->Screen(req); };
+  h.screen = [impl](HttpRequest& req) { return impl->Screen(req); };
+  h.answered = [impl](const HttpRequest& req, const HttpResponse& res) {
+    impl->Answered(req, res);
+  };
   h.handle = [impl](HttpRequest& req) { return impl->Dispatch(req); };
   h.notice = [impl](const std::string& text) { impl->Log(DumpJson(json{{"notice", text}})); };
   h.closed = [impl](const std::string& client) {

@@ -29,7 +29,7 @@ JsonShape ScanJsonShape(std::string_view text) {
       ++shape.values;
     } else if (c == ']' || c == '}') {
       --depth;
-    } else if (c == ',') {
+    } else if (c == ',' || c == ':') {  // a key is a value too (its string)
       ++shape.values;
     }
   }
