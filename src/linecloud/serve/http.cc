@@ -54,6 +54,16 @@ std::string AddressText(const sockaddr* addr) {
   return text;
 }
 
+// Whose connections count together: an IPv4 address, or an IPv6 /64 (one
+// host is usually given a whole /64: per address it had no limit).
+std::string LimitKey(const sockaddr* addr) {
+  if (addr == nullptr || addr->sa_family != AF_INET6) return AddressText(addr);
+  sockaddr_in6 prefix = *reinterpret_cast<const sockaddr_in6*>(addr);
+  if (IN6_IS_ADDR_V4MAPPED(&prefix.sin6_addr)) return AddressText(addr);
+  std::fill(prefix.sin6_addr.s6_addr + 8, prefix.sin6_addr.s6_addr + 16, 0);
+  return AddressText(reinterpret_cast<const sockaddr*>(&prefix)) + "/64";
+}
+
 bool IsLoopbackAddress(const sockaddr* addr) {
   if (addr == nullptr) return false;
   if (addr->sa_family == AF_INET) {
@@ -480,7 +490,7 @@ struct HttpServer::Impl {
     auto* impl = static_cast<Impl*>(cls);
     if (impl->options.connections_per_address <= 0 || impl->Exempt(addr)) return MHD_YES;
     std::lock_guard<std::mutex> lock(impl->mutex);
-    const auto it = impl->per_address.find(AddressText(addr));
+    const auto it = impl->per_address.find(LimitKey(addr));
     return it != impl->per_address.end() && it->second >= impl->options.connections_per_address
                ? MHD_NO
                : MHD_YES;
@@ -490,6 +500,7 @@ struct HttpServer::Impl {
   // per-connection `socket_context`).
   struct ConnectionState {
     std::string address;
+    std::string key;       // LimitKey
     bool counted = false;  // in per_address
     int requests = 0;
   };
@@ -505,10 +516,11 @@ struct HttpServer::Impl {
       *socket_context = c;
       if (info == nullptr) return;
       c->address = AddressText(info->client_addr);
+      c->key = LimitKey(info->client_addr);
       c->counted = impl->options.connections_per_address > 0 && !impl->Exempt(info->client_addr);
       if (!c->counted) return;
       std::lock_guard<std::mutex> lock(impl->mutex);
-      ++impl->per_address[c->address];
+      ++impl->per_address[c->key];
       return;
     }
     auto* c = static_cast<ConnectionState*>(*socket_context);
@@ -516,7 +528,7 @@ struct HttpServer::Impl {
     *socket_context = nullptr;
     if (c->counted) {
       std::lock_guard<std::mutex> lock(impl->mutex);
-      if (--impl->per_address[c->address] <= 0) impl->per_address.erase(c->address);
+      if (--impl->per_address[c->key] <= 0) impl->per_address.erase(c->key);
     }
     if (c->requests == 0) {
       // Nothing reached a route: an idle connection, or a head the library

@@ -70,7 +70,8 @@ struct HttpServerOptions {
   std::string host = "127.0.0.1";  // an address or "localhost"
   int port = 0;                    // 0: a free one
   int connections = 1024;          // open at once; more are closed on accept
-  // Open at once from one address (0: no limit). Loopback addresses are not
+  // Open at once from one address, an IPv6 /64 counting as one (0: no
+  // limit). Loopback addresses are not
   // limited: behind a proxy on the same machine every client is 127.0.0.1.
   int connections_per_address = 32;
   bool limit_loopback = false;    // count loopback addresses too (tests)

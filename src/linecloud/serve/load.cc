@@ -102,6 +102,14 @@ std::vector<std::pair<std::string, std::string>> HostileRequests(const std::stri
   static constexpr char kBombHead[] =
       "\xFF\xD8\xFF\xC0\x00\x11\x08\x1B\x58\x1B\x58\x03\x01\x22\x00\x02\x11"
       "\x01\x03\x11\x01\xFF\xDA\x00\x0C\x03\x01\x00\x02\x11\x03\x11\x00\x3F\x00";
+  // [siege]: 60 000 keys in one object (the duplicate check was quadratic), a body on a GET
+  // (its announced length was reserved from the head), a threshold that fails every draw.
+  std::string many_keys = "{\"keypoints\": []";
+  for (int i = 0; i < 60000; ++i) many_keys += fmt::format(",\"k{}\":0", i);
+  many_keys += "}";
+  const std::string implausible =
+      R"({"camera": {"model": "PINHOLE", "width": 640, "height": 480, "params": [500, 500, 320,)"
+      R"( 240]}, "keypoints": [], "descriptors": "", "threshold": 1e-300})";
   std::string bomb(kBombHead, sizeof(kBombHead) - 1);  // 36 bytes (was read as 38: ASan)
   bomb += std::string(300, '\x55') + "\xFF\xD9";
   const std::string form =
@@ -132,6 +140,17 @@ std::vector<std::pair<std::string, std::string>> HostileRequests(const std::stri
       {"garbage", std::string("\x16\x03\x01\x02\x00\x01\x00\x01\xfc\x03\x03 \r\n\r\n", 17)},
       {"wrong-method", raw(fmt::format("PUT {} HTTP/1.1\r\n{}", path, host))},
       {"long-uri", raw(fmt::format("GET /{} HTTP/1.1\r\n{}", std::string(100000, 'a'), host))},
+      {"many-keys", raw(fmt::format("POST {} HTTP/1.1\r\n{}Content-Type: application/json\r\n"
+                                    "Content-Length: {}\r\n",
+                                    path, host, many_keys.size()),
+                        many_keys)},
+      {"get-with-body",
+       raw(fmt::format("GET /healthz HTTP/1.1\r\n{}Content-Length: 4096\r\n", host),
+           std::string(4096, 'x'))},
+      {"implausible", raw(fmt::format("POST {} HTTP/1.1\r\n{}Content-Type: application/json\r\n"
+                                      "Content-Length: {}\r\n",
+                                      path, host, implausible.size()),
+                          implausible)},
   };
 }
 
@@ -140,8 +159,9 @@ struct Soak {
   int requests = 0;
 };
 
-// `dribblers` sockets sending a header line a second, and `attackers`
-// threads cycling through HostileRequests, until `stop`.
+// `dribblers` sockets sending a header line a second (half of them a
+// `GET /healthz` that announced a 16 MB body, a byte a second of it), and
+// `attackers` threads cycling through HostileRequests, until `stop`.
 void Attack(int port, const std::string& path, int attackers, int dribblers,
             const std::atomic<bool>& stop, Soak* soak) {
   const auto requests = HostileRequests(path);
@@ -162,13 +182,21 @@ void Attack(int port, const std::string& path, int attackers, int dribblers,
     std::vector<int> sockets;
     for (int d = 0; d < dribblers; ++d) {
       const int fd = ConnectLoopback(port, 5);
-      const std::string start = "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n";
+      const std::string start = d % 2 == 0 ? "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                                           : "GET /healthz HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                                             "Content-Length: 16777216\r\n\r\n";
       if (fd >= 0 && ::send(fd, start.data(), start.size(), MSG_NOSIGNAL) > 0)
         sockets.push_back(fd);
     }
     for (int round = 0; !stop; ++round) {
       const std::string line = fmt::format("X-Slow-{}: y\r\n", round);
-      for (const int fd : sockets) ::send(fd, line.data(), line.size(), MSG_NOSIGNAL);
+      for (size_t k = 0; k < sockets.size(); ++k) {
+        if (k % 2 == 0) {
+          ::send(sockets[k], line.data(), line.size(), MSG_NOSIGNAL);
+        } else {
+          ::send(sockets[k], "x", 1, MSG_NOSIGNAL);
+        }
+      }
       for (int i = 0; i < 10 && !stop; ++i)
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
     }

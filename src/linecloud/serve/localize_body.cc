@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <unordered_map>
 
 #include <fmt/format.h>
 
@@ -64,6 +65,26 @@ std::optional<size_t> IndexedPart(const std::string& name, std::string_view pref
   return std::stoul(digits);
 }
 
+// Keypoints that are not a photo's: most of them at one pixel (10 082 copies
+// of one keypoint held a worker until the deadline: every sample degenerate).
+// A real extractor repeats a location for its orientations (COLMAP's SIFT:
+// ~1.2 keypoints a location), never for most keypoints.
+void CheckKeypointsSpread(const std::vector<SiftKeypoint>& keypoints, const std::string& where) {
+  if (keypoints.size() < 20) return;
+  std::unordered_map<uint64_t, size_t> at;  // keypoints per pixel
+  size_t most = 0;
+  for (const SiftKeypoint& k : keypoints) {
+    const auto cell = [](float v) {
+      return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v)) & 0xffffffff);
+    };
+    most = std::max(most, ++at[cell(k.x) << 32 | cell(k.y)]);
+  }
+  if (2 * at.size() < keypoints.size() || most > std::max<size_t>(16, keypoints.size() / 10)) {
+    Fail("{}: {} keypoints at {} pixels ({} at one): not the features of a photo", where,
+         keypoints.size(), at.size(), most);
+  }
+}
+
 // One frame's client features from its JSON object (`where` names it).
 void ReadFeatures(const json& j, const std::string& where, WireFrame* frame) {
   if (!j.is_object()) Fail("{}: expected an object", where);
@@ -83,6 +104,7 @@ void ReadFeatures(const json& j, const std::string& where, WireFrame* frame) {
     }
     frame->features.keypoints.push_back({k[0].get<float>(), k[1].get<float>(), 0, 0});
   }
+  CheckKeypointsSpread(frame->features.keypoints, prefix + "keypoints");
   if (!j["descriptors"].is_string()) {
     Fail("{}descriptors: expected base64 of N x 128 bytes", prefix);
   }

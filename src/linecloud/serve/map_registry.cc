@@ -162,8 +162,9 @@ void MapRegistry::Load() {
     if (e.path().extension() != ".lcm") continue;
     const std::string id = e.path().stem().string();
     if (!IsMapId(id)) {
-      Log(fmt::format("{{\"notice\": \"skipped {}: map ids are [A-Za-z0-9_-]{{1,64}}\"}}",
-                      DumpJson(json(e.path().filename().string()))));
+      // One JSON line whatever bytes the name has (DumpJson replaces invalid UTF-8).
+      Log(DumpJson(json{{"notice", fmt::format("skipped {}: map ids are [A-Za-z0-9_-]{{1,64}}",
+                                               e.path().filename().string())}}));
       continue;
     }
     const std::string path = e.path().string();

@@ -568,13 +568,16 @@ struct Server::Impl {
       *body =
           req.multipart
               ? Parsing(deadline, [&] { return ReadMultipartBody(req.parts, options.max_frames); })
-              : ReadJsonBody(ParseBody(req.body, "body", deadline), options.max_frames);
+              : Parsing(deadline, [&] {
+                  return ReadJsonBody(ParseRequestJson(req.body, "body"), options.max_frames);
+                });
     } catch (const FramesOverLimit& e) {
       Throw(413, e.what());
     } catch (const Error& e) {
       Throw(400, e.what());
     }
     CheckFramePixels(*body, *map);
+    CheckRigExtent(*body, *map);
     const LocalizeRequest r =
         RequestOptions(*map, *body, deadline, req.multipart ? "multipart" : "body");
     (*log)["frames"] = body->frames.size();
@@ -586,6 +589,26 @@ struct Server::Impl {
     (*log)["times_ms"] = json(StageTimesToJson(result.times));
     (*log)["success"] = result.success();
     return PoseJson(result, token && token->admin ? &map->localizer->map() : nullptr);
+  }
+
+  // A rig's cameras within reach of the map: a camera 1 000 map diagonals
+  // (and 10 000 units) from its rig (cam_from_rig.t = 1e30) is no device's,
+  // and its rays held a worker until the deadline. (A rig's units may be
+  // metres and the map's not: the bound is loose.)
+  static void CheckRigExtent(const LocalizeBody& body, const LoadedMap& map) {
+    if (body.frames.size() < 2 || !map.details.contains("anchor_bbox")) return;
+    const json& box = map.details["anchor_bbox"];
+    const Eigen::Vector3d lo(box["min"][0], box["min"][1], box["min"][2]);
+    const Eigen::Vector3d hi(box["max"][0], box["max"][1], box["max"][2]);
+    const double reach = std::max(1e4, 1000 * (hi - lo).norm());
+    for (const WireFrame& f : body.frames) {
+      const double d = f.cam_from_rig.translation.norm();
+      if (!(d <= reach)) {
+        Throw(400, fmt::format("{}: cam_from_rig puts the camera {:g} from the rig's origin, "
+                               "beyond reach of the map ({:g})",
+                               f.name, d, reach));
+      }
+    }
   }
 
   // Each photo's header (CheckPhotoHeader), and their pixels together within the cap (413).
@@ -962,8 +985,9 @@ struct Server::Impl {
     }
     if (path == "/readyz") {
       return Handle(path, req, [this](json*, HttpResponse*) {
+        // No count: anyone may ask (admins read it in /metrics).
         if (Maps()->empty()) Throw(503, "no map is loaded");
-        return json{{"status", "ready"}, {"maps", Maps()->size()}};
+        return json{{"status", "ready"}};
       });
     }
     if (path == "/metrics")
@@ -1023,6 +1047,8 @@ struct Server::Impl {
     if (!token || token->admin) return map->details;
     json details = map->details;
     details.erase("anchor_bbox");
+    // The key's fingerprint links maps lifted under one model key: the owner's to know.
+    details.erase("key_fingerprint");
     return details;
   }
 
@@ -1229,6 +1255,11 @@ void Server::Reload() {
 
 size_t Server::num_maps() const { return impl_->Maps()->size(); }
 
-std::string Server::url() const { return fmt::format("http://{}:{}", impl_->host, impl_->port); }
+std::string Server::url() const {
+  // An IPv6 address in brackets (RFC 3986): http://[::1]:8080.
+  const bool v6 = impl_->host.find(':') != std::string::npos;
+  return v6 ? fmt::format("http://[{}]:{}", impl_->host, impl_->port)
+            : fmt::format("http://{}:{}", impl_->host, impl_->port);
+}
 
 }  // namespace linecloud

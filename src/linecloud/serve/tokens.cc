@@ -100,9 +100,13 @@ TokenStore TokenStore::Read(const std::string& path) {
 }
 
 std::optional<TokenEntry> TokenStore::Authenticate(const std::string& authorization) const {
+  // The scheme's name is case-insensitive (RFC 7235: "bearer" too).
   constexpr std::string_view kBearer = "Bearer ";
   if (authorization.size() <= kBearer.size() ||
-      authorization.compare(0, kBearer.size(), kBearer) != 0) {
+      !std::equal(kBearer.begin(), kBearer.end(), authorization.begin(), [](char a, char b) {
+        return std::tolower(static_cast<unsigned char>(a)) ==
+               std::tolower(static_cast<unsigned char>(b));
+      })) {
     return std::nullopt;
   }
   const std::string token = authorization.substr(kBearer.size());
