@@ -150,6 +150,9 @@ void RegisterEvalKeys(CLI::App* eval) {
       ->capture_default_str();
   keys_cmd->add_option("--wrong-translation", sweep->wrong_translation, "work units (metres)")
       ->capture_default_str();
+  keys_cmd->add_flag("--other-place", sweep->other_place,
+                     "each work's photos also against every other work's first map (photos of "
+                     "another place: every success is wrong)");
   keys_cmd->callback([sweep, sweep_features] {
     sweep->features = ParseSiftExtractor(*sweep_features, "--features");
     const nlohmann::ordered_json report = ToJson(RunKeySweep(*sweep));

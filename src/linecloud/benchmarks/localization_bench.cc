@@ -77,7 +77,10 @@ std::vector<LocalizationBenchRow> RunLocalizationBench(
       localize.ransac.seed = options.seed + static_cast<uint64_t>(k);
       const LocalizationMap map =
           method.lines ? LocalizationMap(inst.line_map) : LocalizationMap(inst.point_map);
-      tally.Add(Localize(method, inst.query, map, localize), inst.truth, inst.scene_size);
+      const LocalizeResult r = Localize(method, inst.query, map, localize);
+      // Confident: a pose the user's criteria (not the benchmark's None) would accept.
+      tally.Add(r, inst.truth, inst.scene_size, "",
+                r.has_pose && SuccessFailure(method, r, options.localize.success).empty());
       if (options.instance.noise_px > 0) {
         const LocalizationMap other =
             method.lines ? LocalizationMap(inst.point_map) : LocalizationMap(inst.line_map);
@@ -104,6 +107,7 @@ nlohmann::json LocalizationBenchRow::ToJson() const {
       {"method", method},
       {"queries", queries},
       {"localized", localized},
+      {"confident_wrong", confident_wrong},
       {"median_rotation_deg",
        {{"initial", median_rotation_deg[0]}, {"refined", median_rotation_deg[1]}}},
       {"median_position_rel", {{"initial", median_position[0]}, {"refined", median_position[1]}}},

@@ -12,7 +12,7 @@ LocalizationTally::LocalizationTally(double max_rotation_deg, double max_positio
     : max_rotation_deg_(max_rotation_deg), max_position_(max_position) {}
 
 void LocalizationTally::Add(const LocalizeResult& r, const Sim3d& truth, double position_unit,
-                            std::string_view name) {
+                            std::string_view name, bool confident) {
   constexpr double kDeg = 180.0 / std::numbers::pi;
   LocalizationSummary& s = sums_;
   ++s.queries;
@@ -41,7 +41,14 @@ void LocalizationTally::Add(const LocalizeResult& r, const Sim3d& truth, double 
       position_[k].push_back(1e9);
     }
   }
-  s.localized += rotation_[1].back() < max_rotation_deg_ && position_[1].back() < max_position_;
+  const bool within =
+      rotation_[1].back() < max_rotation_deg_ && position_[1].back() < max_position_;
+  s.localized += within;
+  if (confident && r.has_pose && !within) {
+    const LocalizationError e = CompareLocalization(r.query_from_world, truth);
+    s.confident_wrong += e.rotation_rad * 180.0 / std::numbers::pi >= max_rotation_deg_ ||
+                         e.position / position_unit >= max_position_;
+  }
 }
 
 LocalizationSummary LocalizationTally::Summary() const {

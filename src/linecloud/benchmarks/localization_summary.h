@@ -13,7 +13,9 @@ namespace linecloud {
 
 struct LocalizationSummary {
   int queries = 0;
-  int localized = 0;                       // refined pose within the thresholds
+  int localized = 0;  // refined pose within the thresholds
+  // Poses the success criteria accept (`confident` in Add) that are not within them.
+  int confident_wrong = 0;
   double median_rotation_deg[2] = {0, 0};  // initial, refined
   double median_position[2] = {0, 0};      // in the unit passed to Add
   double iterations = 0;                   // means per query from here on
@@ -41,7 +43,7 @@ class LocalizationTally {
   // Position errors are divided by `position_unit` (1: world units; the
   // scene size: relative). A failed query counts as 180° and 1e9 off.
   void Add(const LocalizeResult& result, const Sim3d& truth, double position_unit = 1.0,
-           std::string_view name = "");
+           std::string_view name = "", bool confident = false);
 
   // Medians and means over the queries added so far.
   LocalizationSummary Summary() const;

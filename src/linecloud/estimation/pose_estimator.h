@@ -36,6 +36,8 @@ class PoseEstimator {
   void inliers(const Sim3d& model, double threshold, std::vector<char>* mask) const;
 
  private:
+  // One LM refinement on the inliers of `model` at `threshold` (a subset of them when many).
+  void RefineOnInliers(Sim3d* model, double threshold);
   const MethodInfo& method_;
   const PoseData& data_;
   RefineOptions local_refinement_;

@@ -213,11 +213,13 @@ TEST(Ransac, ProgressiveSamplingFindsTheSameLineInFewerSamples) {
   EXPECT_NEAR(good.model[1], -2.0, 1e-2);
   // 30 % inliers, pairs: uniform needs log(1e-4) / log(0.91) = 98 samples; the
   // top of a perfect ranking is all inliers, so PROSAC finds the line in a few
-  // samples, then confirms it with the uniform draws a uniform run needs.
+  // samples, then searches the rest for a competitor with as many draws (at
+  // least four): none there (the rest is noise).
   EXPECT_GE(uniform.stats.iterations, 90);
-  EXPECT_EQ(good.stats.uniform_iterations,
-            RequiredIterations(ratio, 2, options.uniform_phase_confidence, 10000));
-  EXPECT_LE(good.stats.iterations - good.stats.uniform_iterations, 5);
+  EXPECT_EQ(good.stats.uniform_iterations, 0);
+  EXPECT_GE(good.stats.competitor_iterations, 4);
+  EXPECT_LE(good.stats.iterations, 20);
+  EXPECT_EQ(good.stats.runner_up_inliers, 0);
   // The worst ranking (every outlier first) costs samples, never the line.
   LineEstimator bad_e = NoisyLine(n, ratio, 4);
   const auto bad = Ransac(bad_e, options, Ranking(n, ratio, false));
@@ -239,8 +241,9 @@ TEST(Ransac, ProgressiveSamplingFindsTheSameLineInFewerSamples) {
 // Repeated structure: a coherent group of wrong matches (a facade element that
 // occurs twice) ranked first. Its model explains every one of the best-ranked
 // data, which made PROSAC's rule stop on it after three samples (castle-P19:
-// 9.8° off at 52 % inliers, the true pose 76 %). The uniform phase finds the
-// true line whatever the ranking.
+// 9.8° off at 52 % inliers, the true pose 76 %). The competitor search over
+// what the wrong line leaves unexplained finds the true line, which explains
+// more of all the data: it becomes the model, the wrong one its runner-up.
 TEST(Ransac, AWrongModelTheBestRankedDataSupportDoesNotStopARun) {
   const int n = 1000;
   std::mt19937_64 rng(7);
@@ -267,8 +270,34 @@ TEST(Ransac, AWrongModelTheBestRankedDataSupportDoesNotStopARun) {
     EXPECT_NEAR(r.model[1], -2.0, 1e-2) << "seed " << seed;
     EXPECT_GE(r.stats.num_inliers, 540);
     EXPECT_STREQ(r.stats.stop_reason, "confidence");
-    EXPECT_GE(r.stats.uniform_iterations,
-              RequiredIterations(0.55, 2, options.uniform_phase_confidence, 10000));
+    EXPECT_NEAR(r.runner_up[0], -0.3, 1e-2) << "seed " << seed;
+    EXPECT_NEAR(r.stats.runner_up_inliers, 350, 10);
+    EXPECT_LT(r.stats.iterations, 100);
+  }
+}
+
+// A photo of another place: no model with the support the caller needs. The
+// search stops once such a model could not have been missed — bounded by
+// the data there are — instead of running to max_iterations.
+TEST(Ransac, NoModelWithTheNeededSupportStopsEarly) {
+  const int n = 80;
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> u(-10, 10);
+  LineEstimator e;
+  for (int i = 0; i < n; ++i) e.points.emplace_back(u(rng), u(rng));  // no line at all
+  std::vector<int> ranking(n);
+  for (int i = 0; i < n; ++i) ranking[i] = i;
+  RansacOptions options;
+  options.max_error = 0.05;
+  options.min_support = 60;
+  for (const bool progressive : {true, false}) {
+    options.progressive_sampling = progressive;
+    const auto r = Ransac(e, options, ranking);
+    EXPECT_STREQ(r.stats.stop_reason, "no_support") << progressive;
+    EXPECT_LT(r.stats.num_inliers, 60);
+    // 60 of 80 in pairs: log(1e-4) / log(1 - 0.75²) = 12 draws (min_iterations 10).
+    EXPECT_EQ(r.stats.iterations, RequiredIterations(0.75, 2, options.confidence, 10000))
+        << progressive;
   }
 }
 

@@ -217,6 +217,56 @@ void LocalizeRig(const EvalWork& work, const EvalGroup& g, const GroupMap& map,
 
 }  // namespace
 
+namespace {
+
+// One photo of `work` matched to `map` and localized by every method of the options: its row
+// (under `group`), its matched query returned.
+ImageQuery LocalizePhoto(const EvalWork& work, const EvalImage& im, const GroupMap& map,
+                         const std::string& group, const DirectMatchingOptions& options,
+                         std::map<std::string, Tally>* tallies, DirectMatchingPhoto* row) {
+  const std::string path = JoinPaths(JoinPaths(work.dataset_dir, "images"), im.name);
+  const Camera& camera = work.cameras.at(im.camera_id);
+  ImageQuery q = MatchPhoto(map, ExtractOnce(path, camera, options.image, options.extracted.get()),
+                            camera, path);
+  *row = {group,
+          im.name,
+          static_cast<int>(q.features.size()),
+          static_cast<int>(q.matches.size()),
+          q.times.extract_ms,
+          q.times.match_ms,
+          {}};
+  for (const std::string& name : options.methods) {
+    LocalizeQuery(FindMethod(name), q.query, map, ToSim3(im.cam_from_world), q.times.extract_ms,
+                  q.times.match_ms, im.name, options, &(*tallies)[name], &row->methods[name]);
+  }
+  return q;
+}
+
+}  // namespace
+
+DirectMatchingReport RunOtherPlace(const EvalWork& photos, const EvalWork& map_work,
+                                   const std::string& map_work_dir, const LiftingKey& key,
+                                   const DirectMatchingOptions& options) {
+  if (map_work.groups.empty()) Fail("other place: {} has no group", map_work_dir);
+  const EvalGroup& g = map_work.groups.front();
+  const GroupMap map = LoadGroupMap(map_work_dir, g, key, options);
+  std::map<std::string, Tally> tallies;
+  DirectMatchingReport report;
+  report.features = SiftExtractorName(options.image.sift.extractor);
+  for (const EvalGroup& pg : photos.groups) {
+    for (const EvalImage& im : pg.images) {
+      DirectMatchingPhoto row;
+      LocalizePhoto(photos, im, map, map_work.dataset, options, &tallies, &row);
+      // The truth is of another scene's frame: any success is wrong.
+      for (auto& [name, a] : row.methods) {
+        if (a.success) a.rotation_deg = a.translation = 1e9;
+      }
+      report.per_query.push_back(std::move(row));
+    }
+  }
+  return report;
+}
+
 DirectMatchingReport RunDirectMatching(const EvalWork& work, const std::string& work_dir,
                                        const LiftingKey& key,
                                        const DirectMatchingOptions& options) {
@@ -237,21 +287,8 @@ DirectMatchingReport RunDirectMatching(const EvalWork& work, const std::string& 
     const GroupMap map = LoadGroupMap(work_dir, g, key, options);
     std::vector<ImageQuery> photos;
     for (const EvalImage& im : g.images) {
-      const std::string path = JoinPaths(JoinPaths(work.dataset_dir, "images"), im.name);
-      const Camera& camera = work.cameras.at(im.camera_id);
-      ImageQuery q = MatchPhoto(
-          map, ExtractOnce(path, camera, options.image, options.extracted.get()), camera, path);
-      DirectMatchingPhoto row{g.name,
-                              im.name,
-                              static_cast<int>(q.features.size()),
-                              static_cast<int>(q.matches.size()),
-                              q.times.extract_ms,
-                              q.times.match_ms,
-                              {}};
-      for (const std::string& name : options.methods) {
-        LocalizeQuery(FindMethod(name), q.query, map, ToSim3(im.cam_from_world), q.times.extract_ms,
-                      q.times.match_ms, im.name, options, &tallies[name], &row.methods[name]);
-      }
+      DirectMatchingPhoto row;
+      ImageQuery q = LocalizePhoto(work, im, map, g.name, options, &tallies, &row);
       report.per_query.push_back(std::move(row));
       q.image = GreyImage{};  // the pixels are not needed any more
       photos.push_back(std::move(q));

@@ -64,4 +64,12 @@ GroupMapData LoadGroupMapData(const std::string& work_dir, const EvalGroup& grou
 DirectMatchingReport RunDirectMatching(const EvalWork& work, const std::string& work_dir,
                                        const LiftingKey& key, const DirectMatchingOptions& options);
 
+// Photos of another place: each query photo of `photos` (a work of another
+// scene) matched and localized against the first group's map of `map_work`,
+// as RunDirectMatching does. Every success is a wrong pose; per_query's rows
+// name the photo, `group` the map's scene.
+DirectMatchingReport RunOtherPlace(const EvalWork& photos, const EvalWork& map_work,
+                                   const std::string& map_work_dir, const LiftingKey& key,
+                                   const DirectMatchingOptions& options);
+
 }  // namespace linecloud

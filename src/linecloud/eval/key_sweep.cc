@@ -25,7 +25,20 @@ using ojson = nlohmann::ordered_json;
 
 struct MethodTally {
   int queries = 0, successes = 0, localized = 0, wrong = 0;
-  std::vector<double> ransac_ms;
+  std::vector<double> ransac_ms, iterations;
+
+  KeySweepMethod Summary() const {
+    return {queries,
+            successes,
+            localized,
+            wrong,
+            Mean(ransac_ms),
+            Percentile(ransac_ms, 50),
+            Percentile(ransac_ms, 99),
+            ransac_ms.empty() ? 0.0 : *std::max_element(ransac_ms.begin(), ransac_ms.end()),
+            Percentile(iterations, 50),
+            iterations.empty() ? 0.0 : *std::max_element(iterations.begin(), iterations.end())};
+  }
 };
 
 // One query's result (a row of direct matching's per_query / per_rig) into the tally and the
@@ -40,9 +53,12 @@ void Count(const KeySweepOptions& o, const DirectMatchingOptions& dm, const std:
                           r.translation, r.inliers,
                           r.iterations,  r.uniform_iterations,
                           r.ransac_ms,   r.sigma_px.value_or(0.0),
-                          r.stop_reason};
+                          r.stop_reason, r.success ? std::string() : r.failure};
   report->queries.push_back(a);
-  if (r.attempted) t->ransac_ms.push_back(r.ransac_ms);
+  if (r.attempted) {
+    t->ransac_ms.push_back(r.ransac_ms);
+    t->iterations.push_back(r.iterations);
+  }
   if (!r.success) {
     std::string reason = r.failure.empty() ? std::string("no pose") : r.failure;
     // The reason's kind, without its numbers.
@@ -94,7 +110,7 @@ KeySweepReport RunKeySweep(const KeySweepOptions& options) {
   report.wrong_translation = options.wrong_translation;
   report.localized_rotation_deg = dm.max_rotation_deg;
   report.localized_translation = dm.max_translation;
-  std::map<std::string, MethodTally> tallies;
+  std::map<std::string, MethodTally> tallies, foreign_tallies;
   for (const std::string& work_dir : options.work_dirs) {
     const EvalWork work = ReadPreparedWork(work_dir);
     report.datasets.push_back(work.dataset);
@@ -114,37 +130,59 @@ KeySweepReport RunKeySweep(const KeySweepOptions& options) {
             Count(options, dm, work.dataset, k, row.group, m, *a, &tallies[m], &report);
         }
       }
+      if (options.other_place) {
+        for (const std::string& other_dir : options.work_dirs) {
+          if (other_dir == work_dir) continue;
+          const EvalWork other = ReadPreparedWork(other_dir);
+          const DirectMatchingReport foreign =
+              RunOtherPlace(work, other, other_dir, SweepKey(k), dm);
+          for (const DirectMatchingPhoto& row : foreign.per_query) {
+            // A photo the point map localizes too sees that scene (fountain-P11's 0008-0009
+            // show entry-P10's wall): not a photo of another place.
+            const auto p3p = row.methods.find("p3P");
+            if (p3p != row.methods.end() && p3p->second.success) {
+              ++report.shared_views;
+              continue;
+            }
+            for (const std::string& m : dm.methods) {
+              Count(options, dm, work.dataset + " vs " + other.dataset, k, row.image, m,
+                    row.methods.at(m), &foreign_tallies[m], &report);
+            }
+          }
+        }
+      }
       int wrong_so_far = 0;
       for (const auto& [name, t] : tallies) wrong_so_far += t.wrong;
+      for (const auto& [name, t] : foreign_tallies) wrong_so_far += t.wrong;
       LogProgress("[keys] {} key {}: {:.1f} s, {} wrong successes so far", work.dataset, k,
                   std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(),
                   wrong_so_far);
     }
   }
-  for (const auto& [name, t] : tallies) {
-    report.methods[name] = {t.queries,
-                            t.successes,
-                            t.localized,
-                            t.wrong,
-                            Mean(t.ransac_ms),
-                            Percentile(t.ransac_ms, 50),
-                            Percentile(t.ransac_ms, 99)};
-  }
+  for (const auto& [name, t] : tallies) report.methods[name] = t.Summary();
+  for (const auto& [name, t] : foreign_tallies) report.other_place[name] = t.Summary();
   WriteFileAtomically(options.out, [&](std::ostream& os) { os << ToJson(report).dump(2) << "\n"; });
   return report;
 }
 
 nlohmann::ordered_json ToJson(const KeySweepReport& r) {
-  ojson methods = ojson::object();
-  for (const auto& [name, m] : r.methods) {
-    methods[name] = {
-        {"queries", m.queries},
-        {"successes", m.successes},
-        {"localized", m.localized},
-        {"wrong", m.wrong},
-        {"ransac_ms",
-         {{"mean", m.ransac_ms_mean}, {"p50", m.ransac_ms_p50}, {"p99", m.ransac_ms_p99}}}};
-  }
+  const auto summaries = [](const std::map<std::string, KeySweepMethod>& of) {
+    ojson out = ojson::object();
+    for (const auto& [name, m] : of) {
+      out[name] = {{"queries", m.queries},
+                   {"successes", m.successes},
+                   {"localized", m.localized},
+                   {"wrong", m.wrong},
+                   {"ransac_ms",
+                    {{"mean", m.ransac_ms_mean},
+                     {"p50", m.ransac_ms_p50},
+                     {"p99", m.ransac_ms_p99},
+                     {"max", m.ransac_ms_max}}},
+                   {"iterations", {{"p50", m.iterations_p50}, {"max", m.iterations_max}}}};
+    }
+    return out;
+  };
+  const ojson methods = summaries(r.methods);
   ojson wrong = ojson::array(), queries = ojson::array();
   for (const KeySweepAttempt& a : r.wrong) {
     wrong.push_back({{"dataset", a.dataset},
@@ -170,6 +208,7 @@ nlohmann::ordered_json ToJson(const KeySweepReport& r) {
                        {"iterations", a.iterations},
                        {"uniform_iterations", a.uniform_iterations},
                        {"ransac_ms", a.ransac_ms}});
+    if (!a.failure.empty()) queries.back()["failure"] = a.failure;
   }
   ojson report;
   report["datasets"] = r.datasets;
@@ -180,6 +219,10 @@ nlohmann::ordered_json ToJson(const KeySweepReport& r) {
       {"localized",
        {{"rotation_deg", r.localized_rotation_deg}, {"translation", r.localized_translation}}}};
   report["methods"] = methods;
+  if (!r.other_place.empty()) {
+    report["other_place"] = summaries(r.other_place);
+    report["other_place_shared_views"] = r.shared_views;
+  }
   report["wrong"] = wrong;
   report["failures"] = r.failures;
   report["queries"] = queries;

@@ -30,6 +30,9 @@ struct KeySweepOptions {
   SiftExtractor features = SiftOptions{}.extractor;
   double wrong_rotation_deg = 1.0;
   double wrong_translation = 0.5;  // work units (metres with ground truth)
+  // Each work's photos also against every other work's first map: photos of
+  // another place, whose every success is wrong (reported as "other place").
+  bool other_place = false;
 
   void Check() const;
 };
@@ -49,11 +52,13 @@ struct KeySweepAttempt {
   double ransac_ms = 0;
   double sigma_px = 0;
   std::string stop_reason;
+  std::string failure;  // why no pose ("" for a success)
 };
 
 struct KeySweepMethod {
   int queries = 0, successes = 0, localized = 0, wrong = 0;
-  double ransac_ms_mean = 0, ransac_ms_p50 = 0, ransac_ms_p99 = 0;
+  double ransac_ms_mean = 0, ransac_ms_p50 = 0, ransac_ms_p99 = 0, ransac_ms_max = 0;
+  double iterations_p50 = 0, iterations_max = 0;
 };
 
 struct KeySweepReport {
@@ -64,6 +69,11 @@ struct KeySweepReport {
   double wrong_rotation_deg = 0, wrong_translation = 0;          // a success beyond: wrong
   double localized_rotation_deg = 0, localized_translation = 0;  // a success within: localized
   std::map<std::string, KeySweepMethod> methods;
+  // Photos of another place (other_place), per method: every success is wrong.
+  // Photos the other scene's point map localizes (p3P among the methods) see
+  // that scene: counted in shared_views, not there.
+  std::map<std::string, KeySweepMethod> other_place;
+  int shared_views = 0;
   std::vector<KeySweepAttempt> wrong;    // the wrong successes
   std::map<std::string, int> failures;   // by the reason's kind (its text without numbers)
   std::vector<KeySweepAttempt> queries;  // every attempt

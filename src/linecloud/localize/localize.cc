@@ -124,6 +124,9 @@ void SuccessCriteria::Check() const {
   if (!(max_rotation_uncertainty_deg > 0)) {
     Fail("maximum rotation uncertainty must be positive, got {}", max_rotation_uncertainty_deg);
   }
+  if (!(max_runner_up_share >= 0 && max_runner_up_share <= 1)) {
+    Fail("maximum runner-up share must be in [0, 1], got {}", max_runner_up_share);
+  }
 }
 
 void LocalizeOptions::Check() const {
@@ -256,19 +259,35 @@ Sim3d PreparedQuery::ToQueryFromWorld(const Sim3d& aligned_pose) const {
 namespace {
 
 // Why the data do not support the pose, or "" when they do.
-std::string SupportFailure(const MethodInfo& method, const LocalizeResult& r,
+}  // namespace
+
+std::string SuccessFailure(const MethodInfo& method, const LocalizeResult& r,
                            const SuccessCriteria& c) {
   const int min_inliers = method.lines ? c.min_inliers_lines : c.min_inliers_points;
   const int inliers = static_cast<int>(r.inliers.size());
   const double ratio =
       r.num_correspondences > 0 ? static_cast<double>(inliers) / r.num_correspondences : 0.0;
   if (inliers < min_inliers) {
-    return fmt::format("{} inliers, fewer than the {} a {} map needs (option min_inliers)", inliers,
-                       min_inliers, method.lines ? "line" : "point");
+    return fmt::format(
+        "too few inliers: {} matches fit the best pose, fewer than the {} a {} map needs (option "
+        "min_inliers); a photo of another place, or a wrong camera, looks like this",
+        inliers, min_inliers, method.lines ? "line" : "point");
   }
   if (ratio < c.min_inlier_ratio) {
-    return fmt::format("inlier ratio {:.3f} is below {:.2f} (option min_inlier_ratio)", ratio,
-                       c.min_inlier_ratio);
+    return fmt::format(
+        "too few of the matches fit: {} of {} ({:.0f} %, fewer than the {:.0f} % needed: option "
+        "min_inlier_ratio); a photo of another place, or one the map sees from too far, looks "
+        "like this",
+        inliers, r.num_correspondences, 100 * ratio, 100 * c.min_inlier_ratio);
+  }
+  if (c.max_runner_up_share > 0 && r.stats.runner_up_own_inliers > 0 &&
+      r.stats.runner_up_own_inliers >= c.max_runner_up_share * r.stats.num_inliers &&
+      r.runner_up_rotation_deg > 1.0) {
+    return fmt::format(
+        "ambiguous: two poses {:.1f}° apart fit different matches almost equally well ({} and "
+        "{}); a repeated structure — another photo, or one with more of the scene, tells them "
+        "apart",
+        r.runner_up_rotation_deg, r.stats.num_inliers, r.stats.runner_up_own_inliers);
   }
   if (r.calibration_check && c.max_focal_discrepancy > 0) {
     // Refused only when the given focal length is outside the interval the
@@ -312,8 +331,6 @@ std::string SupportFailure(const MethodInfo& method, const LocalizeResult& r,
   }
   return "";
 }
-
-}  // namespace
 
 namespace {
 
@@ -502,28 +519,38 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
   result.prepare_ms = MsSince(prepare_start);
   result.num_correspondences = static_cast<int>(query.observations.size());
   PoseEstimator estimator(method, prepared.data, options.local_refinement);
-  // With a ranking, PROSAC then a uniform phase (ransac.h): no early stop on a
-  // model the best-ranked matches alone support.
-  RansacResult<Sim3d> ransac = Ransac(estimator, options.ransac, prepared.data.ranking);
+  // With a ranking, PROSAC then its competitor search (ransac.h). The search
+  // for a model ends once one with the support the criteria need could not
+  // have been missed.
+  RansacOptions ransac_options = options.ransac;
+  const int n = static_cast<int>(prepared.data.size());
+  ransac_options.min_support = std::max(
+      method.lines ? options.success.min_inliers_lines : options.success.min_inliers_points,
+      static_cast<int>(std::ceil(options.success.min_inlier_ratio * n)));
+  RansacResult<Sim3d> ransac = Ransac(estimator, ransac_options, prepared.data.ranking);
   result.stats = ransac.stats;
-  if (std::string_view(ransac.stats.stop_reason) == "stopped") {
-    result.failure =
-        fmt::format("stopped by the caller after {} RANSAC iterations", ransac.stats.iterations);
+  if (ransac.stats.runner_up_inliers > 0) {
+    result.runner_up_rotation_deg =
+        ransac.model.rotation.angularDistance(ransac.runner_up.rotation) * 180 / M_PI;
+  }
+  const std::string_view stop = ransac.stats.stop_reason;
+  if (stop == "stopped") {
+    result.failure = "stopped by the caller";
     return result;
   }
-  if (std::string_view(ransac.stats.stop_reason) == "max_seconds" &&
-      ransac.stats.uniform_iterations < options.ransac.min_iterations) {
+  if (stop == "max_seconds" && ransac.stats.iterations < options.ransac.min_iterations) {
     // A pose from fewer draws than the floor is not trusted, whatever its inliers.
     result.failure = fmt::format(
-        "RANSAC's time budget of {:g} s ran out after {} uniform draws ({} iterations in all), "
-        "before min_iterations ({})",
-        options.ransac.max_seconds, ransac.stats.uniform_iterations, ransac.stats.iterations,
-        options.ransac.min_iterations);
+        "the time allowed ({:g} s for RANSAC) ran out before the matches could be judged; allow "
+        "more time",
+        options.ransac.max_seconds);
     return result;
   }
   if (!ransac.success) {
-    result.failure = fmt::format("RANSAC found no pose in {} iterations (stopped by {})",
-                                 ransac.stats.iterations, ransac.stats.stop_reason);
+    result.failure = fmt::format(
+        "no pose fits the {} matches{}; a photo of another place, or a wrong camera, looks like "
+        "this",
+        n, stop == "max_seconds" ? " within the time allowed" : "");
     return result;
   }
   std::vector<int> ransac_inliers;
@@ -633,7 +660,7 @@ LocalizeResult Localize(const MethodInfo& method, const Query& query, const Loca
     for (const int i : result.inliers) ++result.camera_inliers[query.observations[i].camera];
   }
   if (result.has_pose) {
-    result.failure = SupportFailure(method, result, options.success);
+    result.failure = SuccessFailure(method, result, options.success);
     result.success = result.failure.empty();
   }
   return result;

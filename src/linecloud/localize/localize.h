@@ -101,6 +101,11 @@ struct SuccessCriteria {
   // fraction, and the camera's is outside its 99.7 % interval, and that
   // interval is no wider than this fraction (CalibrationCheck). 0: no check.
   double max_focal_discrepancy = 0.1;
+  // A pose is refused as ambiguous when RANSAC's competitor search (ransac.h)
+  // found another pose, more than 1° from it, that explains at least this
+  // share of its inlier count among matches it does not explain: the matches
+  // do not tell the two apart. 0: no check.
+  double max_runner_up_share = 0.8;
 
   // No criteria: every pose RANSAC finds is a success (the paper's protocol
   // and the benchmarks, which judge poses by their error to the truth).
@@ -109,7 +114,8 @@ struct SuccessCriteria {
             .min_inliers_lines = 0,
             .min_inlier_ratio = 0,
             .max_rotation_uncertainty_deg = std::numeric_limits<double>::infinity(),
-            .max_focal_discrepancy = 0};
+            .max_focal_discrepancy = 0,
+            .max_runner_up_share = 0};
   }
 
   void Check() const;
@@ -166,6 +172,9 @@ struct LocalizeResult {
   // pose is a success only when every camera with enough observations fits it.
   std::vector<int> camera_observations, camera_inliers;
   RansacStats stats;
+  // RANSAC's runner-up (stats.runner_up_inliers > 0): its rotation's angle to
+  // RANSAC's model, degrees.
+  double runner_up_rotation_deg = 0;
   double refine_ms = 0;
   // Checking and preparing the query (undistortion, map look-ups), and the
   // success checks after the refinement (calibration check, uncertainty).
@@ -177,6 +186,11 @@ struct LocalizeResult {
   double reprojection_initial_px = 0;
   double reprojection_refined_px = 0;
 };
+
+// Why a pose RANSAC found does not meet the criteria ("" when it does): its
+// support, the calibration check, the runner-up, the uncertainty.
+std::string SuccessFailure(const MethodInfo& method, const LocalizeResult& result,
+                           const SuccessCriteria& criteria);
 
 // A query checked and turned into the solvers' frames: observations
 // undistorted, map points/lines looked up by id, and for +u both frames

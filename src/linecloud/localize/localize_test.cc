@@ -60,8 +60,8 @@ TEST_P(LocalizeTest, LocalizesNoisyQueriesWithHalfOutliers) {
 }
 
 // [fast-p6L]: with match ratios distributed as on real photos, RANSAC samples
-// the best-ranked matches first (PROSAC), then uniform samples until missing
-// a better pose is unlikely: fewer iterations at 30 % inliers, the same pose. Ratios that rank
+// the best-ranked matches first (PROSAC), then searches the rest for a
+// competitor: fewer iterations at 30 % inliers, the same pose. Ratios that rank
 // every outlier first cost iterations, never the pose.
 TEST(Localize, MatchRatiosCutTheIterationsNotThePose) {
   const MethodInfo& method = FindMethod("p3P");
@@ -93,15 +93,12 @@ TEST(Localize, MatchRatiosCutTheIterationsNotThePose) {
     EXPECT_TRUE(ranked.stats.progressive);
     EXPECT_FALSE(uniform.stats.progressive);
     // 30 % inliers, triplets: uniform RANSAC needs log(1e-4) / log(1 - 0.3³) ≈ 337.
-    // PROSAC finds the pose in a few samples; its uniform phase then draws the
-    // log(1e-2) / log(1 - 0.3³) ≈ 168 samples that make a better pose unlikely.
+    // PROSAC finds the pose in a few samples and searches the rest for a
+    // competitor with as many draws: none there.
     EXPECT_GT(uniform.stats.iterations, 300);
-    EXPECT_LT(ranked.stats.iterations - ranked.stats.uniform_iterations, 20);
-    EXPECT_GE(ranked.stats.uniform_iterations,
-              RequiredIterations(
-                  static_cast<double>(ranked.stats.num_inliers) / inst.query.observations.size(), 3,
-                  options.ransac.uniform_phase_confidence, 10000));
-    EXPECT_LT(ranked.stats.iterations, uniform.stats.iterations * 2 / 3);
+    EXPECT_LT(ranked.stats.iterations, 60);
+    EXPECT_GT(ranked.stats.competitor_iterations, 0);
+    EXPECT_EQ(ranked.stats.runner_up_inliers, 0);
     EXPECT_GT(worst.stats.iterations, ranked.stats.iterations);
   }
 }
@@ -326,9 +323,10 @@ TEST(LocalizeSuccess, ABudgetThatEndsBeforeMinIterationsGivesNoPose) {
   EXPECT_FALSE(r.success);
   EXPECT_STREQ(r.stats.stop_reason, "max_seconds");
   EXPECT_LT(r.stats.iterations, 1000000);
-  EXPECT_NE(r.failure.find("RANSAC's time budget of 0.01 s ran out after"), std::string::npos)
+  EXPECT_NE(r.failure.find("the time allowed (0.01 s for RANSAC) ran out before the matches could "
+                           "be judged"),
+            std::string::npos)
       << r.failure;
-  EXPECT_NE(r.failure.find("before min_iterations (1000000)"), std::string::npos) << r.failure;
   // The same budget with the default floor: the pose.
   options.ransac.min_iterations = 10;
   EXPECT_TRUE(Localize(method, q.query, LocalizationMap(f.points), options).success);
@@ -459,6 +457,8 @@ TEST(LocalizeSuccess, RansacIsBoundedInTimeAndReportsProgress) {
   wrong.outlier_ratio = 0.8;
   const SceneQuery q = SceneQueriesForMethod(f.scene, method, wrong)[0];
   LocalizeOptions options;
+  // No support to reach (the paper's protocol): the run goes on until its budget.
+  options.success = SuccessCriteria::None();
   options.ransac.max_seconds = 0.2;
   options.ransac.progress_interval_s = 0.05;
   int calls = 0, last_iterations = -1;

@@ -173,7 +173,7 @@ std::vector<OptionSpec> MakeTable() {
                      true, true,
                      [](LocalizerOptions& o) -> double& { return o.localize.ransac.confidence; }));
   t.push_back(
-      Integer<int>("min_iterations", req, "RANSAC iterations at least (uniform draws)", 0, 10000000,
+      Integer<int>("min_iterations", req, "RANSAC draws at least", 0, 10000000,
                    [](LocalizerOptions& o) -> int& { return o.localize.ransac.min_iterations; }));
   t.push_back(
       Integer<int>("max_iterations", req, "RANSAC iteration cap", 1, 10000000,
