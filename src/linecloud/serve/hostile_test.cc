@@ -996,8 +996,12 @@ TEST(Hostile, AReadersJsonHoldsNeitherTheServiceNorItsExit) {
                    body);
   };
   Answer a = Send(s.port(), post(kReader, big));
-  EXPECT_EQ(a.status, 400) << a.body;  // an unknown field, found after a linear parse
+  EXPECT_EQ(a.status, 400) << a.body;  // found by a scan of the text, before parsing
+  EXPECT_NE(ErrorOf(a).find("an object of more than 1000 keys"), std::string::npos) << a.body;
   EXPECT_LT(a.seconds, 2.0);
+  // The scan's bound, and the parse's duplicate check on what passes it: linear either way.
+  EXPECT_EQ(ScanJsonShape(ManyKeys(1000)).max_keys, 1003u);  // + camera, keypoints, descriptors
+  EXPECT_EQ(ScanJsonShape(R"({"a": {"b": 1, "c": 2}, "d": [{"e": 1}]})").max_keys, 2u);
   const double quiet_admin = MedianSeconds(s.port(), post(kRoot, FeaturesBody(20, false)), 5);
   // 34 of 209 KB at once from one reader.
   const std::string medium = ManyKeys(16000);

@@ -1,6 +1,7 @@
 #include "linecloud/serve/wire.h"
 
 #include <algorithm>
+#include <vector>
 
 #include "linecloud/io/json_util.h"
 #include "linecloud/util/error.h"
@@ -11,6 +12,8 @@ JsonShape ScanJsonShape(std::string_view text) {
   JsonShape shape;
   int depth = 0;
   bool in_string = false, escaped = false;
+  // Colons of each open object (arrays hold a placeholder), up to the depth that is refused.
+  std::vector<size_t> keys;
   for (const char c : text) {
     if (in_string) {
       if (escaped) {
@@ -27,10 +30,14 @@ JsonShape ScanJsonShape(std::string_view text) {
     } else if (c == '[' || c == '{') {
       shape.depth = std::max(shape.depth, ++depth);
       ++shape.values;
+      if (depth <= kMaxRequestJsonDepth + 1) keys.push_back(0);
     } else if (c == ']' || c == '}') {
-      --depth;
-    } else if (c == ',' || c == ':') {  // a key is a value too (its string)
+      if (depth-- <= kMaxRequestJsonDepth + 1 && !keys.empty()) keys.pop_back();
+    } else if (c == ',') {
       ++shape.values;
+    } else if (c == ':') {  // a key is a value too (its string)
+      ++shape.values;
+      if (!keys.empty()) shape.max_keys = std::max(shape.max_keys, ++keys.back());
     }
   }
   return shape;
@@ -44,6 +51,9 @@ nlohmann::json ParseRequestJson(std::string_view body, std::string_view what) {
   if (shape.values > kMaxRequestJsonValues) {
     Fail("{}: more than {} JSON values (arrays, numbers, strings, ...)", what,
          kMaxRequestJsonValues);
+  }
+  if (shape.max_keys > kMaxRequestJsonKeys) {
+    Fail("{}: an object of more than {} keys", what, kMaxRequestJsonKeys);
   }
   try {
     return ParseJsonUniqueKeys(body, std::string(what));
