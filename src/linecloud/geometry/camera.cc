@@ -154,6 +154,12 @@ void Camera::ScaleFocalLength(double factor) {
   if (!ModelOrThrow(model_id).single_focal) params.at(1) *= factor;
 }
 
+void Camera::ShiftPrincipalPoint(double dx, double dy) {
+  const size_t i = ModelOrThrow(model_id).single_focal ? 1 : 2;
+  params.at(i) += dx;
+  params.at(i + 1) += dy;
+}
+
 Eigen::Vector2d Camera::PrincipalPoint() const {
   const int i = ModelOrThrow(model_id).single_focal ? 1 : 2;
   return Eigen::Vector2d(params.at(i), params.at(i + 1));

@@ -62,6 +62,8 @@ struct Camera {
   Eigen::Vector2d PrincipalPoint() const;
   // Multiplies the focal length(s) by `factor`.
   void ScaleFocalLength(double factor);
+  // Moves the principal point by (dx, dy) pixels.
+  void ShiftPrincipalPoint(double dx, double dy);
 
   // Projects a point in the camera frame (z > 0) to pixel coordinates.
   Eigen::Vector2d ImgFromCam(const Eigen::Vector3d& point_in_cam) const;

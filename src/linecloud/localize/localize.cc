@@ -124,6 +124,10 @@ void SuccessCriteria::Check() const {
   if (!(max_rotation_uncertainty_deg > 0)) {
     Fail("maximum rotation uncertainty must be positive, got {}", max_rotation_uncertainty_deg);
   }
+  if (!(max_principal_discrepancy >= 0) || !std::isfinite(max_principal_discrepancy)) {
+    Fail("maximum principal-point discrepancy must be a non-negative fraction, got {}",
+         max_principal_discrepancy);
+  }
   if (!(max_runner_up_share >= 0 && max_runner_up_share <= 1)) {
     Fail("maximum runner-up share must be in [0, 1], got {}", max_runner_up_share);
   }
@@ -289,6 +293,34 @@ std::string SuccessFailure(const MethodInfo& method, const LocalizeResult& r,
         "apart",
         r.runner_up_rotation_deg, r.stats.num_inliers, r.stats.runner_up_own_inliers);
   }
+  if (r.calibration_check && c.max_principal_discrepancy > 0) {
+    // Before the focal length: a wrong principal point also moves the focal
+    // length that fits best, and the advice for a focal length (refine it)
+    // would then make a wrong pose a "success".
+    const CalibrationCheck& check = *r.calibration_check;
+    for (int axis = 0; axis < 2; ++axis) {
+      const double size = check.image_size[axis];
+      const double shift = check.best_fit_principal[axis] - check.given_principal[axis];
+      const double se = check.principal_se[axis];
+      const bool outside = std::abs(shift) > kCalibrationZ * se &&
+                           check.principal_deviance[axis] > kCalibrationZ * kCalibrationZ;
+      // Determined well enough to judge: its interval within 5 % of the size
+      // (a flat wall, where the principal point and the rotation trade off,
+      // is never refused).
+      const bool narrow = kCalibrationZ * se <= std::max(0.05, c.max_principal_discrepancy) * size;
+      if (std::abs(shift) > c.max_principal_discrepancy * size && outside && narrow) {
+        return fmt::format(
+            "the camera's principal point looks wrong: the inliers fit {} = {:.0f} px (99.7 % "
+            "interval {:.0f}-{:.0f}), the camera says {:.0f} px ({:.0f} % of the {} off); a photo "
+            "turned, cropped or resized after its calibration, or the principal point of another "
+            "sensor mode, looks like this: send the camera of the photo as it is",
+            axis == 0 ? "cx" : "cy", check.best_fit_principal[axis],
+            check.best_fit_principal[axis] - kCalibrationZ * se,
+            check.best_fit_principal[axis] + kCalibrationZ * se, check.given_principal[axis],
+            100 * std::abs(shift) / size, axis == 0 ? "width" : "height");
+      }
+    }
+  }
   if (r.calibration_check && c.max_focal_discrepancy > 0) {
     // Refused only when the given focal length is outside the interval the
     // inliers give, that interval is narrow enough to trust, and the
@@ -300,12 +332,22 @@ std::string SuccessFailure(const MethodInfo& method, const LocalizeResult& r,
                          check.deviance > kCalibrationZ * kCalibrationZ;
     const bool narrow = kCalibrationZ * check.log_focal_se <= c.max_focal_discrepancy;
     if (off > c.max_focal_discrepancy && outside && narrow) {
+      // A portrait photo whose camera keeps a landscape principal point:
+      // turned (EXIF) with only width and height swapped. Refining the focal
+      // length would not help (it made such a photo a 10.9° "success").
+      const auto& [w, h] = check.image_size;
+      const bool turned =
+          h > w && check.given_principal[0] > 0.6 * w && check.given_principal[1] < 0.4 * h;
       return fmt::format(
           "the calibration looks wrong: the inliers fit a focal length of {:.1f} px (99.7 % "
           "interval {:.1f}-{:.1f} px), the camera says {:.1f} px ({:.0f} % off, more than {:.0f} "
-          "%); check the camera, or refine its focal length (option refine_focal)",
+          "%); {}",
           check.best_fit_focal, check.interval[0], check.interval[1], r.given_focal, 100 * off,
-          100 * c.max_focal_discrepancy);
+          100 * c.max_focal_discrepancy,
+          turned ? "the photo looks turned with only the camera's width and height swapped: turn "
+                   "the camera too (swap fx / fy and cx / cy)"
+                 : "check the camera, or refine its focal length (option refine_focal) if only "
+                   "the focal length is uncertain");
     }
   }
   // A rig whose cam_from_rig is wrong for one camera (a device's tracking, a
@@ -374,9 +416,20 @@ class FocalProfile {
         options_(options),
         refine_ms_(refine_ms) {}
 
-  Point At(double log_k) const {
+  // Which camera parameter the profile moves: the focal length (by a factor
+  // e^v) or the principal point's x or y (by v pixels).
+  enum class Parameter { kLogFocal, kPrincipalX, kPrincipalY };
+
+  Point At(double v) const {
     Query scaled = query_;
-    scaled.cameras[0].ScaleFocalLength(std::exp(log_k));
+    Camera& camera = scaled.cameras[0];
+    if (parameter_ == Parameter::kLogFocal) {
+      camera.ScaleFocalLength(std::exp(v));
+    } else if (parameter_ == Parameter::kPrincipalX) {
+      camera.ShiftPrincipalPoint(v, 0);
+    } else {
+      camera.ShiftPrincipalPoint(0, v);
+    }
     const PreparedQuery prepared = PrepareQuery(method_, scaled, map_);
     Sim3d pose = start_;
     LocalizeOptions o = options_;
@@ -391,12 +444,33 @@ class FocalProfile {
     return p;
   }
 
-  // The factor k in [1/1.5, 1.5] (log scale) of least cost: a golden-section
-  // search, to `tolerance` in log k.
+  // The same profile over another parameter.
+  FocalProfile Over(Parameter parameter) const {
+    FocalProfile p = *this;
+    p.parameter_ = parameter;
+    return p;
+  }
+  Parameter parameter() const { return parameter_; }
+  // The range searched: the factor k in [1/1.5, 1.5] (log scale), or a
+  // quarter of the image's width / height either way.
+  std::array<double, 2> Range() const {
+    const Camera& c = query_.cameras[0];
+    switch (parameter_) {
+      case Parameter::kLogFocal:
+        return {std::log(1 / 1.5), std::log(1.5)};
+      case Parameter::kPrincipalX:
+        return {-0.25 * c.width, 0.25 * c.width};
+      default:
+        return {-0.25 * c.height, 0.25 * c.height};
+    }
+  }
+
+  // The value of least cost in Range(): a golden-section search, to
+  // `tolerance` (of the value: log k, or pixels).
   double Minimize(double tolerance) const {
     const auto cost = [&](double log_k) { return At(log_k).cost; };
     constexpr double kInvPhi = 0.6180339887498949;
-    double a = std::log(1 / 1.5), b = std::log(1.5);
+    double a = Range()[0], b = Range()[1];
     double x1 = b - kInvPhi * (b - a), x2 = a + kInvPhi * (b - a);
     double f1 = cost(x1), f2 = cost(x2);
     while (b - a > tolerance) {
@@ -410,10 +484,12 @@ class FocalProfile {
         f2 = cost(x2);
       }
     }
-    return std::exp(0.5 * (a + b));
+    const double v = 0.5 * (a + b);
+    return parameter_ == Parameter::kLogFocal ? std::exp(v) : v;
   }
 
  private:
+  Parameter parameter_ = Parameter::kLogFocal;
   const MethodInfo& method_;
   const Query& query_;
   const LocalizationMap& map_;
@@ -433,18 +509,22 @@ class FocalProfile {
 // length's deviance (S(0) − S(k̂)) / σ̂². On a plane seen head-on the focal
 // length and the distance trade off: S is flat, the interval wide, and
 // nothing is refused.
-CalibrationCheck CheckCalibration(const FocalProfile& profile, int residuals_per_datum,
-                                  int pose_parameters, double given_focal) {
-  constexpr double kStep = 0.02;  // log k, for the curvature
-  CalibrationCheck check;
-  const double k = profile.Minimize(/*tolerance=*/2e-3);
-  const double log_k = std::log(k);
-  check.best_fit_focal = k * given_focal;
-  const FocalProfile::Point at = profile.At(log_k);
-  if (at.squared.empty()) return check;
-  // Kept: the inliers within the 99 % quantile of the noise both at k̂ and at
-  // the given focal length (each σ from its median error; χ² with 1 or 2
-  // degrees of freedom), so that neither side picks the data that favour it.
+// One parameter's profile as a test: the value v̂ of least cost, its
+// standard error and the given value's (v = 0) deviance (see above).
+struct ProfileTest {
+  double best = 0, se = std::numeric_limits<double>::infinity(), deviance = 0;
+};
+
+ProfileTest TestProfile(const FocalProfile& profile, int residuals_per_datum, int pose_parameters,
+                        double step, double tolerance) {
+  ProfileTest test;
+  const double found = profile.Minimize(tolerance);
+  test.best = profile.parameter() == FocalProfile::Parameter::kLogFocal ? std::log(found) : found;
+  const FocalProfile::Point at = profile.At(test.best);
+  if (at.squared.empty()) return test;
+  // Kept: the inliers within the 99 % quantile of the noise both at v̂ and at
+  // the given value (each σ from its median error; χ² with 1 or 2 degrees of
+  // freedom), so that neither side picks the data that favour it.
   const bool line = residuals_per_datum == 1;
   const auto within_noise = [&](const std::vector<double>& squared, std::vector<char>* keep) {
     std::vector<double> sorted = squared;
@@ -467,17 +547,44 @@ CalibrationCheck CheckCalibration(const FocalProfile& profile, int residuals_per
   };
   const double s_at = sum(at);
   const double s_given = sum(given);
-  const double s_plus = sum(profile.At(log_k + kStep));
-  const double s_minus = sum(profile.At(log_k - kStep));
+  const double s_plus = sum(profile.At(test.best + step));
+  const double s_minus = sum(profile.At(test.best - step));
   const int dof = rows - pose_parameters - 1;
   const double sigma2 = dof > 0 ? s_at / dof : 0;
-  const double curvature = (s_plus + s_minus - 2 * s_at) / (kStep * kStep);
+  const double curvature = (s_plus + s_minus - 2 * s_at) / (step * step);
   if (sigma2 > 0 && curvature > 0) {
-    const double se = std::sqrt(2 * sigma2 / curvature);
-    check.log_focal_se = se;
-    check.interval = {check.best_fit_focal * std::exp(-kCalibrationZ * se),
-                      check.best_fit_focal * std::exp(kCalibrationZ * se)};
-    check.deviance = std::max(0.0, s_given - s_at) / sigma2;
+    test.se = std::sqrt(2 * sigma2 / curvature);
+    test.deviance = std::max(0.0, s_given - s_at) / sigma2;
+  }
+  return test;
+}
+
+// The calibration check: the focal length (log k) and each axis of the
+// principal point profiled in turn, the others as given.
+CalibrationCheck CheckCalibration(const FocalProfile& profile, int residuals_per_datum,
+                                  int pose_parameters, double given_focal, const Camera& camera) {
+  CalibrationCheck check;
+  const ProfileTest focal =
+      TestProfile(profile, residuals_per_datum, pose_parameters, /*step=*/0.02, 2e-3);
+  check.best_fit_focal = std::exp(focal.best) * given_focal;
+  if (std::isfinite(focal.se)) {
+    check.log_focal_se = focal.se;
+    check.interval = {check.best_fit_focal * std::exp(-kCalibrationZ * focal.se),
+                      check.best_fit_focal * std::exp(kCalibrationZ * focal.se)};
+    check.deviance = focal.deviance;
+  }
+  const Eigen::Vector2d c = camera.PrincipalPoint();
+  check.given_principal = {c.x(), c.y()};
+  check.image_size = {static_cast<double>(camera.width), static_cast<double>(camera.height)};
+  for (int axis = 0; axis < 2; ++axis) {
+    const double size = check.image_size[axis];
+    const ProfileTest shift = TestProfile(
+        profile.Over(axis == 0 ? FocalProfile::Parameter::kPrincipalX
+                               : FocalProfile::Parameter::kPrincipalY),
+        residuals_per_datum, pose_parameters, /*step=*/0.01 * size, /*tolerance=*/1e-3 * size);
+    check.best_fit_principal[axis] = check.given_principal[axis] + shift.best;
+    check.principal_se[axis] = shift.se;
+    check.principal_deviance[axis] = shift.deviance;
   }
   return check;
 }
@@ -512,6 +619,24 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
   if (options.refine_focal && query.cameras.size() != 1) {
     Fail("{}: refining the focal length needs a query with one camera, got {}", source,
          query.cameras.size());
+  }
+  // A principal point outside its image is no camera's: a photo downscaled or
+  // cropped after its calibration keeps its camera's principal point there
+  // (fountain at 640 px with the 1536 px camera: a 29° "success").
+  for (size_t c = 0; c < query.cameras.size(); ++c) {
+    const Camera& camera = query.cameras[c];
+    const Eigen::Vector2d pp = camera.PrincipalPoint();
+    if (!(pp.x() >= 0 && pp.x() <= camera.width && pp.y() >= 0 && pp.y() <= camera.height)) {
+      LocalizeResult refused;
+      refused.num_correspondences = static_cast<int>(query.observations.size());
+      refused.failure = fmt::format(
+          "the camera{} does not fit its photo: its principal point ({:.0f}, {:.0f}) is outside "
+          "the {}x{} image; a photo downscaled or cropped after its calibration looks like this: "
+          "scale or shift the camera with the photo",
+          query.cameras.size() > 1 ? fmt::format(" {}", c) : "", pp.x(), pp.y(), camera.width,
+          camera.height);
+      return refused;
+    }
   }
   const auto prepare_start = std::chrono::steady_clock::now();
   PreparedQuery prepared = PrepareCheckedQuery(method, query, map, source, kept);
@@ -560,10 +685,10 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
       MeanReprojectionError(prepared.data, ransac.model, first_inliers);
   Sim3d pose = ransac.model;
   result.given_focal = query.cameras[0].MeanFocalLength();
+  Query scaled = query;  // the camera as given, or with its focal length refined
   if (options.refine_focal) {
     // Focal length and inliers in turn: the inliers RANSAC found with the
     // prior focal length are a subset of those the refined one explains.
-    Query scaled = query;
     for (int round = 0; round < 3; ++round) {
       const double k =
           FocalProfile(method, scaled, map, ransac_inliers, pose, options, &result.refine_ms)
@@ -580,12 +705,17 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
       if (std::abs(std::log(k)) < 1e-3) break;
     }
     result.refined_focal = scaled.cameras[0].MeanFocalLength();
-  } else if (options.success.max_focal_discrepancy > 0 && query.cameras.size() == 1 &&
-             ransac_inliers.size() > static_cast<size_t>(method.sample_size) + 1) {
-    // The calibration check: the focal length the inliers fit best. A check
-    // against a 10 % discrepancy needs neither every inlier nor 0.01 %: at
-    // most kCheckInliers of them, evenly spaced, and k to 0.2 % (14 LM runs
-    // instead of 21 on all inliers; the focal refinement keeps both).
+  }
+  if ((options.success.max_focal_discrepancy > 0 ||
+       options.success.max_principal_discrepancy > 0) &&
+      query.cameras.size() == 1 &&
+      ransac_inliers.size() > static_cast<size_t>(method.sample_size) + 1) {
+    // The calibration check: the focal length and the principal point the
+    // inliers fit best — after a focal refinement too, so that refining the
+    // focal length never turns a wrong principal point into a "success". A
+    // check against a 10 % discrepancy needs neither every inlier nor 0.01 %:
+    // at most kCheckInliers of them, evenly spaced, k to 0.2 % and the
+    // principal point to 0.1 % of the image.
     const auto check_start = std::chrono::steady_clock::now();
     double unused_ms = 0;
     std::vector<int> check_inliers;
@@ -593,9 +723,14 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
     for (size_t i = 0; i < std::min(m, kCheckInliers); ++i) {
       check_inliers.push_back(ransac_inliers[i * m / std::min(m, kCheckInliers)]);
     }
-    result.calibration_check =
-        CheckCalibration(FocalProfile(method, query, map, check_inliers, pose, options, &unused_ms),
-                         method.lines ? 1 : 2, method.similarity() ? 7 : 6, result.given_focal);
+    const double focal = scaled.cameras[0].MeanFocalLength();
+    result.calibration_check = CheckCalibration(
+        FocalProfile(method, scaled, map, check_inliers, pose, options, &unused_ms),
+        method.lines ? 1 : 2, method.similarity() ? 7 : 6, focal, scaled.cameras[0]);
+    if (options.refine_focal) {  // the refined focal length is the one checked: not refused
+      result.calibration_check->best_fit_focal = focal;
+      result.calibration_check->deviance = 0;
+    }
     result.best_fit_focal = result.calibration_check->best_fit_focal;
     result.check_ms += MsSince(check_start);
   }

@@ -283,11 +283,17 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
   if (r.refined_focal) j["refined_focal"] = *r.refined_focal;
   if (r.calibration_check) {
     const CalibrationCheck& c = *r.calibration_check;
-    j["calibration_check"] = {{"given_focal", r.given_focal},
-                              {"best_fit_focal", c.best_fit_focal},
-                              {"interval", {c.interval[0], finite_or_null(c.interval[1])}},
-                              {"log_focal_se", finite_or_null(c.log_focal_se)},
-                              {"deviance", c.deviance}};
+    j["calibration_check"] = {
+        {"given_focal", r.given_focal},
+        {"best_fit_focal", c.best_fit_focal},
+        {"interval", {c.interval[0], finite_or_null(c.interval[1])}},
+        {"log_focal_se", finite_or_null(c.log_focal_se)},
+        {"deviance", c.deviance},
+        {"principal_point",
+         {{"given", c.given_principal},
+          {"best_fit", c.best_fit_principal},
+          {"se_px", {finite_or_null(c.principal_se[0]), finite_or_null(c.principal_se[1])}},
+          {"deviance", c.principal_deviance}}}};
   }
   if (with_inliers) j["inliers"] = r.inliers;
   if (with_inliers && !r.camera_observations.empty()) {

@@ -1,6 +1,7 @@
 #include "linecloud/serve/geopose_request.h"
 
 #include <algorithm>
+#include <cmath>
 #include <initializer_list>
 #include <string>
 #include <string_view>
@@ -121,7 +122,7 @@ void CheckCameraReading(const json& r, const std::string& where) {
     Typed(o, at, Type::kBool, {"mirrored"});
     Typed(o, at, Type::kNumber, {"rotation"});
     if ((Has(o, "mirrored") && o["mirrored"].get<bool>()) ||
-        (Has(o, "rotation") && o["rotation"].get<double>() != 0)) {
+        (Has(o, "rotation") && std::fmod(o["rotation"].get<double>(), 360.0) != 0)) {
       Fail(
           "{}: {} is not applied by this server; send the photo upright (rotation 0, not "
           "mirrored)",

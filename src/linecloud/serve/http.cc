@@ -393,9 +393,13 @@ struct HttpServer::Impl {
       *upload_size = 0;
       state->received += n;
       // A drip is cut off: no answer could be given before the request's deadline anyway.
-      if (std::chrono::steady_clock::now() - state->request.arrived > options.body_time) {
+      // A refused request's body, read only so that its client sees the answer, gets the
+      // shorter refused_body_time (token-less drips held connections for the whole bound).
+      const auto allowed_time =
+          state->refused || state->pending ? options.refused_body_time : options.body_time;
+      if (std::chrono::steady_clock::now() - state->request.arrived > allowed_time) {
         Notice(fmt::format("{}: a body still arriving {} ms after its head: closed",
-                           state->request.client, options.body_time.count()));
+                           state->request.client, allowed_time.count()));
         return MHD_NO;
       }
       if (state->refused || state->pending) {

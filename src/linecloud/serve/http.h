@@ -86,6 +86,9 @@ struct HttpServerOptions {
   // A body still arriving this long after its head is cut off (the
   // connection closed): silence is bounded by `idle_seconds`, a drip by this.
   std::chrono::milliseconds body_time{10000};
+  // The same for the body of a request refused from its head (read and
+  // dropped so that its client sees the answer).
+  std::chrono::milliseconds refused_body_time{5000};
   unsigned idle_seconds = 5;  // a connection silent this long is closed
   int handler_threads = 64;   // at most; made as requests come
   // Stop(): how long requests in flight may take to finish (their handlers

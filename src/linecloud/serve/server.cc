@@ -471,9 +471,11 @@ struct Server::Impl {
         } catch (const Error& e) {
           Fail("{}: {}", where, e.what());
         }
-        // What would only hold a worker until the deadline: draws no deadline allows (p6L
-        // takes ~1 ms a draw), a threshold below what any keypoint is located to.
-        const double most_draws = 1000 * options.request_seconds;
+        // What would only hold a worker: a floor of draws that takes a good part of the
+        // deadline (p6L takes ~0.6 ms a draw, after ~1-2 s of SIFT for a photo; an outsider's
+        // min_iterations 10 000 held a worker 9 s), a threshold below what any keypoint is
+        // located to.
+        const double most_draws = 50 * options.request_seconds;
         if (o.localize.ransac.min_iterations > most_draws) {
           Fail(
               "{}.options.min_iterations: {} draws do not fit this server's {} s deadline (at "
@@ -942,6 +944,7 @@ struct Server::Impl {
     try {
       HeadChecks(req);
       if (allowed != "POST" && (req.BodyLength() > 0 || req.HeaderCount("Transfer-Encoding") > 0)) {
+        if (allowed.empty()) Throw(404, "no such route");  // the console's files take no body
         Throw(400, fmt::format("{} {} takes no body", req.method, route));
       }
       // The probes answered here, on the connections' thread: never behind
@@ -1210,6 +1213,7 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   // then it is answered 504).
   h.body_time = std::chrono::milliseconds(
       static_cast<int64_t>(1000 * (o.request_seconds + o.read_timeout_s)));
+  h.refused_body_time = std::chrono::milliseconds(static_cast<int64_t>(1000 * o.read_timeout_s));
   h.idle_seconds = static_cast<unsigned>(std::max(1.0, std::ceil(o.read_timeout_s)));
   // Handlers wait for a worker (or their deadline): the workers, the queue and
   // a few for cheap routes; more requests wait in line, read and suspended.
