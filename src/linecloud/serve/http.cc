@@ -216,14 +216,16 @@ struct HttpServer::Impl {
     if (bytes <= state->reserved) return true;
     const uint64_t more = bytes - state->reserved;
     std::lock_guard<std::mutex> lock(mutex);
-    uint64_t& account = account_bytes[state->request.account];
-    if (body_bytes + more > options.body_budget_bytes ||
-        account + more > options.account_budget_bytes) {
-      if (account == 0) account_bytes.erase(state->request.account);
-      return false;
+    if (body_bytes + more > options.body_budget_bytes) return false;
+    if (!state->request.account.empty()) {  // "": no account (a loopback peer, no token)
+      uint64_t& account = account_bytes[state->request.account];
+      if (account + more > options.account_budget_bytes) {
+        if (account == 0) account_bytes.erase(state->request.account);
+        return false;
+      }
+      account += more;
     }
     body_bytes += more;
-    account += more;
     state->reserved = bytes;
     return true;
   }
@@ -332,7 +334,12 @@ struct HttpServer::Impl {
         ++in_flight;
       }
       ReadHead(connection, url, method, state);
-      if (state->request.account.empty()) state->request.account = state->request.client;
+      // The peer's address is the account until the screen names one; not a
+      // loopback one (behind a local proxy every client is 127.0.0.1), as for
+      // connections_per_address.
+      const MHD_ConnectionInfo* peer =
+          MHD_get_connection_info(connection, MHD_CONNECTION_INFO_CLIENT_ADDRESS);
+      if (!(peer && Exempt(peer->client_addr))) state->request.account = state->request.client;
       if (options.screen) {
         if (std::optional<HttpResponse> refusal = options.screen(state->request)) {
           // A body announced is not read further: the connection closes after it.

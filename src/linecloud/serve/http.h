@@ -35,8 +35,10 @@ struct HttpRequest {
   std::map<std::string, std::string> parts;  // multipart/form-data fields by name
   // When its head arrived (before its body was read): deadlines run from here.
   std::chrono::steady_clock::time_point arrived{};
-  // Whom the screen admitted it for (a token's id, else the peer's address):
-  // its body is charged to that account's share of the body budget.
+  // Whom the screen admitted it for (a token's id, else the peer's address;
+  // "" for a loopback peer without a token, which may be a local proxy's
+  // many clients): its body is charged to that account's share of the body
+  // budget.
   std::string account;
 
   // The first field of that name (case-insensitive), "" when absent.

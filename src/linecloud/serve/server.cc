@@ -893,7 +893,7 @@ struct Server::Impl {
     const bool map_route = path == "/geopose" || path.rfind("/v1/maps/", 0) == 0;
     if (!map_route) return;
     const auto token = Authorize(req);
-    req.account = token ? "token " + token->id : "address " + req.client;
+    if (token) req.account = "token " + token->id;  // else the address (HttpServer's default)
     const std::string rest = path.substr(std::min(path.size(), std::string("/v1/maps/").size()));
     const size_t slash = rest.find('/');
     const std::string tail = slash == std::string::npos ? "" : rest.substr(slash);
