@@ -620,24 +620,6 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
     Fail("{}: refining the focal length needs a query with one camera, got {}", source,
          query.cameras.size());
   }
-  // A principal point outside its image is no camera's: a photo downscaled or
-  // cropped after its calibration keeps its camera's principal point there
-  // (fountain at 640 px with the 1536 px camera: a 29° "success").
-  for (size_t c = 0; c < query.cameras.size(); ++c) {
-    const Camera& camera = query.cameras[c];
-    const Eigen::Vector2d pp = camera.PrincipalPoint();
-    if (!(pp.x() >= 0 && pp.x() <= camera.width && pp.y() >= 0 && pp.y() <= camera.height)) {
-      LocalizeResult refused;
-      refused.num_correspondences = static_cast<int>(query.observations.size());
-      refused.failure = fmt::format(
-          "the camera{} does not fit its photo: its principal point ({:.0f}, {:.0f}) is outside "
-          "the {}x{} image; a photo downscaled or cropped after its calibration looks like this: "
-          "scale or shift the camera with the photo",
-          query.cameras.size() > 1 ? fmt::format(" {}", c) : "", pp.x(), pp.y(), camera.width,
-          camera.height);
-      return refused;
-    }
-  }
   const auto prepare_start = std::chrono::steady_clock::now();
   PreparedQuery prepared = PrepareCheckedQuery(method, query, map, source, kept);
   LocalizeResult result;
@@ -773,12 +755,38 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
   return result;
 }
 
+// A principal point outside its image is no camera's: a photo downscaled or
+// cropped after its calibration keeps its camera's principal point there
+// (fountain at 640 px with the 1536 px camera: a 29° "success"). "" when
+// every camera's is inside.
+std::string PrincipalPointOutside(const Query& query) {
+  for (size_t c = 0; c < query.cameras.size(); ++c) {
+    const Camera& camera = query.cameras[c];
+    const Eigen::Vector2d pp = camera.PrincipalPoint();
+    if (!(pp.x() >= 0 && pp.x() <= camera.width && pp.y() >= 0 && pp.y() <= camera.height)) {
+      return fmt::format(
+          "the camera{} does not fit its photo: its principal point ({:.0f}, {:.0f}) is outside "
+          "the {}x{} image; a photo downscaled or cropped after its calibration looks like this: "
+          "scale or shift the camera with the photo",
+          query.cameras.size() > 1 ? fmt::format(" {}", c) : "", pp.x(), pp.y(), camera.width,
+          camera.height);
+    }
+  }
+  return "";
+}
+
 }  // namespace
 
 LocalizeResult Localize(const MethodInfo& method, const Query& query, const LocalizationMap& map,
                         const LocalizeOptions& options, std::string_view source) {
   options.Check();
   CheckMethodAndMap(method, map);
+  if (std::string outside = PrincipalPointOutside(query); !outside.empty()) {
+    LocalizeResult refused;  // before the camera's other checks: the mistake to name
+    refused.num_correspondences = static_cast<int>(query.observations.size());
+    refused.failure = std::move(outside);
+    return refused;
+  }
   CheckQuery(method, query, source);
   std::vector<int> kept;
   const Query usable = UsableObservations(query, &kept);
