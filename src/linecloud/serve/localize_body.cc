@@ -71,14 +71,14 @@ std::optional<size_t> IndexedPart(const std::string& name, std::string_view pref
 // ~1.2 keypoints a location), never for most keypoints.
 void CheckKeypointsSpread(const std::vector<SiftKeypoint>& keypoints, const std::string& where) {
   if (keypoints.size() < 20) return;
+  // A pixel's column or row (clamped first: a float of 1e30 is no int64).
+  const auto cell = [](float v) {
+    const double clamped = std::isfinite(v) ? std::clamp<double>(v, -1e9, 1e9) : 1e9;
+    return static_cast<uint64_t>(static_cast<int64_t>(std::floor(clamped)) & 0xffffffff);
+  };
   std::unordered_map<uint64_t, size_t> at;  // keypoints per pixel
   size_t most = 0;
-  for (const SiftKeypoint& k : keypoints) {
-    const auto cell = [](float v) {
-      return static_cast<uint64_t>(static_cast<int64_t>(std::floor(v)) & 0xffffffff);
-    };
-    most = std::max(most, ++at[cell(k.x) << 32 | cell(k.y)]);
-  }
+  for (const SiftKeypoint& k : keypoints) most = std::max(most, ++at[cell(k.x) << 32 | cell(k.y)]);
   if (2 * at.size() < keypoints.size() || most > std::max<size_t>(16, keypoints.size() / 10)) {
     Fail("{}: {} keypoints at {} pixels ({} at one): not the features of a photo", where,
          keypoints.size(), at.size(), most);
