@@ -175,6 +175,10 @@ std::string BodyLimitMessage(uint64_t max_body_bytes) {
                      static_cast<double>(max_body_bytes) / (1 << 20));
 }
 
+bool HttpRequest::AnnouncesBody() const {
+  return BodyLength() > 0 || HeaderCount("Transfer-Encoding") > 0;
+}
+
 uint64_t HttpRequest::BodyLength() const {
   const std::string v = Header("Content-Length");
   if (v.empty()) return 0;
@@ -209,7 +213,6 @@ struct HttpServer::Impl {
       : options(std::move(o)), pool(options.handler_threads, std::chrono::seconds(30)) {}
 
   // Body bytes of all requests being read, at most body_budget_bytes: a
-  // request's announced length from its head, more if it sends more.
   // request's announced length from its head, more if it sends more; an
   // account's requests at most account_budget_bytes of it.
   bool ReserveBody(RequestState* state, uint64_t bytes) {
@@ -244,15 +247,21 @@ struct HttpServer::Impl {
     return Queue(connection, std::move(r));
   }
 
+  // The same refusal, sent once the body has arrived (libmicrohttpd takes no
+  // answer while a body is being read).
+  void Pend(RequestState* state, HttpResponse r) const {
+    if (options.answered) options.answered(state->request, r);
+    state->pending = std::move(r);
+  }
+
   // A refusal decided from the head is answered after the body it announced
   // has been read and dropped (bounded), unless the client waits for a 100
   // Continue or announced no body at all.
   bool DrainBeforeRefusal(const HttpRequest& req) const {
     const uint64_t announced = req.BodyLength();
-    const bool chunked = req.HeaderCount("Transfer-Encoding") > 0;
     if (announced == UINT64_MAX || announced / 4 > options.max_body_bytes) return false;
     // Chunks of unknown total are not waited for (the server takes none).
-    if (!req.Header("Expect").empty() || chunked) return false;
+    if (!req.Header("Expect").empty() || req.HeaderCount("Transfer-Encoding") > 0) return false;
     return announced > 0;
   }
 
@@ -343,10 +352,7 @@ struct HttpServer::Impl {
       if (options.screen) {
         if (std::optional<HttpResponse> refusal = options.screen(state->request)) {
           // A body announced is not read further: the connection closes after it.
-          if (state->request.BodyLength() > 0 ||
-              state->request.HeaderCount("Transfer-Encoding") > 0) {
-            refusal->close = true;
-          }
+          if (state->request.AnnouncesBody()) refusal->close = true;
           if (DrainBeforeRefusal(state->request)) {
             state->pending = std::move(*refusal);  // its body read and dropped first
             return MHD_YES;
@@ -363,12 +369,12 @@ struct HttpServer::Impl {
                       ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true));
       }
       if (state->too_large) {
-        state->pending = ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true);
+        HttpResponse r = ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true);
         if (!DrainBeforeRefusal(state->request)) {
           state->refused = true;
-          return Answer(connection, state, std::move(*state->pending));
+          return Answer(connection, state, std::move(r));
         }
-        if (options.answered) options.answered(state->request, *state->pending);
+        Pend(state, std::move(r));
         return MHD_YES;
       }
       if (!ReserveBody(state, announced)) {
@@ -380,8 +386,9 @@ struct HttpServer::Impl {
         return Answer(connection, state, std::move(r));
       }
       const std::string type = state->request.Header("Content-Type");
-      if (type.rfind("multipart/form-data", 0) != 0) state->request.body.reserve(announced);
-      if (type.rfind("multipart/form-data", 0) == 0) {
+      if (type.rfind("multipart/form-data", 0) != 0) {
+        state->request.body.reserve(announced);
+      } else {
         state->request.multipart = true;
         state->post = MHD_create_post_processor(connection, 64 * 1024, &CollectPart, state);
         if (state->post == nullptr) {
@@ -415,13 +422,12 @@ struct HttpServer::Impl {
       }
       if (state->received > options.max_body_bytes) state->too_large = true;
       if (state->too_large || !ReserveBody(state, state->received)) {
-        state->pending = state->too_large
-                             ? ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true)
-                             : ErrorResponse(503,
-                                             "the server is busy: request bodies being read "
-                                             "fill its memory for bodies",
-                                             true);
-        if (options.answered) options.answered(state->request, *state->pending);
+        Pend(state, state->too_large
+                        ? ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true)
+                        : ErrorResponse(503,
+                                        "the server is busy: request bodies being read fill its "
+                                        "memory for bodies",
+                                        true));
         return MHD_YES;
       }
       if (state->post != nullptr) {
@@ -430,8 +436,7 @@ struct HttpServer::Impl {
                                       ? "multipart: the body is not multipart/form-data with the "
                                         "boundary its Content-Type names"
                                       : state->post_error;
-          state->pending = ErrorResponse(400, why, true);
-          if (options.answered) options.answered(state->request, *state->pending);
+          Pend(state, ErrorResponse(400, why, true));
         }
       } else {
         state->request.body.append(upload, n);
@@ -441,16 +446,14 @@ struct HttpServer::Impl {
     if (state->answer) return Queue(connection, std::move(*state->answer));  // resumed
     if (state->dispatched || state->refused) return MHD_YES;
     if (state->too_large && !state->pending) {
-      state->pending = ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true);
-      if (options.answered) options.answered(state->request, *state->pending);
+      Pend(state, ErrorResponse(413, BodyLimitMessage(options.max_body_bytes), true));
     }
     if (state->post != nullptr && !state->pending) {
       const MHD_Result complete = MHD_destroy_post_processor(state->post);
       state->post = nullptr;
       if (complete != MHD_YES) {
-        state->pending =
-            ErrorResponse(400, "multipart: the body ends before its closing boundary", true);
-        if (options.answered) options.answered(state->request, *state->pending);
+        Pend(state,
+             ErrorResponse(400, "multipart: the body ends before its closing boundary", true));
       }
     }
     if (state->pending) {
@@ -462,8 +465,7 @@ struct HttpServer::Impl {
       state->refused = true;
       HttpResponse r = ErrorResponse(503, "the server is stopping", true);
       r.headers = {{"Retry-After", "1"}};
-      if (options.answered) options.answered(state->request, r);
-      return Queue(connection, std::move(r));
+      return Answer(connection, state, std::move(r));
     }
     state->dispatched = true;
     ++dispatched;

@@ -48,6 +48,8 @@ struct HttpRequest {
   // The announced Content-Length: 0 when absent, UINT64_MAX when it is not a
   // number below 10^15 (no body that large is read).
   uint64_t BodyLength() const;
+  // A body announced: a Content-Length above 0, or a Transfer-Encoding.
+  bool AnnouncesBody() const;
 };
 
 struct HttpResponse {

@@ -66,6 +66,19 @@ constexpr size_t kMaxHeaders = 100;
 // keypoints to ~0.1 px; 1e-300 made every draw fail until the deadline.
 constexpr double kMinServedThreshold = 0.05;
 
+// A path under /v1/maps/: the map's id and what follows it ("" for the map
+// itself, else "/localize", "/segments", ...); nullopt for any other path.
+struct MapPath {
+  std::string id, tail;
+};
+std::optional<MapPath> SplitMapPath(const std::string& path) {
+  constexpr std::string_view kMaps = "/v1/maps/";
+  if (path.rfind(kMaps, 0) != 0) return std::nullopt;
+  const std::string rest = path.substr(kMaps.size());
+  const size_t slash = rest.find('/');
+  return MapPath{rest.substr(0, slash), slash == std::string::npos ? "" : rest.substr(slash)};
+}
+
 // The API's routes by path: their method ("GET" / "POST"), "" for any other
 // path (the console's files).
 std::string AllowedMethods(const std::string& path) {
@@ -73,15 +86,13 @@ std::string AllowedMethods(const std::string& path) {
     return "GET";
   }
   if (path == "/geopose") return "POST";
-  constexpr std::string_view kMaps = "/v1/maps/";
-  if (path.rfind(kMaps, 0) != 0) return "";
-  const std::string rest = path.substr(kMaps.size());
-  const size_t slash = rest.find('/');
-  if (slash == std::string::npos) return "GET";
-  const std::string tail = rest.substr(slash);
-  if (tail == "/localize") return "POST";
-  if (tail == "/segments" || tail == "/audit" || tail == "/audit/points") return "GET";
-  return "";
+  const std::optional<MapPath> map = SplitMapPath(path);
+  if (!map) return "";
+  if (map->tail.empty() || map->tail == "/segments" || map->tail == "/audit" ||
+      map->tail == "/audit/points") {
+    return "GET";
+  }
+  return map->tail == "/localize" ? "POST" : "";
 }
 
 // The Authorization header whole, as sent (never percent-decoded: with
@@ -115,13 +126,12 @@ std::string ConsolePolicy(const std::string& index_html) {
          "base-uri 'none'; form-action 'self'; frame-ancestors 'none'";
 }
 
-// The route a path belongs to, as the access log and /metrics name it.
+// The route a path belongs to, as the access log and /metrics name it
+// ("static" for the console's files).
 std::string RouteName(const std::string& path) {
-  constexpr std::string_view kMaps = "/v1/maps/";
-  if (path.rfind(kMaps, 0) != 0) return path;
-  const std::string rest = path.substr(kMaps.size());
-  const size_t slash = rest.find('/');
-  return slash == std::string::npos ? "/v1/maps/{id}" : "/v1/maps/{id}" + rest.substr(slash);
+  if (AllowedMethods(path).empty()) return "static";
+  const std::optional<MapPath> map = SplitMapPath(path);
+  return map ? "/v1/maps/{id}" + map->tail : path;
 }
 
 // An answer with a status: errors carry {"error": ...}.
@@ -834,15 +844,20 @@ struct Server::Impl {
 
   // Every route: status from HttpError, library errors 400, one access-log line.
   // `answer` returns JSON, or fills the response itself and returns null.
+  // An access-log line's first fields.
+  static json LogLine(const std::string& route, const HttpRequest& req) {
+    return {{"time", std::chrono::duration_cast<std::chrono::milliseconds>(
+                         std::chrono::system_clock::now().time_since_epoch())
+                         .count()},
+            {"route", route},
+            {"method", req.method},
+            {"client", req.client}};
+  }
+
   HttpResponse Handle(const std::string& route, const HttpRequest& req,
                       const std::function<json(json*, HttpResponse*)>& answer) {
     const auto start = Clock::now();
-    json log = {{"time", std::chrono::duration_cast<std::chrono::milliseconds>(
-                             std::chrono::system_clock::now().time_since_epoch())
-                             .count()},
-                {"route", route},
-                {"method", req.method},
-                {"client", req.client}};
+    json log = LogLine(route, req);
     HttpResponse res;
     const auto refuse = [&](int status, const std::string& message) {
       res = ErrorResponse(status, message);
@@ -889,20 +904,17 @@ struct Server::Impl {
   // map (404), may they (403), how often (429: every request that gets this
   // far is charged, whether its body then arrives or not).
   void HeadChecks(HttpRequest& req) {
-    const std::string& path = req.path;
-    const bool map_route = path == "/geopose" || path.rfind("/v1/maps/", 0) == 0;
-    if (!map_route) return;
+    const bool geopose = req.path == "/geopose";
+    const std::optional<MapPath> map_path = SplitMapPath(req.path);
+    if (!geopose && !map_path) return;
     const auto token = Authorize(req);
     if (token) req.account = "token " + token->id;  // else the address (HttpServer's default)
-    const std::string rest = path.substr(std::min(path.size(), std::string("/v1/maps/").size()));
-    const size_t slash = rest.find('/');
-    const std::string tail = slash == std::string::npos ? "" : rest.substr(slash);
-    const auto map =
-        path == "/geopose" ? GeoPoseMap(req, token) : FindMap(rest.substr(0, slash), token);
+    const std::string tail = map_path ? map_path->tail : "";
+    const auto map = geopose ? GeoPoseMap(req, token) : FindMap(map_path->id, token);
     if (tail == "/segments" && token && !token->admin && !map->publish_lines) {
       Throw(403, "the map's lines are for admin tokens: its owner has not published them");
     }
-    if (path == "/geopose" || tail == "/localize" || tail == "/segments") Throttle(token);
+    if (geopose || tail == "/localize" || tail == "/segments") Throttle(token);
   }
 
   // Before a request's body is read: what no route answers with a body,
@@ -938,12 +950,12 @@ struct Server::Impl {
       // 500 ranges of one file answered 808 MB (cpp-httplib).
       refusal = HttpError{416, "one range per request"};
     }
-    const std::string route = allowed.empty() ? "static" : RouteName(req.path);
+    const std::string route = RouteName(req.path);
     if (refusal) return Handle(route, req, [&](json*, HttpResponse*) -> json { throw *refusal; });
     // Whoever may send a body is known before any of it is read or held.
     try {
       HeadChecks(req);
-      if (allowed != "POST" && (req.BodyLength() > 0 || req.HeaderCount("Transfer-Encoding") > 0)) {
+      if (allowed != "POST" && req.AnnouncesBody()) {
         if (allowed.empty()) Throw(404, "no such route");  // the console's files take no body
         Throw(400, fmt::format("{} {} takes no body", req.method, route));
       }
@@ -959,16 +971,11 @@ struct Server::Impl {
   // An answer the HTTP layer gave itself (413, 503, a broken multipart
   // body): logged and counted as the routes' are.
   void Answered(const HttpRequest& req, const HttpResponse& res) {
-    const std::string route = AllowedMethods(req.path).empty() ? "static" : RouteName(req.path);
+    const std::string route = RouteName(req.path);
     metrics.Request(route, res.status);
-    json log = {{"time", std::chrono::duration_cast<std::chrono::milliseconds>(
-                             std::chrono::system_clock::now().time_since_epoch())
-                             .count()},
-                {"route", route},
-                {"method", req.method},
-                {"client", req.client},
-                {"status", res.status},
-                {"by", "http"}};
+    json log = LogLine(route, req);
+    log["status"] = res.status;
+    log["by"] = "http";
     try {
       log["error"] = json::parse(res.body).value("error", "");
     } catch (const std::exception&) {
@@ -1000,12 +1007,9 @@ struct Server::Impl {
       return Handle(path, req, [&](json* log, HttpResponse*) { return MapsRoute(req, log); });
     if (path == "/geopose")
       return Handle(path, req, [&](json* log, HttpResponse*) { return GeoPoseRoute(req, log); });
-    constexpr std::string_view kMaps = "/v1/maps/";
-    if (path.rfind(kMaps, 0) == 0 && !AllowedMethods(path).empty()) {
-      const std::string rest = path.substr(kMaps.size());
-      const size_t slash = rest.find('/');
-      const std::string id = rest.substr(0, slash);
-      const std::string tail = slash == std::string::npos ? "" : rest.substr(slash);
+    if (const auto map_path = SplitMapPath(path); map_path && !AllowedMethods(path).empty()) {
+      const std::string& id = map_path->id;
+      const std::string& tail = map_path->tail;
       const std::string route = RouteName(path);
       if (tail.empty())
         return Handle(route, req,
