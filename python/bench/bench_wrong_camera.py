@@ -71,21 +71,31 @@ TURN = (math.cos(math.pi / 4), 0.0, 0.0, math.sin(math.pi / 4))
 
 
 def mistakes(cam):
-    """(name, camera dict, image kind, pose change) for every mistake on the true camera `cam`."""
+    """(name, camera dict, image kind) for every mistake on the true camera `cam` (a PINHOLE or
+    OPENCV camera: fx, fy, cx, cy first)."""
     w, h = cam["width"], cam["height"]
-    fx, fy, cx, cy = cam["params"]
+    fx, fy, cx, cy = cam["params"][:4]
+    rest = cam["params"][4:]
+
+    def with_params(p, **kw):
+        return dict(cam, params=list(p) + rest, **kw)
+
     out = [("true camera", cam, "photo")]
-    for f in (0.9, 1.1):
-        out.append((f"focal x{f}", dict(cam, params=[fx * f, fy * f, cx, cy]), "photo"))
+    for f in (0.9, 0.95, 1.05, 1.1):
+        out.append((f"focal x{f}", with_params([fx * f, fy * f, cx, cy]), "photo"))
+    out.append(("aspect: fy x1.05", with_params([fx, fy * 1.05, cx, cy]), "photo"))
     for axis in ("cx", "cy"):
         for off in (-0.15, -0.10, -0.05, 0.05, 0.10, 0.15):
             p = [fx, fy, cx * (1 + off) if axis == "cx" else cx, cy * (1 + off) if axis == "cy" else cy]
-            out.append((f"{axis} {off:+.0%}", dict(cam, params=p), "photo"))
+            out.append((f"{axis} {off:+.0%}", with_params(p), "photo"))
+    if rest and any(rest):
+        out.append(("distortion dropped", dict(cam, model="PINHOLE", params=[fx, fy, cx, cy]), "photo"))
     out.append(("turned, width/height swapped only", dict(cam, width=h, height=w), "turned"))
     out.append(("downscaled to 640, width/height changed only",
                 dict(cam, width=640, height=round(640 * h / w)), "small"))
+    out.append(("halved, width/height changed only", dict(cam, width=w // 2, height=h // 2), "half"))
     out.append(("half crop, principal point centred",
-                dict(cam, width=w // 2, height=h // 2, params=[fx, fy, w / 4, h / 4]), "crop"))
+                with_params([fx, fy, w / 4, h / 4], width=w // 2, height=h // 2), "crop"))
     return out
 
 
@@ -101,6 +111,7 @@ def main():
     tally = collections.defaultdict(lambda: collections.Counter())
     reasons = collections.defaultdict(collections.Counter)
     wrong = []
+    trials = []
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ, LINECLOUD_KEY_STORE=str(Path(tmp) / "keys"))
         for work in map(Path, args.work):
@@ -111,7 +122,7 @@ def main():
                 if line.strip() and not line.startswith("#"):
                     f = line.split()
                     cams[int(f[0])] = {"model": f[1], "width": int(f[2]), "height": int(f[3]),
-                                       "params": [float(x) for x in f[4:8]]}
+                                       "params": [float(x) for x in f[4:]]}
             centres = [centre(im["cam_from_world"]["q"], im["cam_from_world"]["t"])
                        for g in prepared["groups"] for im in g["images"]]
             extent = np.ptp(np.array(centres), axis=0)
@@ -131,6 +142,8 @@ def main():
                     for kind, img in (("turned", cv2.rotate(pixels, cv2.ROTATE_90_CLOCKWISE)),
                                       ("small", cv2.resize(pixels, (640, round(640 * pixels.shape[0] / pixels.shape[1])),
                                                            interpolation=cv2.INTER_AREA)),
+                                      ("half", cv2.resize(pixels, (pixels.shape[1] // 2, pixels.shape[0] // 2),
+                                                          interpolation=cv2.INTER_AREA)),
                                       ("crop", pixels[pixels.shape[0] // 4: 3 * pixels.shape[0] // 4,
                                                       pixels.shape[1] // 4: 3 * pixels.shape[1] // 4])):
                         path = Path(tmp) / f"{work.name}-{kind}-{im['name']}"
@@ -140,6 +153,15 @@ def main():
                         kp, desc = features(cli, copies[kind], camera_text(camera), tmp)
                         r = loc.localize_features(kp, desc, camera, with_inliers=False)
                         q_truth = quat_mul(TURN, tuple(truth_q)) if kind == "turned" else truth_q
+                        trial = {"work": work.name, "photo": im["name"], "mistake": name,
+                                 "success": r["success"], "reason": r.get("reason", ""),
+                                 "uncertainty": r.get("uncertainty"),
+                                 "calibration_check": r.get("calibration_check"), "scene": scene}
+                        pre = "" if r["success"] else "rejected_"
+                        if pre + "q" in r:
+                            trial["rotation_deg"] = rotation_angle_deg(r[pre + "q"], q_truth)
+                            trial["position"] = math.dist(r[pre + "center"], centre(truth_q, truth_t))
+                        trials.append(trial)
                         if not r["success"]:
                             tally[name]["no pose"] += 1
                             reasons[name][r["reason"].split(":")[0][:60]] += 1
@@ -164,8 +186,18 @@ def main():
     print(f"\n{total} trials with a wrong camera: {bad} confident wrong poses")
     for w in wrong:
         print("wrong:", w)
+    # Coverage of the reported 1-sigma uncertainty (matches and calibration) over the right poses.
+    right = [t for t in trials if t["success"] and t["uncertainty"]
+             and t["rotation_deg"] <= args.wrong_rotation and t["position"] <= args.wrong_position * t["scene"]]
+    if right:
+        print(f"\ncoverage over {len(right)} right poses (all cameras): share within k sigma")
+        print("| | 1 sigma | 2 sigma | 3 sigma |")
+        print("|---|---|---|---|")
+        for what, err, sig in (("rotation", "rotation_deg", "rotation_deg"), ("position", "position", "position")):
+            z = [t[err] / t["uncertainty"][sig] for t in right if t["uncertainty"].get(sig)]
+            print(f"| {what} | " + " | ".join(f"{100 * sum(v <= k for v in z) / len(z):.0f} %" for k in (1, 2, 3)) + " |")
     if args.json:
-        Path(args.json).write_text(json.dumps({"tally": tally, "reasons": reasons, "wrong": wrong}, indent=1))
+        Path(args.json).write_text(json.dumps({"tally": tally, "reasons": reasons, "wrong": wrong, "trials": trials}, indent=1))
 
 
 if __name__ == "__main__":

@@ -675,7 +675,10 @@ TEST(Guard, OneCameraWithLocalPointsReportsWhatIsDetermined) {
     options.ransac.seed = k;
     const LocalizeResult r = Localize(method, inst.query, LocalizationMap(inst.point_map), options);
     ASSERT_TRUE(r.success) << r.failure;
-    EXPECT_LT(r.uncertainty.rotation_deg, 0.1);
+    // The matches' share; with the calibration's (a camera trusted to a third of what the
+    // calibration check lets through) it stays well below the 1° of a success.
+    EXPECT_LT(r.matches_uncertainty.rotation_deg, 0.1);
+    EXPECT_LT(r.uncertainty.rotation_deg, 0.3);
     EXPECT_TRUE(std::isfinite(r.uncertainty.position)) << r.uncertainty.rotation_deg;
     const LocalizationError e = CompareLocalization(r.query_from_world, inst.truth);
     localized += e.rotation_rad < 0.5 * M_PI / 180 && e.position < 0.01 * inst.scene_size;

@@ -160,6 +160,22 @@ struct CalibrationCheck {
                                         std::numeric_limits<double>::infinity()};
   std::array<double, 2> principal_deviance = {0, 0};
   std::array<double, 2> image_size = {0, 0};  // width, height (px)
+  // The pose's 1-σ RMS uncertainty from the calibration's (rotation in
+  // degrees, centre in world units): for each parameter, how the refitted
+  // pose moves with it times its mean square error, from a prior (the camera
+  // trusted to a third of what the check lets through; a refined focal
+  // length not at all) and the profile's estimate (CalibrationMeanSquare).
+  double rotation_deg = 0;
+  double position = 0;
+  // For a camera the check refuses: the parameter the inliers blame with the
+  // others free (0 the focal length, 1 cx, 2 cy; -1 not fitted) and the joint
+  // fit's focal length and principal point.
+  // Whether the least cost lay at an end of the range searched (focal
+  // length, cx, cy): the camera is farther off than the check reaches.
+  std::array<bool, 3> at_edge = {false, false, false};
+  int blamed = -1;
+  double joint_focal = 0;
+  std::array<double, 2> joint_principal = {0, 0};
 };
 
 struct LocalizeResult {
@@ -172,7 +188,10 @@ struct LocalizeResult {
   // Observations whose pixel the camera cannot undistort (undistortion does
   // not give it back, e.g. far outside the image): left out, counted as outliers.
   int rejected_observations = 0;
+  // The pose's uncertainty: the matches' (below) and the calibration's
+  // (CalibrationCheck) together.
   PoseUncertainty uncertainty;
+  PoseUncertainty matches_uncertainty;  // from the matches' noise alone
   std::optional<double> refined_focal;  // with LocalizeOptions::refine_focal
   // The focal length the inliers fit best, from the calibration check.
   std::optional<double> best_fit_focal;
@@ -202,6 +221,21 @@ struct LocalizeResult {
   double reprojection_initial_px = 0;
   double reprojection_refined_px = 0;
 };
+
+// A common mistake a camera's numbers show, as advice to the user, or "": a
+// photo turned with only width and height swapped (a portrait photo with a
+// landscape principal point, or the other way round), a camera made for the
+// photo at another size (its principal point a multiple of this one's centre).
+std::string CameraMistakeHint(const std::array<double, 2>& size,
+                              const std::array<double, 2>& principal);
+std::string CameraMistakeHint(const Camera& camera);
+
+// Why the calibration check rejects the camera (a parameter outside its
+// interval by more than the criteria allow), naming the parameter whose
+// refit explains the inliers best and the app mistake the numbers show; ""
+// when it does not.
+std::string CalibrationFailure(const CalibrationCheck& check, double given_focal,
+                               const SuccessCriteria& criteria);
 
 // Why a pose RANSAC found does not meet the criteria ("" when it does): its
 // support, the calibration check, the runner-up, the uncertainty.

@@ -258,6 +258,14 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
     j["uncertainty"] = {{"rotation_deg", finite_or_null(r.uncertainty.rotation_deg)},
                         {"position", finite_or_null(r.uncertainty.position)},
                         {"sigma_px", r.uncertainty.sigma_px}};
+    if (r.calibration_check) {  // the two shares of it
+      j["uncertainty"]["from_matches"] = {
+          {"rotation_deg", finite_or_null(r.matches_uncertainty.rotation_deg)},
+          {"position", finite_or_null(r.matches_uncertainty.position)}};
+      j["uncertainty"]["from_calibration"] = {
+          {"rotation_deg", finite_or_null(r.calibration_check->rotation_deg)},
+          {"position", finite_or_null(r.calibration_check->position)}};
+    }
     if (r.local_scale) {
       j["uncertainty"]["scale_from"] = "local_points";
       j["uncertainty"]["sigma_local"] = r.local_scale->sigma_local;

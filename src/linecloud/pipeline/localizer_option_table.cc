@@ -242,6 +242,13 @@ std::vector<OptionSpec> MakeTable() {
       "differs from the camera's by more than this fraction, significantly (0: no check)",
       0, 100, false, false,
       [](LocalizerOptions& o) -> double& { return o.localize.success.max_focal_discrepancy; }));
+  t.push_back(Number(
+      "max_principal_discrepancy", req,
+      "The calibration check for the principal point: a pose is refused when the point its "
+      "inliers fit best is farther from the camera's than this fraction of the image's width "
+      "(x) or height (y), significantly (0: no check)",
+      0, 1, false, false,
+      [](LocalizerOptions& o) -> double& { return o.localize.success.max_principal_discrepancy; }));
   return t;
 }
 

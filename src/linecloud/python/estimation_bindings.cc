@@ -84,10 +84,10 @@ void SetSuccess(py::handle success, LocalizeOptions* options) {
     return;
   }
   const nlohmann::json o = ToJson(success, where);
-  CheckKeys(
-      o,
-      {"min_inliers", "min_inlier_ratio", "max_rotation_uncertainty_deg", "max_focal_discrepancy"},
-      where);
+  CheckKeys(o,
+            {"min_inliers", "min_inlier_ratio", "max_rotation_uncertainty_deg",
+             "max_focal_discrepancy", "max_principal_discrepancy"},
+            where);
   SuccessCriteria& s = options->success;
   if (auto v = IntegerOption(o, "min_inliers", where)) {
     if (*v < 0 || *v > 1 << 30) Fail("{}: min_inliers must be in [0, 2^30], got {}", where, *v);
@@ -98,6 +98,9 @@ void SetSuccess(py::handle success, LocalizeOptions* options) {
     s.max_rotation_uncertainty_deg = *v;
   }
   if (auto v = NumberOption(o, "max_focal_discrepancy", where)) s.max_focal_discrepancy = *v;
+  if (auto v = NumberOption(o, "max_principal_discrepancy", where)) {
+    s.max_principal_discrepancy = *v;
+  }
 }
 
 // One camera's 2D points and lines or points, appended to the query and map.

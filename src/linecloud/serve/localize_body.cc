@@ -9,6 +9,7 @@
 
 #include "linecloud/io/json_util.h"
 #include "linecloud/pipeline/image_query.h"
+#include "linecloud/localize/localize.h"
 #include "linecloud/localize/query_json.h"
 #include "linecloud/pipeline/localizer_option_table.h"
 #include "linecloud/serve/wire.h"
@@ -151,8 +152,9 @@ void CheckServedCamera(const Camera& camera, const std::string& where) {
   // Inside the image (a principal point of 1e12 kept RANSAC busy until the deadline).
   const Eigen::Vector2d c = camera.PrincipalPoint();
   if (!(c.x() >= 0 && c.x() <= camera.width && c.y() >= 0 && c.y() <= camera.height)) {
-    Fail("{}: principal point ({}, {}) is outside the {}x{} image", where, c.x(), c.y(),
-         camera.width, camera.height);
+    const std::string hint = CameraMistakeHint(camera);
+    Fail("{}: principal point ({}, {}) is outside the {}x{} image{}{}", where, c.x(), c.y(),
+         camera.width, camera.height, hint.empty() ? "" : "; ", hint);
   }
 }
 
