@@ -152,7 +152,13 @@ void LocalizeQuery(const MethodInfo& method, const Query& query, const GroupMap&
     row->success = r.success;
     row->camera_inliers.assign(r.camera_inliers.begin(), r.camera_inliers.end());
     row->stop_reason = r.stats.stop_reason;
-    if (r.has_pose) row->sigma_px = r.uncertainty.sigma_px;
+    if (r.has_pose) {
+      row->sigma_px = r.uncertainty.sigma_px;
+      if (std::isfinite(r.uncertainty.rotation_deg)) {
+        row->sigma_rotation_deg = r.uncertainty.rotation_deg;
+      }
+      if (std::isfinite(r.uncertainty.position)) row->sigma_position = r.uncertainty.position;
+    }
     t->refine_ms += r.refine_ms;
     failure = r.failure;
     if (r.success) {

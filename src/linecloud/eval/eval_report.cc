@@ -142,6 +142,8 @@ json ToJson(const DirectMatchingAttempt& a) {
     if (!a.camera_inliers.empty()) row["camera_inliers"] = a.camera_inliers;
     row["stop_reason"] = a.stop_reason;
     if (a.sigma_px) row["sigma_px"] = *a.sigma_px;
+    if (a.sigma_rotation_deg) row["sigma_rotation_deg"] = *a.sigma_rotation_deg;
+    if (a.sigma_position) row["sigma_position"] = *a.sigma_position;
   }
   row["rotation_deg"] = a.rotation_deg;
   row["translation"] = a.translation;
@@ -162,6 +164,8 @@ DirectMatchingAttempt AttemptFrom(const Fields& f) {
     }
     a.stop_reason = f.String("stop_reason");
     a.sigma_px = f.Optional("sigma_px", std::numeric_limits<double>::quiet_NaN());
+    if (f.Has("sigma_rotation_deg")) a.sigma_rotation_deg = f.Number("sigma_rotation_deg");
+    if (f.Has("sigma_position")) a.sigma_position = f.Number("sigma_position");
   }
   a.rotation_deg = f.Number("rotation_deg");
   a.translation = f.Number("translation");

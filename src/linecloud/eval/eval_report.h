@@ -72,6 +72,9 @@ struct DirectMatchingAttempt {
   std::vector<int> camera_inliers;  // a rig's inliers per camera
   std::string stop_reason;
   std::optional<double> sigma_px;
+  // The reported 1-σ uncertainty of the pose (LocalizeResult::uncertainty:
+  // rotation in degrees, centre in work units; null when undetermined).
+  std::optional<double> sigma_rotation_deg, sigma_position;
   std::string failure;
 };
 

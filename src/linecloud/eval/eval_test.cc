@@ -21,6 +21,7 @@
 #include "linecloud/eval/photo_bench.h"
 #include "linecloud/eval/privacy_tradeoff.h"
 #include "linecloud/eval/eval_work.h"
+#include "linecloud/eval/key_sweep.h"
 #include "linecloud/eval/match_scores.h"
 #include "linecloud/features/image.h"
 #include "linecloud/lifting/key.h"
@@ -864,6 +865,39 @@ std::string EncodeJpeg(FIBITMAP* bitmap) {
 
 std::span<const uint8_t> Bytes(const std::string& s) {
   return {reinterpret_cast<const uint8_t*>(s.data()), s.size()};
+}
+
+// [camera] The reported uncertainty means what it says: over fountain-P11's
+// held-out photos under two keys, every right pose's rotation and centre
+// errors within 3 of its reported σ for at least 90 % of them — and the σ
+// small enough to mean something (each below a quarter of the success
+// rule's 1°).
+TEST(KeySweep, RightPosesFallWithinTheirReportedUncertainty) {
+  const char* work_dir = std::getenv("LINECLOUD_FOUNTAIN_WORK");
+  if (!work_dir || !FileExists(JoinPaths(work_dir, "prepared.json"))) {
+    LINECLOUD_ABSENT(
+        "LINECLOUD_FOUNTAIN_WORK is not an `eval prepare` work of fountain-P11 "
+        "(scripts/run.sh test prepares it)");
+  }
+  TempDir tmp;
+  KeySweepOptions o;
+  o.work_dirs = {work_dir};
+  o.out = tmp.Path("keys.json");
+  o.keys = 2;
+  o.rig_methods.clear();
+  const KeySweepReport r = RunKeySweep(o);
+  const KeySweepMethod& m = r.methods.at("p6L");
+  EXPECT_EQ(m.successes, m.queries);
+  EXPECT_EQ(m.wrong, 0);
+  ASSERT_EQ(m.covered_poses, m.localized);
+  ASSERT_GE(m.covered_poses, 20);
+  EXPECT_GE(m.rotation_within_3_sigma, 0.9);
+  EXPECT_GE(m.position_within_3_sigma, 0.9);
+  for (const KeySweepAttempt& a : r.queries) {
+    if (!a.success) continue;
+    EXPECT_GT(a.sigma_rotation_deg, 0) << a.query;
+    EXPECT_LT(a.sigma_rotation_deg, 0.25) << a.query;
+  }
 }
 
 // [accept] A phone photo stored sideways: fountain 0000.jpg turned by 90°

@@ -26,8 +26,26 @@ using ojson = nlohmann::ordered_json;
 struct MethodTally {
   int queries = 0, successes = 0, localized = 0, wrong = 0;
   std::vector<double> ransac_ms, iterations;
+  std::vector<double> rotation_z, position_z;  // a right pose's error / its reported σ
+
+  static double Within(const std::vector<double>& z, double k) {
+    if (z.empty()) return std::numeric_limits<double>::quiet_NaN();
+    return static_cast<double>(
+               std::count_if(z.begin(), z.end(), [k](double v) { return v <= k; })) /
+           static_cast<double>(z.size());
+  }
 
   KeySweepMethod Summary() const {
+    KeySweepMethod m = Counts();
+    m.covered_poses = static_cast<int>(rotation_z.size());
+    m.rotation_within_1_sigma = Within(rotation_z, 1);
+    m.rotation_within_3_sigma = Within(rotation_z, 3);
+    m.position_within_1_sigma = Within(position_z, 1);
+    m.position_within_3_sigma = Within(position_z, 3);
+    return m;
+  }
+
+  KeySweepMethod Counts() const {
     return {queries,
             successes,
             localized,
@@ -47,13 +65,22 @@ void Count(const KeySweepOptions& o, const DirectMatchingOptions& dm, const std:
            uint64_t key, const std::string& query, const std::string& method,
            const DirectMatchingAttempt& r, MethodTally* t, KeySweepReport* report) {
   ++t->queries;
-  const KeySweepAttempt a{dataset,       key,
-                          query,         method,
-                          r.success,     r.rotation_deg,
-                          r.translation, r.inliers,
-                          r.iterations,  r.uniform_iterations,
-                          r.ransac_ms,   r.sigma_px.value_or(0.0),
-                          r.stop_reason, r.success ? std::string() : r.failure};
+  const KeySweepAttempt a{dataset,
+                          key,
+                          query,
+                          method,
+                          r.success,
+                          r.rotation_deg,
+                          r.translation,
+                          r.inliers,
+                          r.iterations,
+                          r.uniform_iterations,
+                          r.ransac_ms,
+                          r.sigma_px.value_or(0.0),
+                          r.sigma_rotation_deg.value_or(0.0),
+                          r.sigma_position.value_or(0.0),
+                          r.stop_reason,
+                          r.success ? std::string() : r.failure};
   report->queries.push_back(a);
   if (r.attempted) {
     t->ransac_ms.push_back(r.ransac_ms);
@@ -67,7 +94,13 @@ void Count(const KeySweepOptions& o, const DirectMatchingOptions& dm, const std:
     return;
   }
   ++t->successes;
-  t->localized += r.rotation_deg <= dm.max_rotation_deg && r.translation <= dm.max_translation;
+  const bool localized =
+      r.rotation_deg <= dm.max_rotation_deg && r.translation <= dm.max_translation;
+  t->localized += localized;
+  if (localized && r.sigma_rotation_deg && r.sigma_position) {
+    t->rotation_z.push_back(r.rotation_deg / *r.sigma_rotation_deg);
+    t->position_z.push_back(r.translation / *r.sigma_position);
+  }
   if (r.rotation_deg > o.wrong_rotation_deg || r.translation > o.wrong_translation) {
     ++t->wrong;
     report->wrong.push_back(a);
@@ -179,6 +212,15 @@ nlohmann::ordered_json ToJson(const KeySweepReport& r) {
                      {"p99", m.ransac_ms_p99},
                      {"max", m.ransac_ms_max}}},
                    {"iterations", {{"p50", m.iterations_p50}, {"max", m.iterations_max}}}};
+      if (m.covered_poses > 0) {
+        out[name]["uncertainty_coverage"] = {{"poses", m.covered_poses},
+                                             {"rotation",
+                                              {{"within_1_sigma", m.rotation_within_1_sigma},
+                                               {"within_3_sigma", m.rotation_within_3_sigma}}},
+                                             {"position",
+                                              {{"within_1_sigma", m.position_within_1_sigma},
+                                               {"within_3_sigma", m.position_within_3_sigma}}}};
+      }
     }
     return out;
   };
@@ -208,6 +250,10 @@ nlohmann::ordered_json ToJson(const KeySweepReport& r) {
                        {"iterations", a.iterations},
                        {"uniform_iterations", a.uniform_iterations},
                        {"ransac_ms", a.ransac_ms}});
+    if (a.success) {
+      queries.back()["sigma_rotation_deg"] = a.sigma_rotation_deg;
+      queries.back()["sigma_position"] = a.sigma_position;
+    }
     if (!a.failure.empty()) queries.back()["failure"] = a.failure;
   }
   ojson report;

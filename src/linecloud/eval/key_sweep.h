@@ -51,6 +51,7 @@ struct KeySweepAttempt {
   int inliers = 0, iterations = 0, uniform_iterations = 0;
   double ransac_ms = 0;
   double sigma_px = 0;
+  double sigma_rotation_deg = 0, sigma_position = 0;  // reported 1-σ (0: none)
   std::string stop_reason;
   std::string failure;  // why no pose ("" for a success)
 };
@@ -59,6 +60,12 @@ struct KeySweepMethod {
   int queries = 0, successes = 0, localized = 0, wrong = 0;
   double ransac_ms_mean = 0, ransac_ms_p50 = 0, ransac_ms_p99 = 0, ransac_ms_max = 0;
   double iterations_p50 = 0, iterations_max = 0;
+  // Over the localized successes (right poses): the share whose rotation and
+  // centre errors are within 1 and 3 of the reported σ (LocalizeResult::
+  // uncertainty, the matches' and the calibration's); NaN without one.
+  int covered_poses = 0;
+  double rotation_within_1_sigma = 0, rotation_within_3_sigma = 0;
+  double position_within_1_sigma = 0, position_within_3_sigma = 0;
 };
 
 struct KeySweepReport {
