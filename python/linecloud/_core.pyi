@@ -76,7 +76,8 @@ class Localizer:
                  uniform_sampling: bool = False, local_optimization: bool = True,
                  refine: bool = True, refine_focal: bool = False, min_inliers: int | None = None,
                  min_inlier_ratio: float = 0.25, max_rotation_uncertainty: float = 1.0,
-                 max_focal_discrepancy: float = 0.1, max_principal_discrepancy: float = 0.01) -> None: ...
+                 max_focal_discrepancy: float = 0.1, max_principal_discrepancy: float = 0.01,
+                 max_position_uncertainty: float = 0.02) -> None: ...
     def localize_image(self, image: _Image | Sequence[_Image], camera: Camera | Sequence[Camera],
                        *, method: str | None = None, gravity: Sequence[float] | None = None,
                        threads: int | None = None, with_inliers: bool = True,
@@ -91,7 +92,8 @@ class Localizer:
                        min_inlier_ratio: float | None = None,
                        max_rotation_uncertainty: float | None = None,
                        max_focal_discrepancy: float | None = None,
-                       max_principal_discrepancy: float | None = None) -> dict[str, Any]: ...
+                       max_principal_discrepancy: float | None = None,
+                       max_position_uncertainty: float | None = None) -> dict[str, Any]: ...
     def localize_features(self, keypoints: npt.ArrayLike | Sequence[npt.ArrayLike],
                           descriptors: npt.NDArray[np.uint8] | Sequence[npt.NDArray[np.uint8]],
                           camera: Camera | Sequence[Camera], *, method: str | None = None,
@@ -107,7 +109,8 @@ class Localizer:
                           min_inlier_ratio: float | None = None,
                           max_rotation_uncertainty: float | None = None,
                           max_focal_discrepancy: float | None = None,
-                          max_principal_discrepancy: float | None = None) -> dict[str, Any]: ...
+                          max_principal_discrepancy: float | None = None,
+                          max_position_uncertainty: float | None = None) -> dict[str, Any]: ...
     def localize_query(self, query: dict[str, Any], *, method: str | None = None,
                        gravity: Sequence[float] | None = None, threads: int | None = None,
                        with_inliers: bool = True, threshold: float | None = None,
@@ -119,7 +122,8 @@ class Localizer:
                        min_inlier_ratio: float | None = None,
                        max_rotation_uncertainty: float | None = None,
                        max_focal_discrepancy: float | None = None,
-                       max_principal_discrepancy: float | None = None) -> dict[str, Any]: ...
+                       max_principal_discrepancy: float | None = None,
+                       max_position_uncertainty: float | None = None) -> dict[str, Any]: ...
     # END localizer
     @property
     def options(self) -> dict[str, Any]: ...

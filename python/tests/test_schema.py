@@ -36,7 +36,7 @@ OTHER = {
     "min_iterations": 20, "max_iterations": 5000, "max_seconds": 5.0, "uniform_sampling": True,
     "local_optimization": False, "refine": False, "refine_focal": True, "min_inliers": 40,
     "min_inlier_ratio": 0.2, "max_rotation_uncertainty": 2.0, "max_focal_discrepancy": 0.2,
-    "max_principal_discrepancy": 0.02,
+    "max_principal_discrepancy": 0.02, "max_position_uncertainty": 0.03,
 }
 
 
@@ -268,7 +268,8 @@ MAP_OPTIONS = {"max_ratio": 0.75, "nprobe": 8, "max_num_features": 6000, "max_im
 REQUEST_OPTIONS = {"threshold": 3.5, "seed": 7, "confidence": 0.9995, "min_iterations": 20,
                    "max_iterations": 4000, "uniform_sampling": True, "min_inliers": 40,
                    "min_inlier_ratio": 0.2, "max_rotation_uncertainty": 2.0,
-                   "max_focal_discrepancy": 0.2, "max_principal_discrepancy": 0.02}
+                   "max_focal_discrepancy": 0.2, "max_principal_discrepancy": 0.02,
+                   "max_position_uncertainty": 0.03}
 
 
 def test_the_same_pose_through_cli_python_and_http(fountain, fountain_map, tmp_path):

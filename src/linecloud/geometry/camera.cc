@@ -154,6 +154,21 @@ void Camera::ScaleFocalLength(double factor) {
   if (!ModelOrThrow(model_id).single_focal) params.at(1) *= factor;
 }
 
+void Camera::ScaleFocalLengthY(double factor) {
+  if (!ModelOrThrow(model_id).single_focal) params.at(1) *= factor;
+}
+
+void Camera::AddRadialDistortion(double dk1) {
+  if (model_id == CameraModelId::kPinhole) {
+    model_id = CameraModelId::kOpenCV;
+    params.resize(8, 0.0);
+  } else if (model_id == CameraModelId::kSimplePinhole) {
+    model_id = CameraModelId::kSimpleRadial;
+    params.resize(4, 0.0);
+  }
+  params.at(static_cast<size_t>(DistortionOffset(model_id))) += dk1;
+}
+
 void Camera::ShiftPrincipalPoint(double dx, double dy) {
   const size_t i = ModelOrThrow(model_id).single_focal ? 1 : 2;
   params.at(i) += dx;

@@ -64,6 +64,12 @@ struct Camera {
   void ScaleFocalLength(double factor);
   // Moves the principal point by (dx, dy) pixels.
   void ShiftPrincipalPoint(double dx, double dy);
+  // Multiplies fy alone (models with fx and fy; others unchanged).
+  void ScaleFocalLengthY(double factor);
+  // Adds dk1 to the first radial distortion coefficient; a PINHOLE camera
+  // becomes the OPENCV camera with that k1 (the other coefficients 0), a
+  // SIMPLE_PINHOLE one the SIMPLE_RADIAL camera.
+  void AddRadialDistortion(double dk1);
 
   // Projects a point in the camera frame (z > 0) to pixel coordinates.
   Eigen::Vector2d ImgFromCam(const Eigen::Vector3d& point_in_cam) const;

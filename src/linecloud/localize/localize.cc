@@ -127,6 +127,10 @@ void SuccessCriteria::Check() const {
   if (!(max_rotation_uncertainty_deg > 0)) {
     Fail("maximum rotation uncertainty must be positive, got {}", max_rotation_uncertainty_deg);
   }
+  if (!(max_position_uncertainty >= 0) || !std::isfinite(max_position_uncertainty)) {
+    Fail("maximum position uncertainty must be a non-negative fraction, got {}",
+         max_position_uncertainty);
+  }
   if (!(max_principal_discrepancy >= 0) || !std::isfinite(max_principal_discrepancy)) {
     Fail("maximum principal-point discrepancy must be a non-negative fraction, got {}",
          max_principal_discrepancy);
@@ -341,6 +345,56 @@ std::string CalibrationFailure(const CalibrationCheck& check, double given_focal
                                    check.at_edge[static_cast<size_t>(1 + axis)]);
     }
   }
+  // The aspect ratio and the distortion, judged as the others: outside the
+  // interval, the interval narrow, the change beyond what matters (1 % in
+  // fy / fx; 0.02 in k1, 0.8 % of a 35 mm film's corner radius). Named before
+  // the others when their profile explains more (an fy 5 % off also moves
+  // the focal length and cx that fit best).
+  double largest = 0;
+  for (const ParameterVerdict& p : v) largest = std::max(largest, p.refused ? p.deviance : 0.0);
+  const CalibrationCheck::Extra& a = check.log_aspect;
+  if (a.tested && JudgeParameter(a.best, a.se, a.deviance, 0.01, 0.03, a.at_edge).refused &&
+      a.deviance >= largest) {
+    return fmt::format(
+        "the camera's aspect ratio looks wrong: the inliers fit fy / fx {:.3f} times the "
+        "camera's ({:+.1f} %); send the photo's own fx and fy (a photo stretched or resized in "
+        "one direction only looks like this)",
+        std::exp(a.best), 100 * (std::exp(a.best) - 1));
+  }
+  const CalibrationCheck::Extra& k = check.radial;
+  if (k.tested && JudgeParameter(k.best, k.se, k.deviance, 0.02, 0.1, k.at_edge).refused &&
+      k.deviance >= largest) {
+    return fmt::format(
+        "the camera's distortion looks wrong: the inliers fit a first radial coefficient k1 "
+        "{:+.3f} from the camera's{}; a photo sent without its distortion parameters (or with "
+        "another camera's) looks like this: send the camera's model with its distortion (e.g. "
+        "OPENCV fx fy cx cy k1 k2 p1 p2)",
+        k.best, k.at_edge ? " or beyond (the end of the range searched)" : "");
+  }
+  if (check.refit_principal && c.max_principal_discrepancy > 0) {
+    // The focal length refined: the principal point fitted with it.
+    int worst = -1;
+    double worst_share = 0;
+    for (int axis = 0; axis < 2; ++axis) {
+      const double size = check.image_size[axis];
+      const double shift = (*check.refit_principal)[axis] - check.given_principal[axis];
+      const double se = check.principal_se[axis];
+      if (std::abs(shift) > c.max_principal_discrepancy * size &&
+          (!std::isfinite(se) || std::abs(shift) > kCalibrationZ * se) &&
+          std::abs(shift) / size > worst_share) {
+        worst = axis, worst_share = std::abs(shift) / size;
+      }
+    }
+    if (worst >= 0) {
+      return fmt::format(
+          "with its focal length refined, the camera's principal point looks wrong: fitted with "
+          "the focal length, the inliers put {} at {:.0f} px, the camera says {:.0f} px ({:.0f} "
+          "% of the {} off); refining the focal length does not mend a wrong principal point: "
+          "send the camera of the photo as it is",
+          worst == 0 ? "cx" : "cy", (*check.refit_principal)[worst], check.given_principal[worst],
+          100 * worst_share, worst == 0 ? "width" : "height");
+    }
+  }
   if (!v[0].refused && !v[1].refused && !v[2].refused) return "";
   // Refused: named after the parameter whose refit explains the inliers best
   // (the largest deviance among those the data reject). A focal length 10 %
@@ -348,14 +402,24 @@ std::string CalibrationFailure(const CalibrationCheck& check, double given_focal
   // then the larger one (fountain, Herz-Jesu, entry: 58 of 58).
   // The joint fit (BlamedParameter) decides when it was made: its estimate
   // is then the one named, with the profile's standard error.
-  int culprit = check.blamed;
+  // A parameter off beyond the range searched is the grossest error: named
+  // first (a corner crop sent with a centred principal point, 49 % of the
+  // width off, was blamed on the focal length by the joint fit).
+  int edge = -1;
+  for (int k = 0; k < 3; ++k) {
+    if (check.at_edge[static_cast<size_t>(k)] && v[k].outside &&
+        (edge < 0 || v[k].deviance > v[edge].deviance)) {
+      edge = k;
+    }
+  }
+  int culprit = edge >= 0 ? edge : check.blamed;
+  const bool joint = edge < 0 && check.blamed >= 0;
   if (culprit < 0) {
     for (int k = 0; k < 3; ++k) {
       if (v[k].outside && (culprit < 0 || v[k].deviance > v[culprit].deviance)) culprit = k;
     }
   }
   if (culprit < 0) culprit = v[0].refused ? 0 : (v[1].refused ? 1 : 2);
-  const bool joint = check.blamed >= 0;
   std::string hint = CameraMistakeHint(check.image_size, check.given_principal);
   if (culprit == 0) {
     const double best = joint ? check.joint_focal : check.best_fit_focal;
@@ -380,12 +444,16 @@ std::string CalibrationFailure(const CalibrationCheck& check, double given_focal
   const double size = check.image_size[axis];
   const double se = std::isfinite(check.principal_se[axis]) ? check.principal_se[axis] : 0.0;
   const double best = joint ? check.joint_principal[axis] : check.best_fit_principal[axis];
+  const std::string fit =
+      check.at_edge[static_cast<size_t>(culprit)]
+          ? fmt::format("{:.0f} px or beyond (the end of the range searched)", best)
+          : fmt::format("{:.0f} px (99.7 % interval {:.0f}-{:.0f})", best,
+                        best - kCalibrationZ * se, best + kCalibrationZ * se);
   return fmt::format(
-      "the camera's principal point looks wrong: the inliers fit {} = {:.0f} px (99.7 % "
-      "interval {:.0f}-{:.0f}), the camera says {:.0f} px ({:.0f} % of the {} off); {}",
-      axis == 0 ? "cx" : "cy", best, best - kCalibrationZ * se, best + kCalibrationZ * se,
-      check.given_principal[axis], 100 * std::abs(best - check.given_principal[axis]) / size,
-      axis == 0 ? "width" : "height",
+      "the camera's principal point looks wrong: the inliers fit {} = {}, the camera says {:.0f} "
+      "px ({:.0f} % of the {} off); {}",
+      axis == 0 ? "cx" : "cy", fit, check.given_principal[axis],
+      100 * std::abs(best - check.given_principal[axis]) / size, axis == 0 ? "width" : "height",
       hint.empty() ? "a photo cropped or resized after its calibration, or the principal point of "
                      "another sensor mode, looks like this: send the camera of the photo as it is"
                    : hint);
@@ -446,10 +514,52 @@ std::string SuccessFailure(const MethodInfo& method, const LocalizeResult& r,
         "(option max_rotation_uncertainty; weak geometry or a wrong calibration)",
         r.uncertainty.rotation_deg, c.max_rotation_uncertainty_deg);
   }
+  if (c.max_position_uncertainty > 0 && r.inlier_distance > 0 && r.calibration_check &&
+      !(r.uncertainty.position <= c.max_position_uncertainty * r.inlier_distance)) {
+    return fmt::format(
+        "the position is undetermined: uncertainty {:.3g} (1 σ, {:.3g} of it from the camera's "
+        "calibration), {:.1f} % of the distance to the scene ({:.3g}), more than {:.1f} % "
+        "(option max_position_uncertainty); a focal length or distortion a few per cent off "
+        "looks like this: check the camera",
+        r.uncertainty.position, r.calibration_check->position,
+        100 * r.uncertainty.position / r.inlier_distance, r.inlier_distance,
+        100 * c.max_position_uncertainty);
+  }
   return "";
 }
 
 namespace {
+
+// The median distance from camera 0 to what the inliers see: a point, or the
+// point of a line nearest the viewing ray (closest points of two lines:
+// s = ((p0 − c) × v)·(b × v) / |b × v|², p0 = v × w / |v|² the line's point
+// nearest the origin).
+double MedianInlierDistance(const PoseData& data, const std::vector<int>& inliers,
+                            const Sim3d& query_from_world) {
+  const Rigid3d& cam_from_rig = data.cam_from_rig.at(0);
+  const Sim3d world_from_cam =
+      (Sim3d(1.0, cam_from_rig.rotation, cam_from_rig.translation) * query_from_world).Inverse();
+  const Eigen::Vector3d c = world_from_cam.translation;
+  std::vector<double> distance;
+  for (const int i : inliers) {
+    const size_t k = static_cast<size_t>(i);
+    if (data.camera[k] != 0) continue;
+    if (!data.points.empty()) {
+      distance.push_back((data.points[k] - c).norm());
+      continue;
+    }
+    const Eigen::Vector3d b = world_from_cam.rotation * data.bearings[k];
+    const Eigen::Vector3d& v = data.lines[k].v;
+    const Eigen::Vector3d p0 = v.cross(data.lines[k].w) / v.squaredNorm();
+    const Eigen::Vector3d n = b.cross(v);
+    if (!(n.squaredNorm() > 1e-12 * v.squaredNorm())) continue;
+    const double s = (p0 - c).cross(v).dot(n) / n.squaredNorm();
+    if (s > 0 && std::isfinite(s)) distance.push_back(s * b.norm());
+  }
+  if (distance.empty()) return 0;
+  std::nth_element(distance.begin(), distance.begin() + distance.size() / 2, distance.end());
+  return distance[distance.size() / 2];
+}
 
 // The final LM on `inliers`; returns its iterations and adds its time.
 int RefineStage(const MethodInfo& method, const PoseData& data, const std::vector<int>& inliers,
@@ -493,32 +603,46 @@ class FocalProfile {
         refine_ms_(refine_ms) {}
 
   // Which camera parameter the profile moves: the focal length (by a factor
-  // e^v) or the principal point's x or y (by v pixels).
-  enum class Parameter { kLogFocal, kPrincipalX, kPrincipalY };
+  // e^v), the principal point's x or y (by v pixels), fy alone (by e^v: the
+  // aspect ratio) or the first radial distortion coefficient (by v).
+  enum class Parameter { kLogFocal, kPrincipalX, kPrincipalY, kLogAspect, kRadial };
 
   Point At(double v) const {
     std::array<double, 3> theta = {0, 0, 0};
+    if (parameter_ == Parameter::kLogAspect) return AtCamera(theta, v, 0);
+    if (parameter_ == Parameter::kRadial) return AtCamera(theta, 0, v);
     theta[static_cast<size_t>(parameter_)] = v;
     return AtCamera(theta);
   }
 
-  // All three at once: (log k, shift of cx, shift of cy).
-  Point AtCamera(const std::array<double, 3>& theta) const {
+  // (log k, shift of cx, shift of cy) at once, and the aspect ratio and
+  // distortion changes. A camera the change makes implausible (a distortion
+  // that folds the image) fits nothing: every residual at the threshold.
+  Point AtCamera(const std::array<double, 3>& theta, double log_aspect = 0,
+                 double radial = 0) const {
     Query scaled = query_;
     Camera& camera = scaled.cameras[0];
     camera.ScaleFocalLength(std::exp(base_[0] + theta[0]));
     camera.ShiftPrincipalPoint(base_[1] + theta[1], base_[2] + theta[2]);
-    const PreparedQuery prepared = PrepareQuery(method_, scaled, map_);
-    Sim3d pose = start_;
+    if (log_aspect != 0) camera.ScaleFocalLengthY(std::exp(log_aspect));
+    if (radial != 0) camera.AddRadialDistortion(radial);
+    const double t2 = options_.ransac.max_error * options_.ransac.max_error;
+    Point p;
+    p.pose = start_;
+    std::optional<PreparedQuery> prepared;
+    try {
+      prepared = PrepareQuery(method_, scaled, map_);
+    } catch (const Error&) {
+      p.cost = std::numeric_limits<double>::infinity();
+      p.squared.assign(inliers_.size(), t2);
+      return p;
+    }
     LocalizeOptions o = options_;
     o.refine = true;
-    Point p;
-    RefineStage(method_, prepared.data, inliers_, o, &pose, refine_ms_, &p.cost);
-    p.pose = pose;
-    const CameraPoses poses(prepared.data, pose);
-    const double t2 = options_.ransac.max_error * options_.ransac.max_error;
+    RefineStage(method_, prepared->data, inliers_, o, &p.pose, refine_ms_, &p.cost);
+    const CameraPoses poses(prepared->data, p.pose);
     for (const int i : inliers_) {
-      p.squared.push_back(std::min(t2, SquaredReprojectionError(prepared.data, poses, i)));
+      p.squared.push_back(std::min(t2, SquaredReprojectionError(prepared->data, poses, i)));
     }
     return p;
   }
@@ -546,8 +670,12 @@ class FocalProfile {
         return {std::log(1 / 1.5), std::log(1.5)};
       case Parameter::kPrincipalX:
         return {-0.25 * c.width, 0.25 * c.width};
-      default:
+      case Parameter::kPrincipalY:
         return {-0.25 * c.height, 0.25 * c.height};
+      case Parameter::kLogAspect:
+        return {std::log(1 / 1.2), std::log(1.2)};
+      default:
+        return {-0.4, 0.4};
     }
   }
 
@@ -663,9 +791,19 @@ ProfileTest TestProfile(const FocalProfile& profile, int residuals_per_datum, in
   const double sigma2 = dof > 0 ? s_at / dof : 0;
   const double curvature = (s_plus + s_minus - 2 * s_at) / (step * step);
   if (sigma2 > 0) test.deviance = std::max(0.0, s_given - s_at) / sigma2;
-  // At an end of the range, only a significant fall in cost counts: a flat
-  // profile (a wall seen head-on) may end anywhere.
+  // At an end of the range, only a significant fall in cost counts, and only
+  // where the value is determined (its standard error at the given value
+  // within a fifth of the range: a wall seen head-on, where the principal
+  // point trades off with the position, has a flat profile that may end
+  // anywhere).
   test.at_edge = test.at_edge && test.deviance > kCalibrationZ * kCalibrationZ;
+  if (test.at_edge) {
+    const double curvature_given =
+        (sum(profile.At(step)) + sum(profile.At(-step)) - 2 * s_given) / (step * step);
+    const double half_range = 0.5 * (profile.Range()[1] - profile.Range()[0]);
+    test.at_edge = curvature_given > 0 &&
+                   kCalibrationZ * std::sqrt(2 * sigma2 / curvature_given) <= 0.2 * half_range;
+  }
   if (sigma2 > 0 && curvature > 0) {
     test.se = std::sqrt(2 * sigma2 / curvature);
     // The parabola's vertex through the three sums: the search's tolerance
@@ -794,6 +932,31 @@ CalibrationCheck CheckCalibration(const FocalProfile& profile, int residuals_per
   return check;
 }
 
+// The aspect ratio (when fy can change alone) and the radial distortion,
+// profiled on `profile`'s camera, into `check` (their share of the
+// uncertainty too): trusted to 1 % and 0.02 (1 σ a third of that). With the
+// focal length refined, judged at the focal length and principal point fitted
+// jointly from the camera as given: the refined focal length and its pose
+// absorbed an fy 5 % off (its profile then moved by 0.3 %: a 2.8° "success"),
+// and the camera as given puts a focal length 20 % off into k1.
+void CheckAspectAndDistortion(const FocalProfile& profile, int residuals_per_datum,
+                              int pose_parameters, const Camera& camera, CalibrationCheck* check) {
+  const auto extra = [&](FocalProfile::Parameter p, double step, double tolerance, double prior,
+                         CalibrationCheck::Extra* out) {
+    const ProfileTest t =
+        TestProfile(profile.Over(p), residuals_per_datum, pose_parameters, step, tolerance);
+    AddCalibrationUncertainty(t, prior, check);
+    *out = {true, t.best, t.se, t.deviance, t.at_edge};
+  };
+  Camera stretched = camera;
+  stretched.ScaleFocalLengthY(2);
+  if (stretched.FocalLengthY() != camera.FocalLengthY()) {
+    extra(FocalProfile::Parameter::kLogAspect, 0.01, 1e-3, 0.01 / kCalibrationZ,
+          &check->log_aspect);
+  }
+  extra(FocalProfile::Parameter::kRadial, 0.02, 3e-3, 0.02 / kCalibrationZ, &check->radial);
+}
+
 }  // namespace
 
 namespace {
@@ -911,22 +1074,39 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
       check_inliers.push_back(ransac_inliers[i * m / std::min(m, kCheckInliers)]);
     }
     const double focal = scaled.cameras[0].MeanFocalLength();
-    // The camera as given is trusted to a third of what the check lets
-    // through (the check's 3 σ); a refined focal length only to its profile.
+    // The camera as given is trusted to 1 % in its focal length (a
+    // calibration, or EXIF with a known sensor) and to a third of what the
+    // check lets through in its principal point; a refined focal length only
+    // to its profile (on a wall seen head-on, where the focal length and the
+    // distance trade off, the position is then undetermined).
     const SuccessCriteria& c = options.success;
     const FocalProfile profile(method, scaled, map, check_inliers, pose, options, &unused_ms);
     const int residuals_per_datum = method.lines ? 1 : 2;
     const int pose_parameters = method.similarity() ? 7 : 6;
     CalibrationCheck& check = result.calibration_check.emplace(
         CheckCalibration(profile, residuals_per_datum, pose_parameters, focal, scaled.cameras[0],
-                         options.refine_focal ? std::numeric_limits<double>::infinity()
-                                              : c.max_focal_discrepancy / kCalibrationZ,
+                         options.refine_focal ? std::numeric_limits<double>::infinity() : 0.01,
                          c.max_principal_discrepancy / kCalibrationZ));
     if (options.refine_focal) {  // the refined focal length is the one checked: not refused
       check.best_fit_focal = focal;
       check.deviance = 0;
+      // A refined focal length and the pose absorb much of a wrong principal
+      // point (cx 5 % off: focal -2.5 %, a 1.6° "success", the principal
+      // point then 5 px from where the profile puts it). Fitted jointly from
+      // the camera as given, the principal point shows (BlamedParameter).
+      const FocalProfile given_camera(method, query, map, check_inliers, ransac.model, options,
+                                      &unused_ms);
+      std::array<double, 3> joint{};
+      BlamedParameter(given_camera, residuals_per_datum, pose_parameters, check, &joint);
+      check.refit_principal = std::array<double, 2>{check.given_principal[0] + joint[1],
+                                                    check.given_principal[1] + joint[2]};
+      CheckAspectAndDistortion(given_camera.WithBase(joint), residuals_per_datum, pose_parameters,
+                               query.cameras[0], &check);
+    } else {
+      CheckAspectAndDistortion(profile, residuals_per_datum, pose_parameters, scaled.cameras[0],
+                               &check);
     }
-    if (!CalibrationFailure(check, focal, c).empty()) {
+    if (!check.refit_principal && !CalibrationFailure(check, focal, c).empty()) {
       // Refused: which parameter to name, the others free (rarely needed:
       // only for a camera the check refuses).
       std::array<double, 3> joint{};
@@ -977,6 +1157,7 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
                               result.local_scale ? result.local_scale->sigma_local : 0.0);
   result.matches_uncertainty = result.uncertainty;
   if (result.calibration_check) {  // the calibration's share: independent of the matches' noise
+    result.inlier_distance = MedianInlierDistance(prepared.data, result.inliers, pose);
     result.uncertainty.rotation_deg =
         std::hypot(result.uncertainty.rotation_deg, result.calibration_check->rotation_deg);
     result.uncertainty.position =

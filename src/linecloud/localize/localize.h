@@ -107,6 +107,14 @@ struct SuccessCriteria {
   // of the size (a principal point 15 % off gave a "success" 10.8° wrong, 5 %
   // off 3.2°).
   double max_principal_discrepancy = 0.01;
+  // Upper bound on the estimated 1-σ position uncertainty (the matches' and
+  // the calibration's), as a fraction of the median distance from the camera
+  // to what its inliers see; one camera with the calibration check. A focal
+  // length 5 % off passes the check and moves the camera along its axis: the
+  // calibration's share of the uncertainty shows it (fountain: 4 % of the
+  // distance; right cameras at most 0.4 % on real photos, 1.2 % on the
+  // demo room's few inliers). 0: no check.
+  double max_position_uncertainty = 0.02;
   // A pose is refused as ambiguous when RANSAC's competitor search (ransac.h)
   // found another pose, more than 1° from it, that explains at least this
   // share of its inlier count among matches it does not explain: the matches
@@ -122,6 +130,7 @@ struct SuccessCriteria {
             .max_rotation_uncertainty_deg = std::numeric_limits<double>::infinity(),
             .max_focal_discrepancy = 0,
             .max_principal_discrepancy = 0,
+            .max_position_uncertainty = 0,
             .max_runner_up_share = 0};
   }
 
@@ -170,10 +179,24 @@ struct CalibrationCheck {
   // For a camera the check refuses: the parameter the inliers blame with the
   // others free (0 the focal length, 1 cx, 2 cy; -1 not fitted) and the joint
   // fit's focal length and principal point.
+  // The aspect ratio (log of a factor on fy alone; cameras with fx and fy)
+  // and the first radial distortion coefficient (a change to k1; a PINHOLE
+  // camera tried as OPENCV), each profiled as the others: the change that
+  // fits best, its standard error, the given camera's deviance.
+  struct Extra {
+    bool tested = false;
+    double best = 0, se = std::numeric_limits<double>::infinity(), deviance = 0;
+    bool at_edge = false;
+  };
+  Extra log_aspect, radial;
   // Whether the least cost lay at an end of the range searched (focal
   // length, cx, cy): the camera is farther off than the check reaches.
   std::array<bool, 3> at_edge = {false, false, false};
   int blamed = -1;
+  // With the focal length refined: the principal point fitted jointly with
+  // it from the camera as given (a refined focal length and the pose absorb
+  // much of a wrong principal point).
+  std::optional<std::array<double, 2>> refit_principal;
   double joint_focal = 0;
   std::array<double, 2> joint_principal = {0, 0};
 };
@@ -192,6 +215,10 @@ struct LocalizeResult {
   // (CalibrationCheck) together.
   PoseUncertainty uncertainty;
   PoseUncertainty matches_uncertainty;  // from the matches' noise alone
+  // The median distance (world units) from the camera to what its inliers
+  // see (a point, or a line's point nearest the viewing ray); one camera
+  // with the calibration check, else 0.
+  double inlier_distance = 0;
   std::optional<double> refined_focal;  // with LocalizeOptions::refine_focal
   // The focal length the inliers fit best, from the calibration check.
   std::optional<double> best_fit_focal;

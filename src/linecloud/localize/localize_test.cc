@@ -324,7 +324,8 @@ TEST(LocalizeSuccess, OnlyPosesTheDataSupport) {
         // taken up part of the shift, and the joint fit may name cy instead.
         ASSERT_TRUE(r.calibration_check.has_value());
         EXPECT_NE(r.failure.find(o == &options ? "principal point looks wrong: the inliers fit cx"
-                                               : "principal point looks wrong: the inliers fit c"),
+                                               : "principal point looks wrong: fitted with the "
+                                                 "focal length, the inliers put cx"),
                   std::string::npos)
             << name << " " << q.name << (o == &options ? "" : " --refine-focal: ") << r.failure;
         // Nearer the true point than the given one (the radial distortion and, refined, the

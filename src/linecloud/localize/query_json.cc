@@ -258,6 +258,7 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
     j["uncertainty"] = {{"rotation_deg", finite_or_null(r.uncertainty.rotation_deg)},
                         {"position", finite_or_null(r.uncertainty.position)},
                         {"sigma_px", r.uncertainty.sigma_px}};
+    if (r.inlier_distance > 0) j["uncertainty"]["distance_to_scene"] = r.inlier_distance;
     if (r.calibration_check) {  // the two shares of it
       j["uncertainty"]["from_matches"] = {
           {"rotation_deg", finite_or_null(r.matches_uncertainty.rotation_deg)},
@@ -302,6 +303,12 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
           {"best_fit", c.best_fit_principal},
           {"se_px", {finite_or_null(c.principal_se[0]), finite_or_null(c.principal_se[1])}},
           {"deviance", c.principal_deviance}}}};
+    const auto extra = [&](const CalibrationCheck::Extra& e) {
+      return nlohmann::ordered_json{
+          {"best_fit_change", e.best}, {"se", finite_or_null(e.se)}, {"deviance", e.deviance}};
+    };
+    if (c.log_aspect.tested) j["calibration_check"]["log_aspect"] = extra(c.log_aspect);
+    if (c.radial.tested) j["calibration_check"]["radial_k1"] = extra(c.radial);
   }
   if (with_inliers) j["inliers"] = r.inliers;
   if (with_inliers && !r.camera_observations.empty()) {

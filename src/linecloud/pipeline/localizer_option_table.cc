@@ -249,6 +249,13 @@ std::vector<OptionSpec> MakeTable() {
       "(x) or height (y), significantly (0: no check)",
       0, 1, false, false,
       [](LocalizerOptions& o) -> double& { return o.localize.success.max_principal_discrepancy; }));
+  t.push_back(Number(
+      "max_position_uncertainty", req,
+      "Largest estimated 1-sigma position uncertainty (the matches' and the calibration's) of a "
+      "success, as a fraction of the median distance to what the inliers see (one camera; 0: no "
+      "check)",
+      0, 1, false, false,
+      [](LocalizerOptions& o) -> double& { return o.localize.success.max_position_uncertainty; }));
   return t;
 }
 

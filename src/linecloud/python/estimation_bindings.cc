@@ -86,7 +86,7 @@ void SetSuccess(py::handle success, LocalizeOptions* options) {
   const nlohmann::json o = ToJson(success, where);
   CheckKeys(o,
             {"min_inliers", "min_inlier_ratio", "max_rotation_uncertainty_deg",
-             "max_focal_discrepancy", "max_principal_discrepancy"},
+             "max_focal_discrepancy", "max_principal_discrepancy", "max_position_uncertainty"},
             where);
   SuccessCriteria& s = options->success;
   if (auto v = IntegerOption(o, "min_inliers", where)) {
@@ -100,6 +100,9 @@ void SetSuccess(py::handle success, LocalizeOptions* options) {
   if (auto v = NumberOption(o, "max_focal_discrepancy", where)) s.max_focal_discrepancy = *v;
   if (auto v = NumberOption(o, "max_principal_discrepancy", where)) {
     s.max_principal_discrepancy = *v;
+  }
+  if (auto v = NumberOption(o, "max_position_uncertainty", where)) {
+    s.max_position_uncertainty = *v;
   }
 }
 
