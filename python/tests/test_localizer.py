@@ -115,6 +115,26 @@ def test_a_photo_by_path_bytes_file_and_array(fountain, fountain_localizer):
     _near_truth(localizer.localize_image(grey, camera), fountain["truth"])
 
 
+def test_a_camera_as_the_clis_string_or_a_pycolmap_camera(fountain, fountain_localizer):
+    """[newcomer] The camera as the CLI, the service and the console take it, and as pycolmap
+    holds it (an object with model — an enum with a name —, width, height, params)."""
+    import types
+    import enum
+    cloud, localizer = fountain_localizer
+    camera = fountain["camera"]
+    by_dict = localizer.localize_image(fountain["photo"], camera)
+    text = " ".join([camera["model"], str(camera["width"]), str(camera["height"]),
+                     *map(repr, camera["params"])])
+    assert localizer.localize_image(fountain["photo"], text)["q"] == by_dict["q"]
+    model = enum.Enum("CameraModelId", {camera["model"]: 1})[camera["model"]]
+    like_pycolmap = types.SimpleNamespace(model=model, width=camera["width"],
+                                          height=camera["height"],
+                                          params=np.array(camera["params"]))
+    assert localizer.localize_image(fountain["photo"], like_pycolmap)["q"] == by_dict["q"]
+    with pytest.raises(ValueError, match="drop the id"):
+        localizer.localize_image(fountain["photo"], "1 " + text)
+
+
 def test_equal_to_the_cli_on_a_photo(fountain, fountain_localizer, tmp_path):
     cloud, localizer = fountain_localizer
     cloud.write(tmp_path / "fountain.lcm")

@@ -94,6 +94,20 @@ std::vector<Eigen::Vector3d> SecretPointsInFileOrder(const LineCloud& cloud, con
 
 // Every file the tool writes from one model, whatever the output path, run,
 // options or encoding: intersecting any two recovers no point.
+// [newcomer] The help sends users to the repository's own docs (no SPEC.md in
+// a clone) and names the overlay's colours as the picture draws them.
+TEST(Cli, HelpPointsToTheRepositorysOwnDocs) {
+  for (const char* command : {"localize", "solve"}) {
+    const CliResult r = RunCli({command, "--help"});
+    ASSERT_EQ(r.code, 0) << r.err;
+    EXPECT_EQ(r.out.find("SPEC.md"), std::string::npos) << command;
+    EXPECT_NE(r.out.find("docs/formats.md"), std::string::npos) << command;
+  }
+  const CliResult localize = RunCli({"localize", "--help"});
+  EXPECT_NE(localize.out.find("(sky blue)"), std::string::npos);
+  EXPECT_EQ(localize.out.find("(green)"), std::string::npos);
+}
+
 TEST(Cli, EveryFileLiftedFromOneModelGivesOneLinePerPoint) {
   LINECLOUD_REQUIRE_DATA("colmap-maupertuis/colmap.db");
   TempDir tmp;
@@ -344,6 +358,9 @@ TEST(Cli, LocalizeImageRejectsBadInput) {
               "PINHOLE takes 4 parameters, got 3");
   ExpectError(localize(tmp.Path("m.lcm"), photo, "FISHEYE_X 1919 1079 1 2 3"),
               "unknown camera model 'FISHEYE_X'");
+  // [newcomer] A line pasted from cameras.txt, its id first.
+  ExpectError(localize(tmp.Path("m.lcm"), photo, "1 PINHOLE 1919 1079 1000 1000 959 539"),
+              "drop the id ('PINHOLE ...')");
   ExpectError(localize(tmp.Path("m.lcm"), photo, "SIMPLE_PINHOLE 640 480 500 320 240"),
               "the image is 1919x1079 pixels but the camera is 640x480");
   ExpectError(localize(tmp.Path("bare.lcm"), photo, camera),
@@ -844,6 +861,8 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
       << r.out;
   EXPECT_LT(RotationDistance(Eigen::Quaterniond(qw, qx, qy, qz), truth.rotation),
             0.2 * 3.14159 / 180);
+  // [newcomer] The image is named after the query file, not "query".
+  EXPECT_EQ(name, std::filesystem::path(query).stem().string());
   // Bounded RANSAC, and "ran fine, no pose": exit 0, success false, a reason.
   r = RunCli({"localize", "--map", demo + "/map.lcm", "--query", query, "--method", "p4L+u",
               "--min-inliers", "100000", "--max-iterations", "50", "--max-seconds", "5"});

@@ -148,8 +148,10 @@ std::string FormatResult(const LocalizeArgs& args, const LocalizerResult& r) {
       Fail("--format colmap writes one image's pose; this query has {} cameras (use JSON)",
            r.query.cameras.size());
     }
-    const std::string name =
-        r.photos.empty() ? "query" : std::filesystem::path(args.image_paths[0]).filename().string();
+    // The image's name: the photo's, or the query file's own stem.
+    const std::string name = r.photos.empty()
+                                 ? std::filesystem::path(args.query_path).stem().string()
+                                 : std::filesystem::path(args.image_paths[0]).filename().string();
     return r.success() ? LocalizeResultToColmapImagesTxt(r.pose, name)
                        : "# no pose: " + r.reason + "\n";
   }
@@ -164,6 +166,12 @@ void RunLocalize(const LocalizeArgs& args) {
     model = ReadColmapModel(args.model_dir);
   } else {
     cloud = ReadLineCloud(args.map_path);
+    if (args.image_paths.empty()) {
+      // A QUERY.json names its lines: the descriptors (and their index,
+      // 0.9 s on fountain) are never used.
+      cloud->descriptor_dim = 0;
+      cloud->descriptors.clear();
+    }
   }
   const LocalizerOptions options = MakeLocalizerOptions(args);
   const Localizer localizer = cloud
@@ -222,7 +230,8 @@ void RegisterLocalizeCommand(CLI::App& app) {
   auto* map = cmd->add_option("--map", args->map_path, "Line cloud (.lcm)");
   auto* model = cmd->add_option("--model", args->model_dir, "COLMAP sparse model folder");
   map->excludes(model);
-  cmd->add_option("--query", args->query_path, "Query file of correspondences (SPEC.md)");
+  cmd->add_option("--query", args->query_path,
+                  "Query file of correspondences (docs/formats.md, QUERY.json)");
   cmd->add_option("--image", args->image_paths,
                   "A photo to localize: SIFT as COLMAP computes it, matched to the map's "
                   "descriptors; repeat for the photos of a rig (with --rig)");
@@ -252,8 +261,8 @@ void RegisterLocalizeCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--ply", args->ply, "Write the map and the localized camera frustum(s) as PLY");
   cmd->add_option("--overlay", args->overlay,
-                  "With --image: a PNG of the photo with inlier keypoints (green), outliers (red) "
-                  "and their map lines or points projected by the pose (yellow)");
+                  "With --image: a PNG of the photo with inlier keypoints (sky blue), outliers "
+                  "(vermilion) and their map lines or points projected by the pose (yellow)");
   cmd->add_flag("--quiet", args->quiet, "No progress or notes on standard error");
   cmd->add_option("--out", args->out, "Write the result here instead of standard output");
   cmd->callback([args] { RunLocalize(*args); });

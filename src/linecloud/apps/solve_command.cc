@@ -36,7 +36,7 @@ void RegisterSolveCommand(CLI::App& app) {
       app.add_subcommand("solve",
                          "Run one minimal solver on one minimal sample (PROBLEM.json) and print "
                          "every solution");
-  cmd->add_option("problem", *path, "Problem file (see SPEC.md)")->required();
+  cmd->add_option("problem", *path, "Problem file (docs/formats.md, PROBLEM.json)")->required();
   cmd->callback([path] { RunSolve(*path); });
 }
 

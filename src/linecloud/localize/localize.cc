@@ -237,8 +237,13 @@ PreparedQuery PrepareCheckedQuery(const MethodInfo& method, const Query& query,
       const uint64_t id = o.line_id.value_or(o.id);
       const auto it = lines.find(id);
       if (it == lines.end()) {
-        Fail("{}: observations[{}].{} = {} is not in the map", source, index(i),
-             o.line_id ? "line_id" : "id", id);
+        // [newcomer] The usual cause: a query made against another map, or
+        // against this map's points lifted under another key.
+        Fail(
+            "{}: observations[{}].{} = {} is not in the map; a query made for another map, or "
+            "for one lifted under another key (its line ids differ), looks like this: make the "
+            "query from this map",
+            source, index(i), o.line_id ? "line_id" : "id", id);
       }
       data.lines.push_back(PluckerLine(align_map * it->second.v, align_map * it->second.w));
     } else {

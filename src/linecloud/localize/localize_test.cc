@@ -215,6 +215,8 @@ TEST(Localize, BadInputGetsAClearError) {
   q.observations[4].id = 999999;
   EXPECT_NE(error(p3p, q, points).find("observations[4].id = 999999 is not in the map"),
             std::string::npos);
+  // [newcomer] Against a line cloud, the likely cause is named (another key, another map).
+  EXPECT_NE(error(FindMethod("p6L"), q, lines).find("lifted under another key"), std::string::npos);
   q = inst.query;
   q.observations[2].camera = 3;
   EXPECT_NE(error(p3p, q, points).find("observations[2].camera = 3"), std::string::npos);

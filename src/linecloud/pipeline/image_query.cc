@@ -54,6 +54,13 @@ Camera ParseCameraString(const std::string& text, const std::string& what) {
   }
   Camera camera;
   camera.model_id = CameraModelFromName(tokens[0]);
+  if (camera.model_id == CameraModelId::kInvalid &&
+      CameraModelFromName(tokens[1]) != CameraModelId::kInvalid) {
+    Fail(
+        "{}: unknown camera model '{}': this looks like a line of COLMAP's cameras.txt, which "
+        "starts with the camera's id; drop the id ('{} ...')",
+        what, tokens[0], tokens[1]);
+  }
   if (camera.model_id == CameraModelId::kInvalid) {
     Fail(
         "{}: unknown camera model '{}' (SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, "

@@ -9,6 +9,7 @@
 
 #include "linecloud/io/json_util.h"
 #include "linecloud/localize/query_json.h"
+#include "linecloud/pipeline/image_query.h"
 #include "linecloud/util/error.h"
 
 namespace linecloud::python {
@@ -141,9 +142,26 @@ py::object FromJson(const nlohmann::json& j) { return FromJsonT(j); }
 py::object FromJson(const nlohmann::ordered_json& j) { return FromJsonT(j); }
 
 Camera CameraFromDict(py::handle camera, const std::string& where) {
+  // [newcomer] The CLI's string ("PINHOLE 1536 1024 fx fy cx cy"), as the
+  // CLI, the service and the console take it.
+  if (py::isinstance<py::str>(camera)) return ParseCameraString(camera.cast<std::string>(), where);
+  // A pycolmap.Camera (or any object with model, width, height and params;
+  // the model an enum with a name, or its name).
+  if (!py::isinstance<py::dict>(camera) && py::hasattr(camera, "model") &&
+      py::hasattr(camera, "width") && py::hasattr(camera, "height") &&
+      py::hasattr(camera, "params")) {
+    const py::object model = camera.attr("model");
+    py::dict d;
+    d["model"] = py::hasattr(model, "name") ? model.attr("name") : model;
+    d["width"] = camera.attr("width");
+    d["height"] = camera.attr("height");
+    d["params"] = py::module_::import("builtins").attr("list")(camera.attr("params"));
+    return CameraFromJson(ToJson(d, where), where);
+  }
   if (!py::isinstance<py::dict>(camera)) {
     throw py::type_error(fmt::format(
-        "{}: expected a camera dict {{\"model\", \"width\", \"height\", \"params\"}}, got {}",
+        "{}: expected a camera dict {{\"model\", \"width\", \"height\", \"params\"}}, the "
+        "CLI's camera string or a pycolmap.Camera, got {}",
         where, TypeName(camera)));
   }
   return CameraFromJson(ToJson(camera, where), where);

@@ -27,7 +27,7 @@ void AddLineIds(const LiftingKey& key, Query* query) {
   for (size_t i = 0; i < line_ids.size(); ++i) query->observations[i].line_id = line_ids[i];
 }
 
-// A query file in the format of `linecloud localize` (SPEC.md), plus the
+// A query file in the format of `linecloud localize` (docs/formats.md), plus the
 // ground truth under "ground_truth".
 nlohmann::json QueryJson(const SyntheticQuery& q, const Eigen::Vector3d& gravity_world,
                          const LiftingKey& key) {
