@@ -78,6 +78,8 @@ class Pose:
         scale = float(np.cbrt(np.linalg.det(m[:3, :3])))
         if not scale > 0:
             raise ValueError("Pose.from_matrix: the 3x3 part is not a scaled rotation")
+        if abs(scale - 1.0) < 1e-12:  # a rigid matrix's determinant, to rounding
+            scale = 1.0
         return cls(_quaternion_from_matrix(m[:3, :3] / scale), m[:3, 3], scale)
 
     @property
@@ -88,6 +90,11 @@ class Pose:
     def matrix(self) -> np.ndarray:
         """3x4 [scale * R | t]."""
         return np.hstack([self.scale * self.R, self.t[:, None]])
+
+    @property
+    def matrix4(self) -> np.ndarray:
+        """4x4 [[scale * R, t], [0, 0, 0, 1]] (what from_matrix also takes)."""
+        return np.vstack([self.matrix, [0.0, 0.0, 0.0, 1.0]])
 
     @property
     def center(self) -> np.ndarray:

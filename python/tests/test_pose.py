@@ -33,6 +33,12 @@ def test_matrix_inverse_and_composition_agree():
         json.dumps(d)  # serialisable as it is
         assert ("scale" in d) == (scale != 1.0)
         np.testing.assert_allclose(lc.Pose.from_dict(d).matrix, a.matrix, atol=0)
+        # [newcomer] The 4x4 form, and a rigid matrix read back as rigid (no "scale": 0.999...).
+        assert a.matrix4.shape == (4, 4)
+        np.testing.assert_array_equal(a.matrix4[:3], a.matrix)
+        np.testing.assert_array_equal(a.matrix4[3], [0, 0, 0, 1])
+        back4 = lc.Pose.from_matrix(a.matrix4)
+        assert ("scale" in back4.to_dict()) == (scale != 1.0)
 
 
 def test_bad_poses_are_refused():
