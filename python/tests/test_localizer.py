@@ -161,6 +161,9 @@ def test_opencv_sift_from_python_localizes(fountain, fountain_localizer):
     _near_truth(r, fountain["truth"])
     # Positions only (N x 2) localize too.
     _near_truth(localizer.localize_features(kp[:, :2], desc, fountain["camera"]), fountain["truth"])
+    # [newcomer] One photo's keypoints as a Python list of [x, y] (not a rig of photos).
+    listed = localizer.localize_features(kp[:, :2].tolist(), desc, fountain["camera"])
+    assert listed["q"] == localizer.localize_features(kp[:, :2], desc, fountain["camera"])["q"]
 
 
 def test_bad_photos_raise(fountain, fountain_localizer, tmp_path):

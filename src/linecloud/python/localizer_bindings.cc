@@ -176,9 +176,22 @@ py::dict ResultToDict(const LocalizerResult& r, bool with_inliers) {
   if (PyErr_Occurred()) throw py::error_already_set();  // a signal handler raised (Ctrl-C)
   return FromJson(LocalizerResultToJson(r, with_inliers)).cast<py::dict>();
 }
+// Whether `value` is one photo's rows written as Python lists ([[x, y], ...]
+// or [[d0, ..., d127], ...]), not a list of photos' arrays.
+bool IsRowList(py::handle value) {
+  if (!py::isinstance<py::list>(value) && !py::isinstance<py::tuple>(value)) return false;
+  const py::sequence rows = py::reinterpret_borrow<py::sequence>(value);
+  if (rows.size() == 0) return false;
+  const py::handle first = rows[0];
+  if (!py::isinstance<py::list>(first) && !py::isinstance<py::tuple>(first)) return false;
+  const py::sequence row = py::reinterpret_borrow<py::sequence>(first);
+  return row.size() > 0 && (py::isinstance<py::int_>(row[0]) || py::isinstance<py::float_>(row[0]));
+}
+
 // One photo or a list of them (a rig), each with its camera.
 std::vector<py::handle> Items(py::handle value, bool* many) {
-  *many = py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value);
+  *many =
+      (py::isinstance<py::list>(value) || py::isinstance<py::tuple>(value)) && !IsRowList(value);
   std::vector<py::handle> items;
   if (*many) {
     for (py::handle item : value) items.push_back(item);
@@ -312,13 +325,19 @@ py::dict LocalizeFeatures(const PyLocalizer& self, py::handle keypoints, py::han
   std::vector<QueryPhoto> photos(k_items.size());
   for (size_t k = 0; k < k_items.size(); ++k) {
     const std::string suffix = many_k ? fmt::format("[{}]", k) : "";
-    // N x 2 (x, y) or N x 4 (x, y, scale, orientation), COLMAP's pixel convention.
-    const py::array array = py::array::ensure(k_items[k]);
+    // N x 2 (x, y) or N x 4 (x, y, scale, orientation), COLMAP's pixel convention;
+    // rows written as Python lists taken as the array they spell.
+    const auto as_array = [](py::handle v) {
+      return IsRowList(v) ? py::module_::import("numpy").attr("asarray")(v)
+                          : py::reinterpret_borrow<py::object>(v);
+    };
+    const py::object k_rows = as_array(k_items[k]);
+    const py::array array = py::array::ensure(k_rows);
     const int cols = array && array.ndim() == 2 && array.shape(1) == 4 ? 4 : 2;
     size_t n = 0, nd = 0;
-    const std::vector<double> xy = FiniteRows(k_items[k], cols, "keypoints" + suffix, &n);
+    const std::vector<double> xy = FiniteRows(k_rows, cols, "keypoints" + suffix, &n);
     SiftFeatures& f = storage.features[k];
-    f.descriptors = ByteRows(d_items[k], 128, "descriptors" + suffix, &nd);
+    f.descriptors = ByteRows(as_array(d_items[k]), 128, "descriptors" + suffix, &nd);
     if (nd != n) Fail("{}: {} keypoints but {} descriptors{}", where, n, nd, suffix);
     f.keypoints.resize(n);
     for (size_t i = 0; i < n; ++i) {
