@@ -287,6 +287,16 @@ TEST(Cli, NewcomerPathOnARealModel) {
                     FixedKeyFile(tmp, "m.key", 8)})
                 .code,
             0);
+  // [newcomer] --quiet: one line, and a second only for a new key (keep it secret).
+  CliResult quiet = RunCli({"lift", "--model", model, "--out", tmp.Path("quiet.lcm"), "--key-store",
+                            tmp.Path("quiet-keys"), "--quiet"});
+  ASSERT_EQ(quiet.code, 0) << quiet.err;
+  EXPECT_EQ(std::count(quiet.out.begin(), quiet.out.end(), '\n'), 2) << quiet.out;
+  EXPECT_NE(quiet.out.find("new key"), std::string::npos) << quiet.out;
+  quiet = RunCli({"lift", "--model", model, "--out", tmp.Path("quiet.lcm"), "--key-store",
+                  tmp.Path("quiet-keys"), "--quiet"});
+  EXPECT_EQ(std::count(quiet.out.begin(), quiet.out.end(), '\n'), 1) << quiet.out;
+  EXPECT_TRUE(quiet.err.empty()) << quiet.err;
   // Before the model is lifted, no key: a clear error.
   ExpectError(RunCli({"make-query", "--model", model, "--image", "02.jpg", "--out",
                       tmp.Path("q.json"), "--key-store", tmp.Path("empty")}),

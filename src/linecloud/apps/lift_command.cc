@@ -40,12 +40,21 @@ void RunLift(LiftArgs args) {
                                             cloud.descriptor_aggregation)
                               : "",
       r.seconds, o.out_path);
+  const bool new_key = r.key_source.starts_with("new");
+  if (args.quiet) {  // [newcomer] one line, and the new key's warning in one more
+    if (new_key) {
+      std::cout << fmt::format("new key {}: keep it secret and never delete it\n", r.key_path);
+    }
+    return;
+  }
   std::cout << fmt::format("key: {} ({}), fingerprint {}\n", r.key_path, r.key_source,
                            ToHex(cloud.key_fingerprint));
   const IdentityResult& id = r.identity;
   std::cout << fmt::format(
-      "identity: {} points keep a released line (observations; {} of them its very line), {} "
-      "share a place with another point, {} lie on a released line, {} are new{}{}\n",
+      "identity (one line per physical point across releases): {} points keep the line of a "
+      "released point they share observations with ({} of them the very same line), {} take the "
+      "direction of a point within --same-place of them, {} lie on a released line, {} get a "
+      "new line{}{}\n",
       id.from_observations, id.on_released_line, id.from_same_place, id.from_released_place,
       id.fresh,
       id.left_out ? fmt::format(", {} left out (they merge points released with different lines)",
@@ -55,7 +64,7 @@ void RunLift(LiftArgs args) {
                                      "(points {:.2g} % of the diagonal from their lines)",
                                      id.shared_images, 100 * id.misalignment)
                        : "");
-  if (r.key_source.starts_with("new")) {
+  if (new_key) {
     std::cout << "This key now belongs to the model: every later lift of it (any output, "
                  "encoding or option) reuses it. Keep it secret and never delete it: two "
                  "different liftings of one model reveal its points.\n";
@@ -79,7 +88,8 @@ void RegisterLiftCommand(CLI::App& app) {
                   "$XDG_DATA_HOME/linecloud/keys or ~/.local/share/linecloud/keys)");
   cmd->add_option("--database", o.database, "COLMAP database: attach one descriptor per line");
   args->flags.Add(cmd, LiftOptionTable());
-  cmd->add_flag("--quiet", args->quiet, "no progress on standard error");
+  cmd->add_flag("--quiet", args->quiet,
+                "no progress; one line out (two for a new key: keep it secret)");
   cmd->callback([args] { RunLift(*args); });
 }
 
