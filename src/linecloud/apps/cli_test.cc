@@ -94,6 +94,18 @@ std::vector<Eigen::Vector3d> SecretPointsInFileOrder(const LineCloud& cloud, con
 
 // Every file the tool writes from one model, whatever the output path, run,
 // options or encoding: intersecting any two recovers no point.
+// [newcomer] The console's sources are not a console: `serve --web web/src`
+// is refused at start, naming the folder to serve.
+TEST(Cli, ServeRefusesTheConsolesSources) {
+  TempDir tmp;
+  std::filesystem::create_directories(tmp.Path("maps"));
+  const CliResult r = RunCli({"serve", "--maps", tmp.Path("maps"), "--listen", "127.0.0.1:0",
+                              "--web", std::string(LINECLOUD_REPO_DIR) + "/web/src"});
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("not a built console"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("build/web"), std::string::npos) << r.err;
+}
+
 // [newcomer] The help sends users to the repository's own docs (no SPEC.md in
 // a clone) and names the overlay's colours as the picture draws them.
 TEST(Cli, HelpPointsToTheRepositorysOwnDocs) {

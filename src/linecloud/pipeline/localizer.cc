@@ -487,6 +487,7 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
   if (!query.gravity_map && state_->gravity) query.gravity_map = state_->gravity;
   LocalizeOptions options = request.options.value_or(state_->options.localize);
   if (request.options) options.Check();
+  bool deadline_budget = false;  // RANSAC's time cut to the request's deadline
   if (request.deadline) {
     const double left = std::chrono::duration<double>(*request.deadline - Clock::now()).count();
     if (left <= 0)
@@ -494,6 +495,7 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
                         start);
     if (options.ransac.max_seconds <= 0 || options.ransac.max_seconds > left) {
       options.ransac.max_seconds = left;
+      deadline_budget = true;
     }
   }
   if (request.ransac_progress) options.ransac.progress = request.ransac_progress;
@@ -511,6 +513,15 @@ LocalizerResult Localizer::Finish(const MethodInfo& method, LocalizerResult resu
                                       query.observations.size(), method.sample_size);
   } else {
     result.pose = Localize(method, query, state_->map, options, source);
+    if (deadline_budget && result.pose.success &&
+        std::string_view(result.pose.stats.stop_reason) == "max_seconds") {
+      // The deadline, not the search's own stop, ended RANSAC: the pose was
+      // never confirmed (a request asking for no support at all drew junk
+      // until the deadline and got a "success" of 17 chance inliers).
+      result.pose.success = false;
+      result.pose.failure =
+          "the request's deadline ended RANSAC's search before it could confirm a pose";
+    }
   }
   result.status = result.pose.success ? LocalizerStatus::kSuccess : LocalizerStatus::kNoPose;
   result.reason = result.pose.failure;

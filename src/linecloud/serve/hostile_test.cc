@@ -152,7 +152,8 @@ TEST(Hostile, DeeplyNestedJsonIsRefusedAndTheServerLives) {
 // bytes), whole files only compressed (a range is of the file itself).
 TEST(Hostile, ConsoleFilesAreCompressedAndRevalidated) {
   Maps m;
-  fs::create_directories(m.tmp.Path("web"));
+  fs::create_directories(m.tmp.Path("web/vendor/three"));  // a built console has three.js
+  std::ofstream(m.tmp.Path("web/vendor/three/three.module.js")) << "export {};\n";
   std::ofstream(m.tmp.Path("web/app.js")) << "const x = 1;\n";
   // The gzip magic, then text (sizeof - 1: the bytes without the literal's NUL).
   constexpr char kGz[] = "\x1f\x8b compressed stand-in";
@@ -206,7 +207,8 @@ TEST(Hostile, ConsoleFilesAreCompressedAndRevalidated) {
 // longer waits for one).
 TEST(Hostile, RequestsRefusedBeforeTheirBody) {
   Maps m;
-  fs::create_directories(m.tmp.Path("web"));
+  fs::create_directories(m.tmp.Path("web/vendor/three"));  // a built console has three.js
+  std::ofstream(m.tmp.Path("web/vendor/three/three.module.js")) << "export {};\n";
   std::ofstream(m.tmp.Path("web/index.html")) << std::string(100000, 'x');
   Served s(m.tmp, {"--web", m.tmp.Path("web")});
   ASSERT_GT(s.port(), 0) << s.err();

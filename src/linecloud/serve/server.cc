@@ -1194,7 +1194,18 @@ Server::Server(ServeOptions options) : impl_(std::make_unique<Impl>()) {
   impl_->parse_slots = std::make_unique<std::counting_semaphore<>>(o.threads + 2);
   SetSiftMemoryLimit(impl_->BudgetBytes());  // process-wide: the extractions of every map
   const std::string web = o.web_dir.empty() ? DefaultWebDir() : o.web_dir;
-  if (!web.empty() && fs::is_regular_file(fs::path(web) / "index.html")) {
+  // [newcomer] The console's sources (web/src) lack three.js: the page would
+  // load and do nothing. Only a built console (build/web) is served.
+  const bool built = fs::is_regular_file(fs::path(web) / "vendor" / "three" / "three.module.js");
+  if (!web.empty() && fs::is_regular_file(fs::path(web) / "index.html") && !built) {
+    if (!o.web_dir.empty()) {
+      Fail(
+          "serve: --web {}: not a built console (no vendor/three/three.module.js): serve the "
+          "folder scripts/build_web.sh makes (build/web)",
+          o.web_dir);
+    }
+    impl_->Log(DumpJson(json{{"warning", "no console: " + web + " is not a built console"}}));
+  } else if (!web.empty() && fs::is_regular_file(fs::path(web) / "index.html")) {
     impl_->web_dir = web;
     impl_->security_policy =
         ConsolePolicy(ReadFilePrefix((fs::path(web) / "index.html").string(), 1 << 20));
