@@ -606,7 +606,8 @@ class FocalProfile {
         inliers_(std::make_shared<const std::vector<int>>(Iota(inliers.size()))),
         start_(start_pose),
         options_(options),
-        refine_ms_(refine_ms) {}
+        refine_ms_(refine_ms),
+        radial_range_(RadialRange(*query_)) {}
 
   // Which camera parameter the profile moves: the focal length (by a factor
   // e^v), the principal point's x or y (by v pixels), fy alone (by e^v: the
@@ -681,7 +682,7 @@ class FocalProfile {
       case Parameter::kLogAspect:
         return {std::log(1 / 1.2), std::log(1.2)};
       default:
-        return {-0.4, 0.4};
+        return radial_range_;
     }
   }
 
@@ -709,6 +710,32 @@ class FocalProfile {
   }
 
  private:
+  // The k1 changes in [-0.4, 0.4] for which every inlier's pixel can still be
+  // undistorted (a strong barrel distortion folds the image's corners: a
+  // value beyond fits nothing, and a search that met it stalled there —
+  // EuRoC's dropped k1 of -0.28 was then read as -0.15 with no deviance).
+  static std::array<double, 2> RadialRange(const Query& query) {
+    const auto feasible = [&](double dk1) {
+      Camera camera = query.cameras[0];
+      camera.AddRadialDistortion(dk1);
+      for (const QueryObservation& o : query.observations) {
+        if (!camera.CanUndistort(o.xy)) return false;
+      }
+      return true;
+    };
+    std::array<double, 2> range = {-0.4, 0.4};
+    for (int side = 0; side < 2; ++side) {
+      if (feasible(range[side])) continue;
+      double inside = 0, outside = range[side];  // the given camera undistorts them all
+      for (int i = 0; i < 20; ++i) {
+        const double mid = 0.5 * (inside + outside);
+        (feasible(mid) ? inside : outside) = mid;
+      }
+      range[side] = inside;
+    }
+    return range;
+  }
+
   // The query of the inliers alone: each value tried prepares (undistorts,
   // looks up) only what the refit uses, not every match (2 200 on a photo
   // of fountain for 300 inliers).
@@ -739,6 +766,7 @@ class FocalProfile {
   Sim3d start_;
   const LocalizeOptions& options_;
   double* refine_ms_;
+  std::array<double, 2> radial_range_;
 };
 
 // The calibration check as a test (Gaussian noise of unknown σ): the focal
