@@ -357,7 +357,7 @@ std::string CalibrationFailure(const CalibrationCheck& check, double given_focal
   // the others when their profile explains more (an fy 5 % off also moves
   // the focal length and cx that fit best).
   double largest = 0;
-  for (const ParameterVerdict& p : v) largest = std::max(largest, p.refused ? p.deviance : 0.0);
+  for (const ParameterVerdict& p : v) largest = std::max(largest, p.outside ? p.deviance : 0.0);
   const CalibrationCheck::Extra& a = check.log_aspect;
   if (a.tested && JudgeParameter(a.best, a.se, a.deviance, 0.01, 0.03, a.at_edge).refused &&
       a.deviance >= largest) {
