@@ -327,6 +327,33 @@ ParameterVerdict JudgeParameter(double shift, double se, double deviance, double
   return v;
 }
 
+// With the focal length refined: why the principal point fitted jointly with
+// it contradicts the camera's (beyond the criteria's share of the size and 3
+// standard errors), naming the axis farther off; "" when it does not.
+std::string RefitPrincipalFailure(const CalibrationCheck& check, const SuccessCriteria& c) {
+  if (!check.refit_principal || !(c.max_principal_discrepancy > 0)) return "";
+  int worst = -1;
+  double worst_share = 0;
+  for (int axis = 0; axis < 2; ++axis) {
+    const double size = check.image_size[axis];
+    const double shift = (*check.refit_principal)[axis] - check.given_principal[axis];
+    const double se = check.principal_se[axis];
+    if (std::abs(shift) > c.max_principal_discrepancy * size &&
+        (!std::isfinite(se) || std::abs(shift) > kCalibrationZ * se) &&
+        std::abs(shift) / size > worst_share) {
+      worst = axis, worst_share = std::abs(shift) / size;
+    }
+  }
+  if (worst < 0) return "";
+  return fmt::format(
+      "with its focal length refined, the camera's principal point looks wrong: fitted with the "
+      "focal length, the inliers put {} at {:.0f} px, the camera says {:.0f} px ({:.0f} % of the "
+      "{} off); refining the focal length does not mend a wrong principal point: send the camera "
+      "of the photo as it is",
+      worst == 0 ? "cx" : "cy", (*check.refit_principal)[worst], check.given_principal[worst],
+      100 * worst_share, worst == 0 ? "width" : "height");
+}
+
 }  // namespace
 
 std::string CalibrationFailure(const CalibrationCheck& check, double given_focal,
@@ -358,9 +385,13 @@ std::string CalibrationFailure(const CalibrationCheck& check, double given_focal
   // the focal length and cx that fit best).
   double largest = 0;
   for (const ParameterVerdict& p : v) largest = std::max(largest, p.outside ? p.deviance : 0.0);
+  const auto rejected = [&](const CalibrationCheck::Extra& e, double allowed, double narrow) {
+    return e.tested &&
+           JudgeParameter(e.best, e.se, e.deviance, allowed, narrow, e.at_edge).refused &&
+           e.deviance >= largest;
+  };
   const CalibrationCheck::Extra& a = check.log_aspect;
-  if (a.tested && JudgeParameter(a.best, a.se, a.deviance, 0.01, 0.03, a.at_edge).refused &&
-      a.deviance >= largest) {
+  if (rejected(a, 0.01, 0.03)) {
     return fmt::format(
         "the camera's aspect ratio looks wrong: the inliers fit fy / fx {:.3f} times the "
         "camera's ({:+.1f} %); send the photo's own fx and fy (a photo stretched or resized in "
@@ -368,8 +399,7 @@ std::string CalibrationFailure(const CalibrationCheck& check, double given_focal
         std::exp(a.best), 100 * (std::exp(a.best) - 1));
   }
   const CalibrationCheck::Extra& k = check.radial;
-  if (k.tested && JudgeParameter(k.best, k.se, k.deviance, 0.02, 0.1, k.at_edge).refused &&
-      k.deviance >= largest) {
+  if (rejected(k, 0.02, 0.1)) {
     return fmt::format(
         "the camera's distortion looks wrong: the inliers fit a first radial coefficient k1 "
         "{:+.3f} from the camera's{}; a photo sent without its distortion parameters (or with "
@@ -377,30 +407,7 @@ std::string CalibrationFailure(const CalibrationCheck& check, double given_focal
         "OPENCV fx fy cx cy k1 k2 p1 p2)",
         k.best, k.at_edge ? " or beyond (the end of the range searched)" : "");
   }
-  if (check.refit_principal && c.max_principal_discrepancy > 0) {
-    // The focal length refined: the principal point fitted with it.
-    int worst = -1;
-    double worst_share = 0;
-    for (int axis = 0; axis < 2; ++axis) {
-      const double size = check.image_size[axis];
-      const double shift = (*check.refit_principal)[axis] - check.given_principal[axis];
-      const double se = check.principal_se[axis];
-      if (std::abs(shift) > c.max_principal_discrepancy * size &&
-          (!std::isfinite(se) || std::abs(shift) > kCalibrationZ * se) &&
-          std::abs(shift) / size > worst_share) {
-        worst = axis, worst_share = std::abs(shift) / size;
-      }
-    }
-    if (worst >= 0) {
-      return fmt::format(
-          "with its focal length refined, the camera's principal point looks wrong: fitted with "
-          "the focal length, the inliers put {} at {:.0f} px, the camera says {:.0f} px ({:.0f} "
-          "% of the {} off); refining the focal length does not mend a wrong principal point: "
-          "send the camera of the photo as it is",
-          worst == 0 ? "cx" : "cy", (*check.refit_principal)[worst], check.given_principal[worst],
-          100 * worst_share, worst == 0 ? "width" : "height");
-    }
-  }
+  if (std::string wrong = RefitPrincipalFailure(check, c); !wrong.empty()) return wrong;
   if (!v[0].refused && !v[1].refused && !v[2].refused) return "";
   // Refused: named after the parameter whose refit explains the inliers best
   // (the largest deviance among those the data reject). A focal length 10 %
