@@ -150,6 +150,18 @@ struct LocalizeOptions {
   void Check() const;
 };
 
+// The focal length and the principal point fitted together (CalibrationCheck::joint).
+struct JointCalibration {
+  bool fitted = false;
+  std::array<double, 3> theta = {0, 0, 0};
+  std::array<double, 3> se = {std::numeric_limits<double>::infinity(),
+                              std::numeric_limits<double>::infinity(),
+                              std::numeric_limits<double>::infinity()};
+  double deviance = 0;
+};
+// χ² with 3 degrees of freedom at 99.7 %: the joint fit's deviance beyond it
+// rejects the camera as given.
+inline constexpr double kJointCalibrationDeviance = 13.93;
 // The calibration check (one camera, focal length not refined): the focal
 // length the inliers fit best, its standard error (of its logarithm, the pose
 // marginalised) and 99.7 % interval, and the given focal length's deviance
@@ -176,9 +188,6 @@ struct CalibrationCheck {
   // length not at all) and the profile's estimate (CalibrationMeanSquare).
   double rotation_deg = 0;
   double position = 0;
-  // For a camera the check refuses: the parameter the inliers blame with the
-  // others free (0 the focal length, 1 cx, 2 cy; -1 not fitted) and the joint
-  // fit's focal length and principal point.
   // The aspect ratio (log of a factor on fy alone; cameras with fx and fy)
   // and the first radial distortion coefficient (a change to k1; a PINHOLE
   // camera tried as OPENCV), each profiled as the others: the change that
@@ -192,13 +201,17 @@ struct CalibrationCheck {
   // Whether the least cost lay at an end of the range searched (focal
   // length, cx, cy): the camera is farther off than the check reaches.
   std::array<bool, 3> at_edge = {false, false, false};
-  int blamed = -1;
+  // The focal length and the principal point fitted together, the pose
+  // free (from the camera as given, also when the focal length is refined):
+  // θ = (log of a factor on the focal length, cx shift, cy shift in px),
+  // each one's marginal standard error, and the given camera's deviance
+  // (χ² with 3 degrees of freedom). One at a time, the profiles above can
+  // settle where two wrong parameters compensate each other.
+  JointCalibration joint;
   // With the focal length refined: the principal point fitted jointly with
   // it from the camera as given (a refined focal length and the pose absorb
   // much of a wrong principal point).
   std::optional<std::array<double, 2>> refit_principal;
-  double joint_focal = 0;
-  std::array<double, 2> joint_principal = {0, 0};
 };
 
 struct LocalizeResult {
