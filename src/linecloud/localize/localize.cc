@@ -437,8 +437,9 @@ std::string CalibrationFailure(const CalibrationCheck& check, double given_focal
   const CalibrationCheck::Extra& k = check.radial;
   if (rejected(k, 0.02, 0.1)) {
     return fmt::format(
-        "the camera's distortion looks wrong: the inliers fit a first radial coefficient k1 "
-        "{:+.3f} from the camera's{}; a photo sent without its distortion parameters (or with "
+        "the camera's distortion looks wrong: the inliers fit a radial distortion of about k1 "
+        "{:+.3f} (division model) beyond the camera's{}; a photo sent without its distortion "
+        "parameters (or with "
         "another camera's) looks like this: send the camera's model with its distortion (e.g. "
         "OPENCV fx fy cx cy k1 k2 p1 p2)",
         k.best, k.at_edge ? " or beyond (the end of the range searched)" : "");
@@ -702,7 +703,6 @@ class FocalProfile {
     camera.ScaleFocalLength(std::exp(base_[0] + theta[0]));
     camera.ShiftPrincipalPoint(base_[1] + theta[1], base_[2] + theta[2]);
     if (log_aspect != 0) camera.ScaleFocalLengthY(std::exp(log_aspect));
-    if (radial != 0) camera.AddRadialDistortion(radial);
     const double t2 = options_.ransac.max_error * options_.ransac.max_error;
     Point p;
     p.pose = start_;
@@ -716,6 +716,7 @@ class FocalProfile {
       p.valid.assign(inliers_->size(), 0);
       return p;
     }
+    if (radial != 0) AddDivisionDistortion(radial, &prepared->data);
     LocalizeOptions o = options_;
     o.refine = true;
     RefineStage(method_, prepared->data, *inliers_, o, &p.pose, refine_ms_, &p.cost);
@@ -789,30 +790,32 @@ class FocalProfile {
   }
 
  private:
-  // The k1 changes in [-0.4, 0.4] for which every inlier's pixel can still be
-  // undistorted (a strong barrel distortion folds the image's corners: a
-  // value beyond fits nothing, and a search that met it stalled there —
-  // EuRoC's dropped k1 of -0.28 was then read as -0.15 with no deviance).
-  static std::array<double, 2> RadialRange(const Query& query) {
-    const auto feasible = [&](double dk1) {
-      Camera camera = query.cameras[0];
-      camera.AddRadialDistortion(dk1);
-      for (const QueryObservation& o : query.observations) {
-        if (!camera.CanUndistort(o.xy)) return false;
-      }
-      return true;
-    };
-    std::array<double, 2> range = {-0.4, 0.4};
-    for (int side = 0; side < 2; ++side) {
-      if (feasible(range[side])) continue;
-      double inside = 0, outside = range[side];  // the given camera undistorts them all
-      for (int i = 0; i < 20; ++i) {
-        const double mid = 0.5 * (inside + outside);
-        (feasible(mid) ? inside : outside) = mid;
-      }
-      range[side] = inside;
+  // A radial distortion the camera lacks, in the division model on its
+  // undistorted image plane: x ← x / (1 + λ |x|²) (Fitzgibbon, CVPR 2001;
+  // λ ≈ k1 for small distortions). A polynomial k1 alone folds a wide-angle
+  // image's corners (EuRoC beyond k1 -0.15, where its true distortion is k1
+  // -0.28 balanced by k2 +0.07): the search stalled at the fold with no
+  // deviance, and frames sent without their distortion kept a pose 1° off.
+  // The division model does not fold while 1 + λ |x|² > 0.
+  static void AddDivisionDistortion(double lambda, PoseData* data) {
+    for (size_t k = 0; k < data->size(); ++k) {
+      Eigen::Vector2d& x = data->normalized[k];
+      x /= 1 + lambda * x.squaredNorm();
+      data->bearings[k] = x.homogeneous().normalized();
     }
-    return range;
+  }
+
+  // The λ in [-0.4, 0.4] for which every inlier's 1 + λ |x|² stays above
+  // 1/4 (its image plane stretched at most 4 times).
+  static std::array<double, 2> RadialRange(const Query& query) {
+    double largest = 0;
+    for (const QueryObservation& o : query.observations) {
+      const Eigen::Vector3d ray = query.cameras[0].CamFromImg(o.xy);
+      if (ray.allFinite() && ray.z() > 0) {
+        largest = std::max(largest, (ray.head<2>() / ray.z()).squaredNorm());
+      }
+    }
+    return {largest > 0 ? std::max(-0.4, -0.75 / largest) : -0.4, 0.4};
   }
 
   // The query of the inliers alone: each value tried prepares (undistorts,
