@@ -59,11 +59,18 @@ struct MethodTally {
   }
 };
 
+// What a rig's own cam_from_rig gets wrong (its worst camera against the truth): its poses'
+// errors are judged beyond it, as every pose's is beyond the map's own error.
+struct ErrorFloor {
+  double rotation_deg = 0, translation = 0;
+};
+
 // One query's result (a row of direct matching's per_query / per_rig) into the tally and the
 // report.
 void Count(const KeySweepOptions& o, const DirectMatchingOptions& dm, const std::string& dataset,
            uint64_t key, const std::string& query, const std::string& method,
-           const DirectMatchingAttempt& r, MethodTally* t, KeySweepReport* report) {
+           const DirectMatchingAttempt& r, MethodTally* t, KeySweepReport* report,
+           ErrorFloor floor = {}) {
   ++t->queries;
   const KeySweepAttempt a{dataset,
                           key,
@@ -98,8 +105,9 @@ void Count(const KeySweepOptions& o, const DirectMatchingOptions& dm, const std:
       r.rotation_deg <= dm.max_rotation_deg && r.translation <= dm.max_translation;
   t->localized += localized;
   if (localized && r.sigma_rotation_deg && r.sigma_position) {
-    t->rotation_z.push_back(r.rotation_deg / *r.sigma_rotation_deg);
-    t->position_z.push_back(r.translation / *r.sigma_position);
+    t->rotation_z.push_back(std::max(0.0, r.rotation_deg - floor.rotation_deg) /
+                            *r.sigma_rotation_deg);
+    t->position_z.push_back(std::max(0.0, r.translation - floor.translation) / *r.sigma_position);
   }
   if (r.rotation_deg > o.wrong_rotation_deg || r.translation > o.wrong_translation) {
     ++t->wrong;
@@ -160,7 +168,8 @@ KeySweepReport RunKeySweep(const KeySweepOptions& options) {
       for (const DirectMatchingRig& row : matched.per_rig) {
         for (const std::string& m : dm.rig_methods) {
           if (const DirectMatchingAttempt* a = FindIn(row.methods, m))
-            Count(options, dm, work.dataset, k, row.group, m, *a, &tallies[m], &report);
+            Count(options, dm, work.dataset, k, row.group, m, *a, &tallies[m], &report,
+                  {row.rig_error_rotation_deg, row.rig_error_translation});
         }
       }
       if (options.other_place) {
