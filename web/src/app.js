@@ -17,16 +17,24 @@ const colour = (name) => getComputedStyle(document.documentElement).getPropertyV
 const state = {
   token: sessionStorage.getItem("linecloud-token") || "",
   session: 0, mapGen: 0, requestGen: 0,  // generations: an answer for an old one is dropped
-  map: null, info: null, busy: false, pose: null, history: [], view: null,
+  map: null, info: null, busy: false, pose: null, history: [], view: null, photo: null,
 };
 
 function setStatus(text) {
   $("status").textContent = text;
   $("error").textContent = "";
+  $("photo-error").textContent = "";
 }
 function setError(text) {
   $("error").textContent = text;  // role="alert": announced
   $("status").textContent = "";
+  $("photo-error").textContent = "";
+}
+// An error about the photo: also shown in the photo panel, where the user
+// acted (on a phone the alert line is a screen or two above it).
+function setPhotoError(text) {
+  setError(text);
+  $("photo-error").textContent = text;
 }
 
 // One API call: JSON (or bytes) back, or an Error with the server's message
@@ -36,11 +44,16 @@ async function api(path, { method = "GET", body = null, binary = false } = {}) {
   const res = await fetch(path, { method, body, headers });
   if (!res.ok) {
     let message = `${res.status} ${res.statusText}`;
-    try { message = `${res.status}: ${(await res.json()).error}`; } catch { /* not JSON */ }
+    let serverMessage = "";
+    try {
+      serverMessage = (await res.json()).error;
+      message = `${res.status}: ${serverMessage}`;
+    } catch { /* not JSON */ }
     const retry = Number(res.headers.get("Retry-After"));
     if (retry > 0) message += ` — try again in ${Math.ceil(retry)} s`;
     const error = new Error(message);
     error.status = res.status;
+    error.serverMessage = serverMessage;
     error.retryAfter = retry > 0 ? retry : null;
     throw error;
   }
@@ -130,7 +143,10 @@ async function signIn(token) {
     $("logout-button").hidden = false;
     setStatus(maps.length ? `${maps.length} map(s) for this token` : "no map for this token");
   } catch (e) {
-    if (session === state.session) setError(`Sign-in failed: ${e.message}`);
+    if (session !== state.session) return;
+    setError(e.status === 401
+      ? "Sign-in failed: the service does not accept this token (401). Check it, or ask the service's operator for one."
+      : `Sign-in failed: ${e.message}`);
   }
 }
 
@@ -177,11 +193,13 @@ async function openMap(id) {
 }
 
 // The map's privacy panel: who can see its lines, and what the audit says.
-function showPrivacy(info, audit) {
+// `missing`: why there is no audit (the server's word: none beside the map,
+// or none for this token).
+function showPrivacy(info, audit, missing = "") {
   const rows = [["readers see the lines", info.publish_lines ? "yes: the owner published them" : "no: readers get poses only"]];
   const within1 = audit?.density_attack?.recovery?.within_diagonal_percent?.["1"];
   const share = within1 ?? info.audit_recovered_share;
-  rows.push(["audit", share === undefined ? "no audit for this token"
+  rows.push(["audit", share === undefined ? (missing || "none shown")
     : `${(100 * share).toFixed(1)} % of the points recovered within 1 % of the scene`]);
   describe($("privacy-facts"), rows);
   $("privacy").hidden = false;
@@ -192,7 +210,11 @@ async function loadAudit(id, gen) {
   try {
     report = await api(`/v1/maps/${encodeURIComponent(id)}/audit`);
   } catch (e) {
-    if (e.status !== 404 && gen === state.mapGen) setError(`Audit: ${e.message}`);
+    if (gen !== state.mapGen) return;
+    if (e.status !== 404) setError(`Audit: ${e.message}`);
+    else showPrivacy(state.info, null, e.serverMessage === "no audit for this token"
+      ? "not shown to this token (the map's owner sees it)"
+      : `none published with this map (${e.serverMessage}: \`linecloud audit --out DIR\`, then its report.json as ID.audit.json)`);
     return;
   }
   if (gen !== state.mapGen) return;
@@ -732,9 +754,10 @@ async function localizeNow(file) {
   const gen = state.requestGen, mapGen = state.mapGen, map = state.map;
   const problem = await checkPhoto(file);
   if (gen !== state.requestGen) return;
-  if (problem) return setError(problem);
+  if (problem) return setPhotoError(problem);
   const cameraText = $("camera").value.trim();
-  if (!cameraText) return setError("give the photo's camera");
+  // The photo stays chosen: give the camera, then Localize.
+  if (!cameraText) return setPhotoError(`give the camera of ${file.name}, then Localize`);
   const form = new FormData();
   form.append("image", file, file.name);
   form.append("camera", cameraText);
@@ -744,7 +767,7 @@ async function localizeNow(file) {
     if (gen !== state.requestGen || mapGen !== state.mapGen) return;
     if (!r.success) {
       describe($("pose"), [["success", "no pose", false], ["reason", r.reason]]);
-      setError(`no pose: ${r.reason}`);
+      setPhotoError(`no pose for ${file.name}: ${r.reason}`);
       return;
     }
     rememberCamera(cameraText, true);
@@ -771,7 +794,7 @@ async function localizeNow(file) {
   } catch (e) {
     if (gen !== state.requestGen) return;
     if (e.status === 400 && /camera/i.test(e.message)) rememberCamera(cameraText, false);
-    setError(`Localize: ${e.message}`);
+    setPhotoError(`Localize ${file.name}: ${e.message}`);
   }
 }
 
@@ -827,9 +850,17 @@ $("login").addEventListener("submit", (ev) => {
   signIn($("token").value.trim());
 });
 $("logout-button").addEventListener("click", signOut);
+// The photo to localize: the one chosen or dropped last (a dropped one is
+// kept while the camera is typed).
+$("photo").addEventListener("change", () => choosePhoto($("photo").files[0] || null, false));
+function choosePhoto(file, dropped) {
+  state.photo = file;
+  if (dropped) $("photo").value = "";  // not the previous file's name beside the dropped one
+  $("drop").textContent = file && dropped ? `photo: ${file.name}` : "or drop a photo here";
+}
 $("localize").addEventListener("submit", (ev) => {
   ev.preventDefault();
-  localize($("photo").files[0]);
+  localize(state.photo);
 });
 // More or fewer lines of the same map: its pose, audit and photo stay.
 $("limit").addEventListener("change", () => {
@@ -858,7 +889,8 @@ drop.addEventListener("dragleave", () => drop.classList.remove("over"));
 drop.addEventListener("drop", (ev) => {
   ev.preventDefault();
   drop.classList.remove("over");
-  localize(ev.dataTransfer.files[0]);
+  choosePhoto(ev.dataTransfer.files[0] || null, true);
+  localize(state.photo);
 });
 drop.addEventListener("click", () => $("photo").click());
 drop.addEventListener("keydown", (ev) => {

@@ -230,6 +230,8 @@ try {
   page.on("pageerror", (e) => errors.push(e.message));
   let posts = 0;
   page.on("request", (r) => { if (r.method() === "POST") posts += 1; });
+  const notFound = [];
+  page.on("response", (r) => { if (r.status() === 404) notFound.push(new URL(r.url()).pathname); });
 
   // ---- loading: compressed, then revalidated (no bytes again) ----------------
   await page.goto(base + "/");
@@ -243,6 +245,9 @@ try {
     .reduce((a, r) => ({ transfer: a.transfer + r.transferSize, decoded: a.decoded + r.decodedBodySize }), { transfer: 0, decoded: 0 }));
   results.bytes = { first_transfer: firstLoad.transfer, first_decoded: firstLoad.decoded, reload_transfer: reload.transfer };
   assert.ok(firstLoad.decoded > 1e6, `three.js and the page: ${firstLoad.decoded} bytes`);
+  assert.deepEqual(notFound, [], "nothing the page asks for is missing (a favicon, say)");
+  // The camera field's placeholder is an example, not a camera that looks filled in.
+  assert.match(await page.getAttribute("#camera", "placeholder"), /^e\.g\. PINHOLE width height fx fy cx cy$/);
   assert.ok(firstLoad.transfer < 0.4 * firstLoad.decoded, `sent compressed: ${firstLoad.transfer} of ${firstLoad.decoded}`);
   assert.ok(reload.transfer < 20000, `a reload revalidates (304s), it does not download again: ${reload.transfer} bytes`);
 
@@ -254,7 +259,8 @@ try {
   await page.fill("#token", "not-a-token");
   await page.press("#token", "Enter");  // the keyboard signs in
   await page.waitForFunction(() => document.querySelector("#error").textContent.includes("Sign-in failed"));
-  assert.match(await text(page, "#error"), /401/);
+  assert.match(await text(page, "#error"), /does not accept this token \(401\)/);
+  assert.doesNotMatch(await text(page, "#error"), /header/i, "a user types a token, not headers");
   assert.equal(await page.getAttribute("#error", "role"), "alert");
   assert.equal(await page.evaluate(() => sessionStorage.getItem("linecloud-token")), null, "a token that failed is not kept");
   await page.screenshot({ path: `${shots}/wrong-token.png` });
@@ -394,6 +400,8 @@ try {
   await assertNoRequestState(page, "another map");
   assert.equal(await page.isHidden("#audit"), true, "fountain's audit is gone");
   assert.equal(await text(page, "#audit-points-count"), "");
+  // The owner of a map without an audit is told so, not that the token may not see it.
+  assert.match(await text(page, "#privacy-facts-audit"), /^none published with this map \(no ID\.audit\.json next to the map/);
   s = await scene(page);
   assert.equal(s.recovered, 0, "fountain's recovered points are gone");
   assert.equal(s.lines, 100000);
@@ -438,11 +446,28 @@ try {
   s = await scene(page);
   assert.deepEqual([s.lines, s.recovered], [0, 0], "a reader gets neither lines nor the audit");
   assert.match(await text(page, "#view-note"), /not published/);
-  assert.match(await text(page, "#privacy-facts-audit"), /no audit for this token/);
+  assert.match(await text(page, "#privacy-facts-audit"), /^not shown to this token/);
   await localizeOnPage(page, photo, camera);
   near(JSON.parse(await page.getAttribute("#pose-q", "data-value")), shown.q, 1e-6, "reader q");
   assert.equal(await page.getAttribute("#overlay", "data-inliers"), "0", "no correspondences for a reader");
   await page.screenshot({ path: `${shots}/reader.png` });
+  // A photo dropped before the camera is typed is kept: the camera, then Localize.
+  await page.fill("#camera", "");
+  const dropped = await page.evaluateHandle((b) => {
+    const d = new DataTransfer();
+    d.items.add(new File([Uint8Array.from(atob(b), (c) => c.charCodeAt(0))], "dropped.jpg", { type: "image/jpeg" }));
+    return d;
+  }, readFileSync(photo).toString("base64"));
+  await page.dispatchEvent("#drop", "drop", { dataTransfer: dropped });
+  await page.waitForFunction(() => document.querySelector("#photo-error").textContent.includes("give the camera of dropped.jpg"));
+  assert.equal(await page.inputValue("#photo"), "", "no other file's name beside the dropped photo");
+  assert.match(await text(page, "#drop"), /dropped\.jpg/);
+  await page.fill("#camera", camera);
+  await page.click("#localize-button");
+  await page.waitForFunction(() => document.querySelector("#localize").getAttribute("aria-busy") === "false" &&
+                                   (document.querySelector("#pose-q") || document.querySelector("#error").textContent),
+                             null, { timeout: 60000 });
+  assert.ok(await page.$("#pose-q"), `the dropped photo, once the camera is given: ${await text(page, "#error")}`);
   // Sign out: the token forgotten, nothing shown.
   await page.click("#logout-button");
   assert.equal(await page.$$eval("#maps button", (b) => b.length), 0);
@@ -503,6 +528,14 @@ try {
   assert.equal(layout.canvas, layout.view, "the canvas is as wide as its box");
   assert.deepEqual(await phone.evaluate(contrastProblems), []);
   await phone.screenshot({ path: `${shots}/phone.png`, fullPage: true });
+  // An error about the photo shows where the user acted, not only in the alert line far above.
+  await localizeOnPage(phone, `${tmp}/not-a-photo.jpg`, camera);
+  const photoError = await phone.evaluate(() => {
+    const e = document.querySelector("#photo-error"), b = document.querySelector("#localize-button");
+    return { text: e.textContent, gap: e.getBoundingClientRect().top - b.getBoundingClientRect().bottom };
+  });
+  assert.match(photoError.text, /not a JPEG or PNG photo/);
+  assert.ok(photoError.gap >= 0 && photoError.gap < 120, `the photo error ${photoError.gap} px below the Localize button`);
   await phone.setViewportSize({ width: 844, height: 390 });  // turned
   await phone.waitForTimeout(300);
   const turned = await phone.evaluate(() => ({ view: document.querySelector("#view").clientWidth,
