@@ -53,8 +53,21 @@ def _cases(fountain, tmp):
     cv2.imwrite(str(half), cv2.resize(pixels, (w // 2, h // 2), interpolation=cv2.INTER_AREA))
     corner = tmp / "corner.jpg"  # the top-left quarter
     cv2.imwrite(str(corner), pixels[: h // 2, : w // 2])
+    crop = tmp / "crop.jpg"  # 900 x 600 of the top left: its camera is the photo's, as it is
+    cv2.imwrite(str(crop), pixels[:600, :900])
     return [
         ("true camera", photo, cam, None),
+        # An off-centre crop's true camera looks like one made for a larger photo (1.7 times):
+        # the data decide, not the camera's look.
+        ("top-left 900x600 crop with its true camera", crop, dict(cam, width=900, height=600), None),
+        # Two or three parameters off together, each within what one alone may be off by.
+        ("focal x0.97 with cx +2 %", photo, dict(cam, params=[0.97 * fx, 0.97 * fy, cx + 0.02 * w, cy]),
+         "principal point looks wrong: the inliers fit cx"),
+        ("fy -1 % with cy -2 %", photo, dict(cam, params=[fx, 0.99 * fy, cx, cy - 0.02 * h]),
+         "looks wrong"),
+        # fx alone off is the aspect ratio (its principal-point profile had the larger deviance).
+        ("fx alone 6 % short", photo, dict(cam, params=[0.94 * fx, fy, cx, cy]),
+         "aspect ratio looks wrong"),
         ("focal x0.9", photo, dict(cam, params=[0.9 * fx, 0.9 * fy, cx, cy]),
          "focal length looks wrong"),
         ("focal x1.1", photo, dict(cam, params=[1.1 * fx, 1.1 * fy, cx, cy]),

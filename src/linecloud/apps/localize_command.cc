@@ -142,7 +142,32 @@ LocalizeRequest MakeRequest(const LocalizeArgs& args, const std::optional<RigFil
   return request;
 }
 
+// A few lines for people: the pose, its support and uncertainty, or why there is none.
+std::string ResultText(const LocalizerResult& r) {
+  const LocalizeResult& p = r.pose;
+  const double ratio = p.num_correspondences > 0
+                           ? 100.0 * static_cast<double>(p.inliers.size()) / p.num_correspondences
+                           : 0.0;
+  const std::string support =
+      fmt::format("{} inliers of {} matches ({:.0f} %), {} in {:.0f} ms", p.inliers.size(),
+                  p.num_correspondences, ratio, r.method, r.times.total_ms);
+  if (!r.success()) return fmt::format("no pose: {}\n({})\n", r.reason, support);
+  const Sim3d& pose = p.query_from_world;
+  const Eigen::Quaterniond& q = pose.rotation;
+  const Eigen::Vector3d centre = pose.Inverse().translation;
+  return fmt::format(
+      "pose found: {}\n"
+      "cam_from_world  q (w, x, y, z) = {:.6f} {:.6f} {:.6f} {:.6f}\n"
+      "                t = {:.4f} {:.4f} {:.4f}{}\n"
+      "camera centre   {:.4f} {:.4f} {:.4f} (map units)\n"
+      "uncertainty     {:.3f}°, {:.3g} map units (1 σ)\n",
+      support, q.w(), q.x(), q.y(), q.z(), pose.translation.x(), pose.translation.y(),
+      pose.translation.z(), pose.scale != 1 ? fmt::format(", scale {:.6g}", pose.scale) : "",
+      centre.x(), centre.y(), centre.z(), p.uncertainty.rotation_deg, p.uncertainty.position);
+}
+
 std::string FormatResult(const LocalizeArgs& args, const LocalizerResult& r) {
+  if (args.format == "text") return ResultText(r);
   if (args.format == "colmap") {
     if (r.query.cameras.size() != 1) {
       Fail("--format colmap writes one image's pose; this query has {} cameras (use JSON)",
@@ -256,8 +281,9 @@ void RegisterLocalizeCommand(CLI::App& app) {
   args->options.Add(cmd, kAll);
   cmd->add_flag("--inliers", args->with_inliers, "Also list the inlier observation indices");
   cmd->add_option("--format", args->format,
-                  "json, or colmap (an images.txt entry for COLMAP's tools)")
-      ->check(CLI::IsMember({"json", "colmap"}))
+                  "json, text (a few lines for people), or colmap (an images.txt entry for "
+                  "COLMAP's tools)")
+      ->check(CLI::IsMember({"json", "text", "colmap"}))
       ->capture_default_str();
   cmd->add_option("--ply", args->ply, "Write the map and the localized camera frustum(s) as PLY");
   cmd->add_option("--overlay", args->overlay,

@@ -277,6 +277,15 @@ Sim3d PreparedQuery::ToQueryFromWorld(const Sim3d& aligned_pose) const {
 // turned with only width and height swapped (a portrait photo, a landscape
 // principal point, or the other way round), or a camera made for the photo
 // at another size (its principal point a multiple of this one's centre).
+// The factor the camera looks made for another size by: its principal point
+// the centre of an image that many times this one's (the same in both axes,
+// within 5 %, and more than 1.2 times off); 0 when it does not look so.
+double SizeFactor(const std::array<double, 2>& size, const std::array<double, 2>& principal) {
+  const double sx = principal[0] / (0.5 * size[0]), sy = principal[1] / (0.5 * size[1]);
+  const bool proportional = std::abs(sx - sy) < 0.05 * std::max(sx, sy);
+  return proportional && sx > 0 && std::abs(std::log(sx)) > std::log(1.2) ? sx : 0.0;
+}
+
 std::string CameraMistakeHint(const std::array<double, 2>& size,
                               const std::array<double, 2>& principal) {
   const auto& [w, h] = size;
@@ -288,12 +297,13 @@ std::string CameraMistakeHint(const std::array<double, 2>& size,
         "turn, ({:.0f}, {:.0f}) for a counter-clockwise one)",
         w - cy, cx, cy, h - cx);
   }
-  const double sx = cx / (0.5 * w), sy = cy / (0.5 * h);
-  if (std::abs(sx - sy) < 0.05 * std::max(sx, sy) && std::abs(std::log(sx)) > std::log(1.2)) {
+  if (const double sx = SizeFactor(size, principal); sx > 0) {
+    const double sy = cy / (0.5 * h);
     return fmt::format(
         "the camera looks made for the photo at about {:.2g} times this size (its principal point "
         "is the centre of a {:.0f}x{:.0f} image): scale fx, fy, cx and cy with the photo (by "
-        "about {:.3g})",
+        "about {:.3g}); for a crop of a larger photo, its camera with cx and cy shifted by the "
+        "crop's corner is right",
         sx, sx * w, sy * h, 1 / sx);
   }
   return "";
@@ -373,7 +383,8 @@ std::vector<std::array<double, 3>> ProfileStarts(const CalibrationCheck& check, 
 // well (the demo room: deviance 284 for the focal length, 262 for cx) or
 // like a shift in y; jointly, the others stay near their given values.
 // Among the parameters the joint fit itself refuses, when there are any.
-int BlamedParameter(const CalibrationCheck& check, const std::array<bool, 3>& joint_refused) {
+int BlamedParameter(const CalibrationCheck& check,
+                    const std::array<bool, kJointParameters>& joint_refused) {
   const bool any = joint_refused[0] || joint_refused[1] || joint_refused[2];
   const std::array<double, 3> se = {check.log_focal_se, check.principal_se[0],
                                     check.principal_se[1]};
@@ -414,55 +425,69 @@ std::string CalibrationFailure(const CalibrationCheck& check, double given_focal
                                    check.at_edge[static_cast<size_t>(1 + axis)]);
     }
   }
-  // The aspect ratio and the distortion, judged as the others: outside the
-  // interval, the interval narrow, the change beyond what matters (1 % in
-  // fy / fx; 0.02 in k1, 0.8 % of a 35 mm film's corner radius). Named before
-  // the others when their profile explains more (an fy 5 % off also moves
-  // the focal length and cx that fit best).
+  // The camera as a whole: each parameter of the joint fit judged as the
+  // profiles' are, with its marginal standard error, once the given camera's
+  // deviance rejects it; with the focal length refined, every parameter but
+  // it (fy 1 % off with cy 2 % off: the refined focal length took +6.8 % and
+  // the profiles at it found cy where it was given — a 1.3° / 0.6 m
+  // "success" for an outsider).
+  // The aspect ratio and the distortion: the change beyond what matters 1 %
+  // in fy / fx, 0.02 in λ (0.8 % of a 35 mm film's corner radius).
+  std::array<bool, kJointParameters> joint_refused = {};
+  std::array<double, kJointParameters> beyond = {};  // how many times its limit it is off
+  const JointCalibration& j = check.joint;
+  if (j.fitted && j.deviance > j.DevianceLimit()) {
+    for (int k = 0; k < kJointParameters; ++k) {
+      const size_t i = static_cast<size_t>(k);
+      if (!j.active[i] || (k == 0 && check.refit_principal)) continue;
+      const double size = k == 1 || k == 2 ? check.image_size[i - 1] : 1.0;
+      const std::array<double, kJointParameters> limits = {
+          c.max_focal_discrepancy, c.max_principal_discrepancy, c.max_principal_discrepancy,
+          c.max_principal_discrepancy > 0 ? 0.01 : 0.0,
+          c.max_principal_discrepancy > 0 ? 0.02 : 0.0};
+      const std::array<double, kJointParameters> narrow = {
+          limits[0], std::max(0.05, limits[1]) * size, std::max(0.05, limits[2]) * size, 0.03, 0.1};
+      const double off =
+          k == 0 || k == 3 ? std::abs(std::exp(j.theta[i]) - 1) : std::abs(j.theta[i]);
+      joint_refused[i] = limits[i] > 0 && std::isfinite(j.se[i]) &&
+                         std::abs(j.theta[i]) > kCalibrationZ * j.se[i] &&
+                         kCalibrationZ * j.se[i] <= narrow[i] && off > limits[i] * size;
+      beyond[i] = joint_refused[i] ? off / (limits[i] * size) : 0.0;
+    }
+  }
+  const int farthest =
+      static_cast<int>(std::max_element(beyond.begin(), beyond.end()) - beyond.begin());
+  const int joint_first = beyond[static_cast<size_t>(farthest)] > 0 ? farthest : -1;
+  // Without the joint fit's verdict: the aspect ratio's and the distortion's
+  // own profiles, judged as the others and named first when they explain
+  // more (an fy 5 % off also moves the focal length and cx that fit best).
   double largest = 0;
   for (const ParameterVerdict& p : v) largest = std::max(largest, p.outside ? p.deviance : 0.0);
   const auto rejected = [&](const CalibrationCheck::Extra& e, double allowed, double narrow) {
-    return e.tested &&
+    return joint_first < 0 && e.tested &&
            JudgeParameter(e.best, e.se, e.deviance, allowed, narrow, e.at_edge).refused &&
            e.deviance >= largest;
   };
   const CalibrationCheck::Extra& a = check.log_aspect;
-  if (rejected(a, 0.01, 0.03)) {
+  if (joint_first == 3 || rejected(a, 0.01, 0.03)) {
+    const double best = joint_first == 3 ? j.theta[3] : a.best;
     return fmt::format(
         "the camera's aspect ratio looks wrong: the inliers fit fy / fx {:.3f} times the "
         "camera's ({:+.1f} %); send the photo's own fx and fy (a photo stretched or resized in "
         "one direction only looks like this)",
-        std::exp(a.best), 100 * (std::exp(a.best) - 1));
+        std::exp(best), 100 * (std::exp(best) - 1));
   }
   const CalibrationCheck::Extra& k = check.radial;
-  if (rejected(k, 0.02, 0.1)) {
+  if (joint_first == 4 || rejected(k, 0.02, 0.1)) {
     return fmt::format(
         "the camera's distortion looks wrong: the inliers fit a radial distortion of about k1 "
         "{:+.3f} (division model) beyond the camera's{}; a photo sent without its distortion "
-        "parameters (or with "
-        "another camera's) looks like this: send the camera's model with its distortion (e.g. "
-        "OPENCV fx fy cx cy k1 k2 p1 p2)",
-        k.best, k.at_edge ? " or beyond (the end of the range searched)" : "");
+        "parameters (or with another camera's) looks like this: send the camera's model with "
+        "its distortion (e.g. OPENCV fx fy cx cy k1 k2 p1 p2)",
+        joint_first == 4 ? j.theta[4] : k.best,
+        k.at_edge ? " or beyond (the end of the range searched)" : "");
   }
   if (std::string wrong = RefitPrincipalFailure(check, c); !wrong.empty()) return wrong;
-  // Jointly (a focal length refined has its own test above): each parameter
-  // of the joint fit judged as the profiles' are, with its marginal standard
-  // error, once the given camera's deviance rejects it as a whole.
-  std::array<bool, 3> joint_refused = {false, false, false};
-  const JointCalibration& j = check.joint;
-  if (j.fitted && !check.refit_principal && j.deviance > kJointCalibrationDeviance) {
-    for (int k = 0; k < 3; ++k) {
-      const double theta = j.theta[static_cast<size_t>(k)];
-      const double se = j.se[static_cast<size_t>(k)];
-      const double size = k == 0 ? 1.0 : check.image_size[static_cast<size_t>(k - 1)];
-      const double limit = k == 0 ? c.max_focal_discrepancy : c.max_principal_discrepancy;
-      const double narrow = k == 0 ? limit : std::max(0.05, limit) * size;
-      const double off = k == 0 ? std::abs(std::exp(theta) - 1) : std::abs(theta);
-      joint_refused[static_cast<size_t>(k)] = limit > 0 && std::isfinite(se) &&
-                                              std::abs(theta) > kCalibrationZ * se &&
-                                              kCalibrationZ * se <= narrow && off > limit * size;
-    }
-  }
   const bool joint_refuses = joint_refused[0] || joint_refused[1] || joint_refused[2];
   if (!v[0].refused && !v[1].refused && !v[2].refused && !joint_refuses) return "";
   // Refused: named after the parameter whose refit explains the inliers best
@@ -966,129 +991,183 @@ ProfileTest TestProfile(const FocalProfile& profile, int residuals_per_datum, in
   return test;
 }
 
-// The focal length and the principal point fitted jointly, the pose
-// marginalised: a Gauss–Newton over θ = (log k, cx shift, cy shift) on the
-// residuals of the pose refitted for each θ (variable projection: the
-// Jacobian by forward differences, each column one refit; IRLS weights of
-// the refinement's Cauchy loss; a step kept only when the robust cost falls).
-// One parameter at a time, the profiles settle in a compensating fit: a
-// focal length 3 % short with cx 2 % off fitted focal +1 % and cx a further
-// 0.8 % off, each under its limit — a 1.4° "success"; jointly, the fit goes
-// back to the truth (+3.1 %, -29 px of -31) in 4-5 steps, about 20 refits.
-// Then the test, as TestProfile's: the inliers within the noise at both
-// the fit and the given camera, σ̂² from the fit, the given camera's
-// deviance (3 degrees of freedom) and each parameter's marginal standard
-// error from σ̂² (JᵀJ)⁻¹.
+// The camera fitted jointly, the pose marginalised: a Gauss–Newton over θ =
+// (log k, cx shift, cy shift, log aspect, radial λ) — the aspect ratio only
+// for a camera with fx and fy — on the residuals of the pose refitted for
+// each θ (variable projection: the Jacobian by forward differences, each
+// column one refit; IRLS weights of the refinement's Cauchy loss; a step
+// kept only when the robust cost falls). One parameter at a time, the
+// profiles settle in a compensating fit: a focal length 3 % short with cx 2 %
+// off fitted focal +1 % and cx a further 0.8 % off, each under its limit — a
+// 1.4° "success"; jointly, the fit goes back to the truth (+3.1 %, -29 px of
+// -31) in 2-5 steps, 20-30 refits. And fx alone 6 % off was named a
+// principal point 5 % off (its profile's deviance the largest); jointly, the
+// aspect ratio takes it. Then the test, as TestProfile's: the inliers within
+// the noise at both the fit and the given camera, σ̂² from the fit, the given
+// camera's deviance (as many degrees of freedom as parameters) and each
+// parameter's marginal standard error from σ̂² (JᵀJ)⁻¹.
 JointCalibration FitCalibrationJointly(const FocalProfile& profile, int residuals_per_datum,
                                        int pose_parameters, const std::array<double, 2>& size,
+                                       bool with_aspect,
                                        std::span<const std::array<double, 3>> starts) {
+  using Theta = std::array<double, kJointParameters>;
   JointCalibration joint;
-  const std::array<double, 3> h = {0.01, 0.005 * size[0], 0.005 * size[1]};
-  std::array<std::array<double, 2>, 3> range;
-  for (int k = 0; k < 3; ++k) {
+  // First the focal length and the principal point, then with the aspect
+  // ratio and the distortion from there, each step of that stage at most 4
+  // differencing steps per parameter (all five at once from the given camera
+  // settled in far-off basins: the demo room's cx 5 % off became focal +7.5 %,
+  // cy -12 px).
+  std::vector<int> all = {0, 1, 2};
+  if (with_aspect) all.push_back(3);
+  all.push_back(4);
+  std::vector<int> active = {0, 1, 2};
+  int m = 3;
+  const Theta h = {0.01, 0.005 * size[0], 0.005 * size[1], 0.005, 0.01};
+  std::array<std::array<double, 2>, kJointParameters> range;
+  for (const int k : all) {
     range[static_cast<size_t>(k)] = profile.Over(static_cast<FocalProfile::Parameter>(k)).Range();
   }
+  const auto at_theta = [&](const Theta& t) {
+    return profile.AtCamera({t[0], t[1], t[2]}, t[3], t[4]);
+  };
   const double c2 = profile.loss_scale() * profile.loss_scale();
-  const FocalProfile::Point given = profile.AtCamera({0, 0, 0});
+  const FocalProfile::Point given = at_theta(Theta{});
   if (given.squared.empty() || !std::isfinite(given.cost)) return joint;
   // From the start of least cost: the given camera or one of the profiles'
   // fits (the demo room's cx 5 % off, its focal length refined: from the
   // given camera the descent settled at focal +8 %, cy -12 px).
-  std::array<double, 3> theta = {0, 0, 0};
+  Theta theta{};
   FocalProfile::Point at = given;
   for (const std::array<double, 3>& start : starts) {
-    FocalProfile::Point q = profile.AtCamera(start);
-    if (q.cost < at.cost && q.valid.size() == given.valid.size()) theta = start, at = std::move(q);
+    const Theta t = {start[0], start[1], start[2], 0, 0};
+    FocalProfile::Point q = at_theta(t);
+    if (q.cost < at.cost && q.valid.size() == given.valid.size()) theta = t, at = std::move(q);
   }
   const size_t n = given.residuals.size();
-  Eigen::MatrixXd jacobian(2 * n, 3);
+  Eigen::MatrixXd jacobian;
   std::vector<char> usable(n, 1);
   const auto linearize = [&]() {
+    jacobian.resize(static_cast<Eigen::Index>(2 * n), m);
     std::fill(usable.begin(), usable.end(), 1);
-    for (int k = 0; k < 3; ++k) {
-      std::array<double, 3> moved = theta;
-      moved[static_cast<size_t>(k)] += h[static_cast<size_t>(k)];
-      const FocalProfile::Point q = profile.AtCamera(moved);
+    for (int c = 0; c < m; ++c) {
+      const size_t k = static_cast<size_t>(active[static_cast<size_t>(c)]);
+      Theta moved = theta;
+      moved[k] += h[k];
+      const FocalProfile::Point q = at_theta(moved);
       for (size_t i = 0; i < n; ++i) {
         usable[i] = usable[i] && at.valid[i] && q.valid[i];
-        jacobian.block<2, 1>(static_cast<Eigen::Index>(2 * i), k) =
-            (q.residuals[i] - at.residuals[i]) / h[static_cast<size_t>(k)];
+        jacobian.block<2, 1>(static_cast<Eigen::Index>(2 * i), c) =
+            (q.residuals[i] - at.residuals[i]) / h[k];
       }
     }
   };
-  for (int iteration = 0; iteration < 8; ++iteration) {
-    linearize();
-    Eigen::Matrix3d a = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  // Σ over the usable rows of w JᵢᵀJᵢ (and w Jᵢᵀrᵢ), w per datum.
+  const auto normal_equations = [&](const std::vector<double>& w, Eigen::MatrixXd* a,
+                                    Eigen::VectorXd* b) {
+    *a = Eigen::MatrixXd::Zero(m, m);
+    *b = Eigen::VectorXd::Zero(m);
     for (size_t i = 0; i < n; ++i) {
-      if (!usable[i]) continue;
-      const Eigen::Matrix<double, 2, 3> j =
-          jacobian.block<2, 3>(static_cast<Eigen::Index>(2 * i), 0);
-      const double w = 1.0 / (1.0 + at.residuals[i].squaredNorm() / c2);
-      a.noalias() += w * j.transpose() * j;
-      b.noalias() += w * j.transpose() * at.residuals[i];
+      if (!usable[i] || w[i] == 0) continue;
+      const Eigen::MatrixXd j = jacobian.middleRows(static_cast<Eigen::Index>(2 * i), 2);
+      a->noalias() += w[i] * j.transpose() * j;
+      b->noalias() += w[i] * j.transpose() * at.residuals[i];
     }
-    Eigen::Vector3d step = -a.ldlt().solve(b);
-    if (!step.allFinite()) break;
-    // The step, halved until the cost falls (at most 3 times); a full step
-    // taken is repeated along the same direction while the cost falls (the
-    // IRLS steps fall short by about half when many residuals sit in the
-    // loss's tail).
-    const auto take = [&](const Eigen::Vector3d& delta) {
-      std::array<double, 3> candidate;
-      for (int k = 0; k < 3; ++k) {
-        const auto& r = range[static_cast<size_t>(k)];
-        candidate[static_cast<size_t>(k)] =
-            std::clamp(theta[static_cast<size_t>(k)] + delta[k], r[0], r[1]);
+  };
+  for (int stage = 0; stage < 2; ++stage) {
+    if (stage == 1) {
+      if (all.size() == active.size()) break;
+      active = all;
+      m = static_cast<int>(active.size());
+    }
+    for (int iteration = 0; iteration < 8; ++iteration) {
+      linearize();
+      std::vector<double> w(n);
+      for (size_t i = 0; i < n; ++i) w[i] = 1.0 / (1.0 + at.residuals[i].squaredNorm() / c2);
+      Eigen::MatrixXd a;
+      Eigen::VectorXd b;
+      normal_equations(w, &a, &b);
+      Eigen::VectorXd step = -a.ldlt().solve(b);
+      if (!step.allFinite()) break;
+      if (stage == 1) {
+        double largest = 0;
+        for (int c = 0; c < m; ++c) {
+          largest = std::max(
+              largest, std::abs(step[c]) / h[static_cast<size_t>(active[static_cast<size_t>(c)])]);
+        }
+        if (largest > 4) step *= 4 / largest;
       }
-      FocalProfile::Point q = profile.AtCamera(candidate);
-      if (!(q.cost < at.cost)) return false;
-      theta = candidate, at = std::move(q);
-      return true;
-    };
-    int halvings = 0;
-    while (halvings < 4 && !take(step)) step *= 0.5, ++halvings;
-    if (halvings == 4) break;
-    int longer = 0;
-    while (halvings == 0 && longer < 3 && take(step)) ++longer;
-    bool small = true;
-    for (int k = 0; k < 3; ++k) {
-      small = small && std::abs(step[k]) < 0.05 * h[static_cast<size_t>(k)];
+      // The step, halved until the cost falls (at most 3 times); a full step
+      // taken is repeated along the same direction while the cost falls (the
+      // IRLS steps fall short by about half when many residuals sit in the
+      // loss's tail).
+      const auto take = [&](const Eigen::VectorXd& delta) {
+        Theta candidate = theta;
+        for (int c = 0; c < m; ++c) {
+          const size_t k = static_cast<size_t>(active[static_cast<size_t>(c)]);
+          candidate[k] = std::clamp(theta[k] + delta[c], range[k][0], range[k][1]);
+        }
+        FocalProfile::Point q = at_theta(candidate);
+        if (!(q.cost < at.cost)) return false;
+        theta = candidate, at = std::move(q);
+        return true;
+      };
+      int halvings = 0;
+      while (halvings < 4 && !take(step)) step *= 0.5, ++halvings;
+      if (halvings == 4) break;
+      int longer = 0;
+      while (halvings == 0 && longer < 3 && take(step)) ++longer;
+      bool small = true;
+      for (int c = 0; c < m; ++c) {
+        small = small &&
+                std::abs(step[c]) < 0.05 * h[static_cast<size_t>(active[static_cast<size_t>(c)])];
+      }
+      if (small) break;
     }
-    if (small) break;
   }
   linearize();
+  fmt::print(stderr, "joint {:.4f} {:.2f} {:.2f} {:.4f} {:.4f} cost {:.3f} given {:.3f}\n",
+             theta[0], theta[1], theta[2], theta[3], theta[4], at.cost, given.cost);
   std::vector<char> kept(n, 1);
   KeepWithinNoise(at.squared, residuals_per_datum, &kept);
   KeepWithinNoise(given.squared, residuals_per_datum, &kept);
   double s_at = 0, s_given = 0;
   int rows = 0;
-  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+  std::vector<double> w(n, 0.0);
   for (size_t i = 0; i < n; ++i) {
     if (!kept[i]) continue;
     s_at += at.squared[i];
     s_given += given.squared[i];
     rows += residuals_per_datum;
-    if (usable[i]) {
-      const Eigen::Matrix<double, 2, 3> j =
-          jacobian.block<2, 3>(static_cast<Eigen::Index>(2 * i), 0);
-      information.noalias() += j.transpose() * j;
-    }
+    w[i] = 1;
   }
-  const int dof = rows - pose_parameters - 3;
+  const int dof = rows - pose_parameters - m;
   if (dof <= 0 || !(s_at > 0)) return joint;
   const double sigma2 = s_at / dof;
   joint.fitted = true;
+  joint.parameters = m;
   joint.theta = theta;
+  for (const int k : active) joint.active[static_cast<size_t>(k)] = true;
   joint.deviance = std::max(0.0, s_given - s_at) / sigma2;
-  const Eigen::LDLT<Eigen::Matrix3d> ldlt(information);
+  Eigen::MatrixXd information;
+  Eigen::VectorXd unused;
+  normal_equations(w, &information, &unused);
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(information);
   if (ldlt.info() == Eigen::Success && ldlt.isPositive()) {
-    const Eigen::Matrix3d covariance = sigma2 * ldlt.solve(Eigen::Matrix3d::Identity());
-    for (int k = 0; k < 3; ++k) {
-      if (covariance(k, k) > 0) joint.se[static_cast<size_t>(k)] = std::sqrt(covariance(k, k));
+    const Eigen::MatrixXd covariance = sigma2 * ldlt.solve(Eigen::MatrixXd::Identity(m, m));
+    for (int c = 0; c < m; ++c) {
+      if (covariance(c, c) > 0) {
+        joint.se[static_cast<size_t>(active[static_cast<size_t>(c)])] = std::sqrt(covariance(c, c));
+      }
     }
   }
   return joint;
+}
+
+// Whether the camera's model has fx and fy apart (its aspect ratio can be wrong).
+bool SeparateFocalLengths(const Camera& camera) {
+  Camera stretched = camera;
+  stretched.ScaleFocalLengthY(2);
+  return stretched.FocalLengthY() != camera.FocalLengthY();
 }
 
 // The mean square error of a given calibration value, a prior N(0, prior²)
@@ -1165,9 +1244,7 @@ void CheckAspectAndDistortion(const FocalProfile& profile, int residuals_per_dat
     AddCalibrationUncertainty(t, prior, check);
     *out = {true, t.best, t.se, t.deviance, t.at_edge};
   };
-  Camera stretched = camera;
-  stretched.ScaleFocalLengthY(2);
-  if (stretched.FocalLengthY() != camera.FocalLengthY()) {
+  if (SeparateFocalLengths(camera)) {
     extra(FocalProfile::Parameter::kLogAspect, 0.01, 5e-3, 0.01 / kCalibrationZ,
           &check->log_aspect);
   }
@@ -1314,18 +1391,20 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
       // the camera as given, the principal point shows (FitCalibrationJointly).
       const FocalProfile given_camera(method, query, map, check_inliers, ransac.model, options,
                                       &unused_ms);
-      check.joint =
-          FitCalibrationJointly(given_camera, residuals_per_datum, pose_parameters,
-                                check.image_size, ProfileStarts(check, focal, result.given_focal));
+      check.joint = FitCalibrationJointly(given_camera, residuals_per_datum, pose_parameters,
+                                          check.image_size, SeparateFocalLengths(query.cameras[0]),
+                                          ProfileStarts(check, focal, result.given_focal));
       check.refit_principal =
           std::array<double, 2>{check.given_principal[0] + check.joint.theta[1],
                                 check.given_principal[1] + check.joint.theta[2]};
-      CheckAspectAndDistortion(given_camera.WithBase(check.joint.theta), residuals_per_datum,
-                               pose_parameters, query.cameras[0], &check);
+      const std::array<double, 3> fitted = {check.joint.theta[0], check.joint.theta[1],
+                                            check.joint.theta[2]};
+      CheckAspectAndDistortion(given_camera.WithBase(fitted), residuals_per_datum, pose_parameters,
+                               query.cameras[0], &check);
     } else {
-      check.joint =
-          FitCalibrationJointly(profile, residuals_per_datum, pose_parameters, check.image_size,
-                                ProfileStarts(check, focal, result.given_focal));
+      check.joint = FitCalibrationJointly(profile, residuals_per_datum, pose_parameters,
+                                          check.image_size, SeparateFocalLengths(scaled.cameras[0]),
+                                          ProfileStarts(check, focal, result.given_focal));
       CheckAspectAndDistortion(profile, residuals_per_datum, pose_parameters, scaled.cameras[0],
                                &check);
     }
@@ -1382,10 +1461,15 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
 // A camera that does not fit its photo, as the reason, or "": a principal
 // point outside its image (a photo downscaled or cropped after its
 // calibration keeps its camera's: fountain at 640 px with the 1536 px camera
-// was a 29° "success"), or one that shows a common mistake (CameraMistakeHint:
-// a photo halved with its camera was a 24° "success", its inliers explained
-// by a focal length twice too long) unless the principal point is not
-// checked (max_principal_discrepancy 0).
+// was a 29° "success"), a photo turned with only the camera's width and
+// height swapped, or a camera made for the photo at 1.8 times its size or
+// more (a photo halved with its camera was a 24° "success", its inliers
+// explained by a focal length twice too long) — unless the principal point is
+// not checked (max_principal_discrepancy 0). A camera that only looks made
+// for a size less far off is left to the calibration check, which names the
+// mistake when it refuses: an off-centre crop sent with its true camera looks
+// the same (a 900x600 crop of fountain's top left: "made for 1.7 times this
+// size"), and was refused before any work.
 std::string CameraDoesNotFitPhoto(const Query& query, const SuccessCriteria& criteria) {
   for (size_t c = 0; c < query.cameras.size(); ++c) {
     const Camera& camera = query.cameras[c];
@@ -1393,7 +1477,12 @@ std::string CameraDoesNotFitPhoto(const Query& query, const SuccessCriteria& cri
     const bool outside =
         !(pp.x() >= 0 && pp.x() <= camera.width && pp.y() >= 0 && pp.y() <= camera.height);
     const std::string hint = CameraMistakeHint(camera);
-    if (!outside && (hint.empty() || !(criteria.max_principal_discrepancy > 0))) continue;
+    const double factor = SizeFactor(
+        {static_cast<double>(camera.width), static_cast<double>(camera.height)}, {pp.x(), pp.y()});
+    const bool beyond_check = factor == 0 || std::abs(std::log(factor)) >= std::log(1.8);
+    if (!outside && (hint.empty() || !beyond_check || !(criteria.max_principal_discrepancy > 0))) {
+      continue;
+    }
     return fmt::format(
         "the camera{} does not fit its photo: its principal point ({:.0f}, {:.0f}) is {} the "
         "{}x{} image; {}",

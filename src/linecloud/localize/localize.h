@@ -150,18 +150,25 @@ struct LocalizeOptions {
   void Check() const;
 };
 
-// The focal length and the principal point fitted together (CalibrationCheck::joint).
+// The camera fitted as a whole (CalibrationCheck::joint): θ = (log of a
+// factor on the focal length, cx shift, cy shift in px, log of a factor on fy
+// alone, radial λ of the division model), the aspect ratio only for a camera
+// with fx and fy (`active`).
+inline constexpr int kJointParameters = 5;
 struct JointCalibration {
   bool fitted = false;
-  std::array<double, 3> theta = {0, 0, 0};
-  std::array<double, 3> se = {std::numeric_limits<double>::infinity(),
-                              std::numeric_limits<double>::infinity(),
-                              std::numeric_limits<double>::infinity()};
+  int parameters = 0;  // how many were fitted (the deviance's degrees of freedom)
+  std::array<bool, kJointParameters> active = {};
+  std::array<double, kJointParameters> theta = {};
+  std::array<double, kJointParameters> se = {
+      std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+      std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+      std::numeric_limits<double>::infinity()};
   double deviance = 0;
+  // χ² with `parameters` degrees of freedom at 99.7 %: the deviance beyond it
+  // rejects the camera as given.
+  double DevianceLimit() const { return parameters >= 5 ? 17.96 : parameters == 4 ? 16.01 : 13.93; }
 };
-// χ² with 3 degrees of freedom at 99.7 %: the joint fit's deviance beyond it
-// rejects the camera as given.
-inline constexpr double kJointCalibrationDeviance = 13.93;
 // The calibration check (one camera, focal length not refined): the focal
 // length the inliers fit best, its standard error (of its logarithm, the pose
 // marginalised) and 99.7 % interval, and the given focal length's deviance
@@ -201,12 +208,11 @@ struct CalibrationCheck {
   // Whether the least cost lay at an end of the range searched (focal
   // length, cx, cy): the camera is farther off than the check reaches.
   std::array<bool, 3> at_edge = {false, false, false};
-  // The focal length and the principal point fitted together, the pose
-  // free (from the camera as given, also when the focal length is refined):
-  // θ = (log of a factor on the focal length, cx shift, cy shift in px),
-  // each one's marginal standard error, and the given camera's deviance
-  // (χ² with 3 degrees of freedom). One at a time, the profiles above can
-  // settle where two wrong parameters compensate each other.
+  // The camera fitted as a whole, the pose free (from the camera as given,
+  // also when the focal length is refined): each parameter's change, its
+  // marginal standard error, and the given camera's deviance. One at a
+  // time, the profiles above can settle where two wrong parameters
+  // compensate each other.
   JointCalibration joint;
   // With the focal length refined: the principal point fitted jointly with
   // it from the camera as given (a refined focal length and the pose absorb
