@@ -99,6 +99,10 @@ def mistakes(cam):
     out.append(("downscaled to 640, width/height changed only",
                 dict(cam, width=640, height=round(640 * h / w)), "small"))
     out.append(("halved, width/height changed only", dict(cam, width=w // 2, height=h // 2), "half"))
+    out.append(("top-left 60 % crop with its true camera (not a mistake)",
+                dict(cam, width=int(0.6 * w), height=int(0.6 * h)), "topleft"))
+    out.append(("fx alone x0.94", with_params([fx * 0.94, fy, cx, cy]), "photo"))
+    out.append(("fy x0.99 and cy -2 % of the size", with_params([fx, fy * 0.99, cx, cy - 0.02 * h]), "photo"))
     out.append(("half crop, principal point centred",
                 with_params([fx, fy, w / 4, h / 4], width=w // 2, height=h // 2), "crop"))
     return out
@@ -151,7 +155,8 @@ def main():
                                       ("half", cv2.resize(pixels, (pixels.shape[1] // 2, pixels.shape[0] // 2),
                                                           interpolation=cv2.INTER_AREA)),
                                       ("crop", pixels[pixels.shape[0] // 4: 3 * pixels.shape[0] // 4,
-                                                      pixels.shape[1] // 4: 3 * pixels.shape[1] // 4])):
+                                                      pixels.shape[1] // 4: 3 * pixels.shape[1] // 4]),
+                                      ("topleft", pixels[: int(0.6 * pixels.shape[0]), : int(0.6 * pixels.shape[1])])):
                         path = Path(tmp) / f"{work.name}-{kind}-{im['name']}"
                         cv2.imwrite(str(path), img, [cv2.IMWRITE_JPEG_QUALITY, 92])
                         copies[kind] = path

@@ -471,3 +471,40 @@ def test_exit_with_a_daemon_thread_inside_a_long_call(demo, tmp_path):
                              timeout=60, env=dict(os.environ))
         assert out.returncode == 0, (out.returncode, out.stderr[-2000:])
         assert out.stdout == "exiting\n", out.stdout
+
+
+def test_ctrl_c_stops_a_photo_during_sift(fountain, tmp_path):
+    """Ctrl-C during a photo's SIFT extraction is heard there (between the scale space's
+    octaves and levels), not after it: it took 5.9 s on a large photo."""
+    import os
+    import signal
+    import time
+    cv2 = pytest.importorskip("cv2")
+    key = tmp_path / "fixed.key"
+    key.write_text("# fixed public test key\ndirections sphere\n" + "5a" * 32 + "\n")
+    key.chmod(0o600)
+    cloud = lc.lift(fountain["model"], database=fountain["database"], key_file=key,
+                    key_store=tmp_path / "keys")
+    localizer = lc.Localizer(cloud)
+    big = tmp_path / "big.png"  # 3072 x 2048: seconds of SIFT
+    cv2.imwrite(str(big), cv2.resize(cv2.imread(str(fountain["photo"])), (3072, 2048),
+                                     interpolation=cv2.INTER_CUBIC))
+    camera = {"model": "PINHOLE", "width": 3072, "height": 2048,
+              "params": [2 * v for v in fountain["camera"]["params"]]}
+    whole = localizer.localize_image(big, camera, with_inliers=False)
+    extract_s = whole["times_ms"]["extract"] / 1000
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
+    start = time.monotonic()
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            localizer.localize_image(big, camera, with_inliers=False)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    elapsed = time.monotonic() - start
+    timer.join()
+    # Heard within a fraction of a second of the signal, long before SIFT's end.
+    assert extract_s > 1.5, whole["times_ms"]
+    assert 0.3 <= elapsed < min(0.3 + 0.5, 0.6 * extract_s), (elapsed, extract_s)
+    assert localizer.localize_image(fountain["photo"], fountain["camera"])["success"]

@@ -199,11 +199,12 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
   const int threads = own ? options.threads : 1;
   std::vector<Level> levels;
   std::vector<OctaveGradients> octaves;
-  for (bool more = own ? ProcessFirstOctave(f, pixels.data(), threads, options.deadline)
+  const SiftDeadline until(options.deadline, options.should_stop);
+  for (bool more = own ? ProcessFirstOctave(f, pixels.data(), threads, until)
                        : vl_sift_process_first_octave(f, pixels.data()) != VL_ERR_EOF;
-       more; more = own ? ProcessNextOctave(f, threads, options.deadline)
+       more; more = own ? ProcessNextOctave(f, threads, until)
                         : vl_sift_process_next_octave(f) != VL_ERR_EOF) {
-    StopAtSiftDeadline(options.deadline);
+    StopAtSiftDeadline(until);
     vl_sift_detect(f);
     const size_t first_new = levels.size();
     AppendLevels(f, static_cast<int>(octaves.size()), &levels);
@@ -211,7 +212,7 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
       const size_t pixels_here = static_cast<size_t>(f->octave_width) * f->octave_height;
       f->grad = sift.Allocate(2 * (f->s_max - f->s_min - 2) * pixels_here);
       f->grad_o = f->o_min - 1;  // not computed yet
-      StopAtSiftDeadline(options.deadline);
+      StopAtSiftDeadline(until);
       UpdateGradients(f, threads);
       octaves.push_back({f->o_cur, f->octave_width, f->octave_height, f->grad});
     } else {
@@ -222,7 +223,7 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
   const size_t first_kept = FirstKeptLevel(levels, options.max_num_features);
   if (own) {
     for (size_t i = first_kept; i < levels.size(); ++i) {
-      StopAtSiftDeadline(options.deadline);
+      StopAtSiftDeadline(until);
       const OctaveGradients& octave = octaves[levels[i].octave];
       f->o_cur = f->grad_o = octave.o;
       f->octave_width = octave.width;

@@ -21,6 +21,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -63,6 +64,9 @@ struct SiftOptions {
   // wait for scale-space memory (SetSiftMemoryLimit) ends, with
   // DeadlinePassed. OpenCV's extractor runs to its end.
   std::optional<std::chrono::steady_clock::time_point> deadline;
+  // Polled as the deadline is: true stops the extraction (DeadlinePassed),
+  // e.g. Python's Ctrl-C. Called on the extracting thread only.
+  std::function<bool()> should_stop;
 
   void Check() const;
 };

@@ -503,9 +503,10 @@ class MappingPool {
 }  // namespace
 
 void StopAtSiftDeadline(const SiftDeadline& deadline) {
-  if (deadline && std::chrono::steady_clock::now() >= *deadline) {
+  if (deadline.at && std::chrono::steady_clock::now() >= *deadline.at) {
     throw DeadlinePassed("the request's deadline passed during SIFT");
   }
+  if (deadline.stop && deadline.stop()) throw DeadlinePassed("stopped by the caller during SIFT");
 }
 
 void SetSiftMemoryLimit(size_t bytes) { MappingPool::Get().SetLimit(bytes); }
@@ -534,7 +535,7 @@ SiftFilter::SiftFilter(int width, int height, int octaves, int levels, int first
                        bool vlfeat_gradients, SiftDeadline wait_until) {
   const size_t need = SiftFilterBytes(width, height, octaves, levels, first_octave);
   size_t limit = 0;
-  switch (MappingPool::Get().Reserve(need, wait_until, &limit)) {
+  switch (MappingPool::Get().Reserve(need, wait_until.at, &limit)) {
     case MappingPool::Reservation::kMade:
       break;
     case MappingPool::Reservation::kOverLimit:

@@ -18,6 +18,7 @@
 
 #include <chrono>
 #include <cstddef>
+#include <functional>
 #include <optional>
 #include <utility>
 #include <vector>
@@ -36,9 +37,18 @@ struct Mapping {
   size_t bytes = 0;
 };
 
-// When the caller stops waiting; none: run to the end.
-using SiftDeadline = std::optional<std::chrono::steady_clock::time_point>;
-// Throws DeadlinePassed once `deadline` has passed.
+// When the caller stops waiting (none: run to the end), and whether it asks
+// to stop (polled on the extracting thread between steps: Python's Ctrl-C).
+struct SiftDeadline {
+  std::optional<std::chrono::steady_clock::time_point> at;
+  std::function<bool()> stop;
+
+  SiftDeadline() = default;
+  SiftDeadline(std::optional<std::chrono::steady_clock::time_point> at_,  // NOLINT: implicit
+               std::function<bool()> stop_ = {})
+      : at(at_), stop(std::move(stop_)) {}
+};
+// Throws DeadlinePassed once `deadline` has passed or its caller asks to stop.
 void StopAtSiftDeadline(const SiftDeadline& deadline);
 
 // The scale space's memory, process-wide: every SiftFilter reserves the bytes
@@ -71,7 +81,7 @@ size_t SiftFilterBytes(int width, int height, int octaves, int levels, int first
 class SiftFilter {
  public:
   SiftFilter(int width, int height, int octaves, int levels, int first_octave,
-             bool vlfeat_gradients, SiftDeadline wait_until = std::nullopt);
+             bool vlfeat_gradients, SiftDeadline wait_until = {});
   ~SiftFilter();
   SiftFilter(const SiftFilter&) = delete;
   SiftFilter& operator=(const SiftFilter&) = delete;
@@ -107,9 +117,9 @@ void SmoothGaussian(const float* in, float* out, int width, int height,
 // VLFeat).
 // With a deadline: DeadlinePassed between levels once it has passed.
 bool ProcessFirstOctave(VlSiftFilt* sift, const float* image, int threads,
-                        const SiftDeadline& deadline = std::nullopt);
+                        const SiftDeadline& deadline = {});
 // The next octave, as `vl_sift_process_next_octave`; false after the last.
-bool ProcessNextOctave(VlSiftFilt* sift, int threads, const SiftDeadline& deadline = std::nullopt);
+bool ProcessNextOctave(VlSiftFilt* sift, int threads, const SiftDeadline& deadline = {});
 // The current octave's gradient images, as VLFeat computes them on its first
 // orientation or descriptor call; afterwards VLFeat's orientation and
 // descriptor calls of this octave only read the filter (any thread).

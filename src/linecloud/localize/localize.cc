@@ -572,8 +572,8 @@ std::string SuccessFailure(const MethodInfo& method, const LocalizeResult& r,
   if (ratio < c.min_inlier_ratio) {
     return fmt::format(
         "too few of the matches fit: {} of {} ({:.0f} %, fewer than the {:.0f} % needed: option "
-        "min_inlier_ratio); a photo of another place, or one the map sees from too far, looks "
-        "like this",
+        "min_inlier_ratio); a photo of another place, one the map sees from too far, or a wrong "
+        "camera (a photo resized in one direction with its old camera), looks like this",
         inliers, r.num_correspondences, 100 * ratio, 100 * c.min_inlier_ratio);
   }
   if (c.max_runner_up_share > 0 && r.stats.runner_up_own_inliers > 0 &&

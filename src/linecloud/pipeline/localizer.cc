@@ -377,6 +377,7 @@ ImageQuery Localizer::MatchPhoto(const QueryPhoto& photo, const LocalizeRequest&
   if (request.threads < 0) Fail("{}: threads must not be negative", photo.name);
   if (request.threads > 0) o.threads = request.threads;
   o.sift.deadline = request.deadline;
+  o.sift.should_stop = request.should_stop;  // polled between its octaves and levels
   ImageQuery q;
   if (photo.features) {
     CheckFeatures(*photo.features, photo.camera, photo.name);

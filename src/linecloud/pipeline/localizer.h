@@ -103,7 +103,8 @@ struct LocalizeRequest {
   std::optional<std::chrono::steady_clock::time_point> deadline;
   int threads = 0;           // this request's matching threads (0: the Localizer's image.threads)
   bool keep_images = false;  // keep each decoded photo in the result (overlays)
-  // Polled once before RANSAC and about every 50 ms while it runs: true
+  // Polled during SIFT (between its octaves and levels), once before RANSAC
+  // and about every 50 ms while it runs: true
   // stops the request, whose result is then "no pose" ("stopped by the
   // caller"), e.g. Python's Ctrl-C.
   std::function<bool()> should_stop;
