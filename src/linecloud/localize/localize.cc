@@ -1125,8 +1125,6 @@ JointCalibration FitCalibrationJointly(const FocalProfile& profile, int residual
     }
   }
   linearize();
-  fmt::print(stderr, "joint {:.4f} {:.2f} {:.2f} {:.4f} {:.4f} cost {:.3f} given {:.3f}\n",
-             theta[0], theta[1], theta[2], theta[3], theta[4], at.cost, given.cost);
   std::vector<char> kept(n, 1);
   KeepWithinNoise(at.squared, residuals_per_datum, &kept);
   KeepWithinNoise(given.squared, residuals_per_datum, &kept);
