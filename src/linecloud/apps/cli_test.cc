@@ -305,6 +305,10 @@ TEST(Cli, NewcomerPathOnARealModel) {
   ASSERT_EQ(quiet.code, 0) << quiet.err;
   EXPECT_EQ(std::count(quiet.out.begin(), quiet.out.end(), '\n'), 2) << quiet.out;
   EXPECT_NE(quiet.out.find("new key"), std::string::npos) << quiet.out;
+  // A second key store gives the model a second key: the line says what to do instead.
+  EXPECT_NE(quiet.out.find("lifted before with another key store, use that key instead"),
+            std::string::npos)
+      << quiet.out;
   quiet = RunCli({"lift", "--model", model, "--out", tmp.Path("quiet.lcm"), "--key-store",
                   tmp.Path("quiet-keys"), "--quiet"});
   EXPECT_EQ(std::count(quiet.out.begin(), quiet.out.end(), '\n'), 1) << quiet.out;
@@ -885,6 +889,19 @@ TEST(Cli, LocalizeDemoQueriesAgainstTheLineCloudAndThePointModel) {
             0.2 * 3.14159 / 180);
   // [newcomer] The image is named after the query file, not "query".
   EXPECT_EQ(name, std::filesystem::path(query).stem().string());
+  // [newcomer] A few lines for people: the pose in the same numbers, or why there is none.
+  r = RunCli({"localize", "--map", demo + "/map.lcm", "--query", query, "--method", "p4L+u",
+              "--format", "text"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out.rfind("pose found: ", 0), 0u) << r.out;
+  EXPECT_NE(r.out.find(fmt::format("q (w, x, y, z) = {:.6f} {:.6f} {:.6f} {:.6f}", qw, qx, qy, qz)),
+            std::string::npos)
+      << r.out;
+  EXPECT_LE(std::count(r.out.begin(), r.out.end(), '\n'), 5) << r.out;
+  r = RunCli({"localize", "--map", demo + "/map.lcm", "--query", query, "--method", "p4L+u",
+              "--format", "text", "--min-inliers", "100000"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out.rfind("no pose: too few inliers", 0), 0u) << r.out;
   // Bounded RANSAC, and "ran fine, no pose": exit 0, success false, a reason.
   r = RunCli({"localize", "--map", demo + "/map.lcm", "--query", query, "--method", "p4L+u",
               "--min-inliers", "100000", "--max-iterations", "50", "--max-seconds", "5"});

@@ -43,7 +43,10 @@ void RunLift(LiftArgs args) {
   const bool new_key = r.key_source.starts_with("new");
   if (args.quiet) {  // [newcomer] one line, and the new key's warning in one more
     if (new_key) {
-      std::cout << fmt::format("new key {}: keep it secret and never delete it\n", r.key_path);
+      std::cout << fmt::format(
+          "new key {}: keep it secret and never delete it; if this model was lifted before "
+          "with another key store, use that key instead (--key-file)\n",
+          r.key_path);
     }
     return;
   }
@@ -67,7 +70,11 @@ void RunLift(LiftArgs args) {
   if (new_key) {
     std::cout << "This key now belongs to the model: every later lift of it (any output, "
                  "encoding or option) reuses it. Keep it secret and never delete it: two "
-                 "different liftings of one model reveal its points.\n";
+                 "different liftings of one model reveal its points. If this model (or another "
+                 "map of the same place) was already lifted and released from another key store "
+                 "or machine, the two releases together reveal its points: delete this output, "
+                 "and lift with that key (--key-file KEY, or --key-store / LINECLOUD_KEY_STORE "
+                 "naming that store).\n";
   }
 }
 
