@@ -31,6 +31,8 @@ def test_estimate_pose_finds_the_true_pose_and_its_inliers(method):
     assert mask.dtype == bool and mask.shape == (300,)
     assert np.array_equal(mask, inlier)
     assert info["num_inliers"] == mask.sum()
+    # The Localizer's convention beside PoseLib's: the same inliers as indices.
+    np.testing.assert_array_equal(info["inlier_indices"], np.flatnonzero(mask))
 
 
 def test_same_seed_same_pose_and_a_generalized_camera():

@@ -1,6 +1,7 @@
 // estimate_pose (PoseLib's calling convention: 2D points, 3D lines or points,
 // a camera, RANSAC and refinement options → pose, info), solve (one minimal
 // solver, every solution) and methods (the 16 methods of Speciale et al.).
+#include <algorithm>
 #include <chrono>
 
 #include <fmt/format.h>
@@ -233,7 +234,13 @@ py::tuple ResultToPython(const Estimate& e, const LocalizeResult& r) {
   info["success"] = r.success;
   if (!r.success) info["reason"] = r.failure;
   info["num_inliers"] = r.inliers.size();
-  info["inliers"] = mask;
+  info["inliers"] = mask;  // PoseLib's convention: a mask over the correspondences
+  // The Localizer's convention (its results' "inliers"): the indices, ascending.
+  py::array_t<int64_t> indices(static_cast<py::ssize_t>(r.inliers.size()));
+  std::vector<int> sorted = r.inliers;
+  std::sort(sorted.begin(), sorted.end());
+  std::copy(sorted.begin(), sorted.end(), indices.mutable_data());
+  info["inlier_indices"] = indices;
   info["inlier_ratio"] =
       r.num_correspondences ? double(r.inliers.size()) / r.num_correspondences : 0.0;
   info["iterations"] = r.stats.iterations;
@@ -345,7 +352,8 @@ void BindEstimation(py::module_& m) {
         "local_optimization; refine: False or max_iterations, loss_scale, ...; success: False "
         "(every RANSAC pose counts) or min_inliers, min_inlier_ratio, ... Returns (pose, info): "
         "pose {q, t[, scale]} cam_from_world (None when RANSAC found none), info with success, "
-        "reason, num_inliers, inliers (a bool mask), iterations, ...");
+        "reason, num_inliers, inliers (a bool mask, as PoseLib's), inlier_indices (the "
+        "Localizer's convention), iterations, ...");
   m.def("_time_estimate_pose", &TimeEstimatePose, py::arg("repeats"), LINECLOUD_ESTIMATE_ARGS,
         "Seconds of each of `repeats` C++ calls on the prepared instance (the benchmark's peer).");
   m.def("solve", &Solve, py::arg("method"),
