@@ -164,6 +164,12 @@ def test_opencv_sift_from_python_localizes(fountain, fountain_localizer):
     # [newcomer] One photo's keypoints as a Python list of [x, y] (not a rig of photos).
     listed = localizer.localize_features(kp[:, :2].tolist(), desc, fountain["camera"])
     assert listed["q"] == localizer.localize_features(kp[:, :2], desc, fountain["camera"])["q"]
+    # [newcomer] OpenCV's descriptors not converted: as floats a TypeError naming the converter;
+    # cast to bytes (L2-normalised, not RootSIFT: 146 inliers where 479) a ValueError saying so.
+    with pytest.raises(TypeError, match="from_opencv_sift"):
+        localizer.localize_features(kp, descriptors, fountain["camera"])
+    with pytest.raises(ValueError, match="look like L2-normalised SIFT"):
+        localizer.localize_features(kp, descriptors.astype(np.uint8), fountain["camera"])
 
 
 def test_bad_photos_raise(fountain, fountain_localizer, tmp_path):

@@ -213,9 +213,12 @@ std::vector<double> FiniteRows(py::handle value, int cols, const std::string& na
 }
 
 std::vector<uint8_t> ByteRows(py::handle value, int cols, const std::string& name, size_t* rows) {
-  const py::array array = CheckedArray(value, cols, name, "u", "uint8 (COLMAP's SIFT bytes)");
+  // OpenCV's SIFT gives float32 L2-normalised descriptors: the conversion named.
+  constexpr const char* kExpected =
+      "uint8 (COLMAP's RootSIFT bytes; OpenCV's float SIFT: linecloud.interop.from_opencv_sift)";
+  const py::array array = CheckedArray(value, cols, name, "u", kExpected);
   if (array.dtype().itemsize() != 1) {
-    throw py::type_error(fmt::format("{}: expected uint8 (COLMAP's SIFT bytes), got dtype {}", name,
+    throw py::type_error(fmt::format("{}: expected {}, got dtype {}", name, kExpected,
                                      py::str(array.dtype()).cast<std::string>()));
   }
   const auto bytes = py::array_t<uint8_t, py::array::c_style>::ensure(array);
