@@ -4,6 +4,7 @@
 // point maps, eq. 6 for line clouds; Speciale et al., CVPR 2019).
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <limits>
@@ -152,9 +153,9 @@ struct LocalizeOptions {
 
 // The camera fitted as a whole (CalibrationCheck::joint): θ = (log of a
 // factor on the focal length, cx shift, cy shift in px, log of a factor on fy
-// alone, radial λ of the division model), the aspect ratio only for a camera
-// with fx and fy (`active`).
-inline constexpr int kJointParameters = 5;
+// alone, radial λ of the division model, tangential p1, p2), the aspect ratio
+// only for a camera with fx and fy (`active`).
+inline constexpr int kJointParameters = 7;
 struct JointCalibration {
   bool fitted = false;
   int parameters = 0;  // how many were fitted (the deviance's degrees of freedom)
@@ -163,12 +164,17 @@ struct JointCalibration {
   std::array<double, kJointParameters> se = {
       std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
       std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
+      std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
       std::numeric_limits<double>::infinity()};
   double deviance = 0;
   // χ² with `parameters` degrees of freedom at 99.7 %: the deviance beyond it
   // rejects the camera as given.
-  double DevianceLimit() const { return parameters >= 5 ? 17.96 : parameters == 4 ? 16.01 : 13.93; }
+  double DevianceLimit() const {
+    constexpr std::array<double, 8> kLimit = {0, 8.81, 11.62, 13.93, 16.01, 17.96, 19.80, 21.58};
+    return kLimit[static_cast<size_t>(std::clamp(parameters, 1, 7))];
+  }
 };
+
 // The calibration check (one camera, focal length not refined): the focal
 // length the inliers fit best, its standard error (of its logarithm, the pose
 // marginalised) and 99.7 % interval, and the given focal length's deviance
