@@ -349,30 +349,36 @@ def test_lift_takes_every_option_of_the_cli(demo, tmp_path):
         lc.lift(demo / "model", sparsify=0.3, sparsify_mode="dense")
 
 
-def test_ctrl_c_stops_a_long_localization(demo):
-    """A call runs without the GIL and polls Python's signal handlers: Ctrl-C (SIGINT) ends a
-    RANSAC run that would take hours within a fraction of a second."""
-    import os
+def _interrupted_after(seconds, call):
+    """Runs `call` with Ctrl-C (SIGINT) sent `seconds` after it starts; asserts it raised
+    KeyboardInterrupt and returns how long it took. Python's own Ctrl-C handler, whatever the
+    runner inherited: a shell's background job starts with SIGINT ignored, and Python then
+    installs none (a call ran for hours)."""
     import signal
     import time
-    query = json.loads(sorted((demo / "queries").glob("*.json"))[0].read_text())
-    localizer = lc.Localizer(demo / "map.lcm")
-    # Python's own Ctrl-C handler, whatever the runner inherited: a shell's background job
-    # starts with SIGINT ignored, and Python then installs none (the call below ran for hours).
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    timer = threading.Timer(0.5, lambda: os.kill(os.getpid(), signal.SIGINT))
+    timer = threading.Timer(seconds, lambda: os.kill(os.getpid(), signal.SIGINT))
     start = time.monotonic()
     timer.start()
     try:
         with pytest.raises(KeyboardInterrupt):
-            # max_seconds: a signal that never comes fails the test in 30 s, never hangs it.
-            localizer.localize_query(query, method="p6L", min_iterations=10_000_000,
-                                     max_iterations=10_000_000, uniform_sampling=True,
-                                     max_seconds=30)
+            call()
     finally:
         signal.signal(signal.SIGINT, previous)
     elapsed = time.monotonic() - start
     timer.join()
+    return elapsed
+
+
+def test_ctrl_c_stops_a_long_localization(demo):
+    """A call runs without the GIL and polls Python's signal handlers: Ctrl-C (SIGINT) ends a
+    RANSAC run that would take hours within a fraction of a second."""
+    query = json.loads(sorted((demo / "queries").glob("*.json"))[0].read_text())
+    localizer = lc.Localizer(demo / "map.lcm")
+    # max_seconds: a signal that never comes fails the test in 30 s, never hangs it.
+    elapsed = _interrupted_after(0.5, lambda: localizer.localize_query(
+        query, method="p6L", min_iterations=10_000_000, max_iterations=10_000_000,
+        uniform_sampling=True, max_seconds=30))
     assert 0.5 <= elapsed < 3, elapsed
     # The Localizer is still fine afterwards.
     assert localizer.localize_query(query)["success"]
@@ -476,9 +482,6 @@ def test_exit_with_a_daemon_thread_inside_a_long_call(demo, tmp_path):
 def test_ctrl_c_stops_a_photo_during_sift(fountain, tmp_path):
     """Ctrl-C during a photo's SIFT extraction is heard there (between the scale space's
     octaves and levels), not after it: it took 5.9 s on a large photo."""
-    import os
-    import signal
-    import time
     cv2 = pytest.importorskip("cv2")
     key = tmp_path / "fixed.key"
     key.write_text("# fixed public test key\ndirections sphere\n" + "5a" * 32 + "\n")
@@ -493,17 +496,8 @@ def test_ctrl_c_stops_a_photo_during_sift(fountain, tmp_path):
               "params": [2 * v for v in fountain["camera"]["params"]]}
     whole = localizer.localize_image(big, camera, with_inliers=False)
     extract_s = whole["times_ms"]["extract"] / 1000
-    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
-    timer = threading.Timer(0.3, lambda: os.kill(os.getpid(), signal.SIGINT))
-    start = time.monotonic()
-    timer.start()
-    try:
-        with pytest.raises(KeyboardInterrupt):
-            localizer.localize_image(big, camera, with_inliers=False)
-    finally:
-        signal.signal(signal.SIGINT, previous)
-    elapsed = time.monotonic() - start
-    timer.join()
+    elapsed = _interrupted_after(
+        0.3, lambda: localizer.localize_image(big, camera, with_inliers=False))
     # Heard within a fraction of a second of the signal, long before SIFT's end.
     assert extract_s > 1.5, whole["times_ms"]
     assert 0.3 <= elapsed < min(0.3 + 0.5, 0.6 * extract_s), (elapsed, extract_s)

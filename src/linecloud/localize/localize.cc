@@ -448,28 +448,25 @@ std::string CalibrationFailure(const CalibrationCheck& check, double given_focal
   std::array<bool, kJointParameters> joint_refused = {};
   std::array<double, kJointParameters> beyond = {};  // how many times its limit it is off
   const JointCalibration& j = check.joint;
+  // Per parameter: the change beyond what matters and the widest 99.7 %
+  // interval judged (for the principal point, fractions of the size).
+  const bool checked = c.max_principal_discrepancy > 0;
+  const std::array<double, kJointParameters> limits = {
+      c.max_focal_discrepancy, c.max_principal_discrepancy, c.max_principal_discrepancy,
+      checked ? 0.01 : 0.0,    checked ? 0.02 : 0.0,        checked ? 0.002 : 0.0,
+      checked ? 0.002 : 0.0};
+  const std::array<double, kJointParameters> narrow = {
+      limits[0], std::max(0.05, limits[1]), std::max(0.05, limits[2]), 0.03, 0.1, 0.01, 0.01};
   if (j.fitted && j.deviance > j.DevianceLimit()) {
     for (int k = 0; k < kJointParameters; ++k) {
       const size_t i = static_cast<size_t>(k);
       if (!j.active[i] || (k == 0 && check.refit_principal)) continue;
       const double size = k == 1 || k == 2 ? check.image_size[i - 1] : 1.0;
-      const bool checked = c.max_principal_discrepancy > 0;
-      const std::array<double, kJointParameters> limits = {
-          c.max_focal_discrepancy, c.max_principal_discrepancy, c.max_principal_discrepancy,
-          checked ? 0.01 : 0.0,    checked ? 0.02 : 0.0,        checked ? 0.002 : 0.0,
-          checked ? 0.002 : 0.0};
-      const std::array<double, kJointParameters> narrow = {limits[0],
-                                                           std::max(0.05, limits[1]) * size,
-                                                           std::max(0.05, limits[2]) * size,
-                                                           0.03,
-                                                           0.1,
-                                                           0.01,
-                                                           0.01};
       const double off =
           k == 0 || k == 3 ? std::abs(std::exp(j.theta[i]) - 1) : std::abs(j.theta[i]);
       joint_refused[i] = limits[i] > 0 && std::isfinite(j.se[i]) &&
                          std::abs(j.theta[i]) > kCalibrationZ * j.se[i] &&
-                         kCalibrationZ * j.se[i] <= narrow[i] && off > limits[i] * size;
+                         kCalibrationZ * j.se[i] <= narrow[i] * size && off > limits[i] * size;
       beyond[i] = joint_refused[i] ? off / (limits[i] * size) : 0.0;
     }
   }
@@ -782,9 +779,8 @@ class FocalProfile {
       p.valid.assign(inliers_->size(), 0);
       return p;
     }
-    if (radial != 0) AddDivisionDistortion(radial, &prepared->data);
-    if (tangential[0] != 0 || tangential[1] != 0) {
-      AddTangentialDistortion(tangential, &prepared->data);
+    if (radial != 0 || tangential[0] != 0 || tangential[1] != 0) {
+      ChangeDistortion(radial, tangential, &prepared->data);
     }
     LocalizeOptions o = options_;
     o.refine = true;
@@ -869,22 +865,16 @@ class FocalProfile {
   // -0.28 balanced by k2 +0.07): the search stalled at the fold with no
   // deviance, and frames sent without their distortion kept a pose 1° off.
   // The division model does not fold while 1 + λ |x|² > 0.
-  static void AddDivisionDistortion(double lambda, PoseData* data) {
+  // Tangential distortion (p1, p2) the camera lacks is removed after it, to
+  // first order: x -= (2 p1 x y + p2 (r² + 2 x²), p1 (r² + 2 y²) + 2 p2 x y)
+  // (Brown, 1966), so that p is what the camera's p1, p2 miss, as λ is for
+  // the radial term. A wrong p1 moves the principal point that fits: an
+  // outsider set cy where the check said and got 1.2-4.8° "successes" with
+  // p1 0.008-0.03. Both in one pass, the bearings made anew.
+  static void ChangeDistortion(double lambda, const std::array<double, 2>& p, PoseData* data) {
     for (size_t k = 0; k < data->size(); ++k) {
       Eigen::Vector2d& x = data->normalized[k];
       x /= 1 + lambda * x.squaredNorm();
-      data->bearings[k] = x.homogeneous().normalized();
-    }
-  }
-
-  // Tangential distortion (p1, p2) the camera lacks, removed on its
-  // undistorted image plane to first order: x -= (2 p1 x y + p2 (r² + 2 x²),
-  // p1 (r² + 2 y²) + 2 p2 x y) (Brown, 1966), so that p is what the camera's
-  // p1, p2 miss, as λ is for the radial term. A wrong p1 moves the principal point that fits: an
-  // outsider set cy where the check said and got 1.2-4.8° "successes" with p1 0.008-0.03.
-  static void AddTangentialDistortion(const std::array<double, 2>& p, PoseData* data) {
-    for (size_t k = 0; k < data->size(); ++k) {
-      Eigen::Vector2d& x = data->normalized[k];
       const double xx = x.x() * x.x(), yy = x.y() * x.y(), xy = x.x() * x.y(), r2 = xx + yy;
       x -= Eigen::Vector2d(2 * p[0] * xy + p[1] * (r2 + 2 * xx),
                            p[0] * (r2 + 2 * yy) + 2 * p[1] * xy);
@@ -1042,8 +1032,8 @@ ProfileTest TestProfile(const FocalProfile& profile, int residuals_per_datum, in
 }
 
 // The camera fitted jointly, the pose marginalised: a Gauss–Newton over θ =
-// (log k, cx shift, cy shift, log aspect, radial λ) — the aspect ratio only
-// for a camera with fx and fy — on the residuals of the pose refitted for
+// (log k, cx shift, cy shift, log aspect, radial λ, tangential p1, p2) — the
+// aspect ratio only for a camera with fx and fy — on the residuals of the pose refitted for
 // each θ (variable projection: the Jacobian by forward differences, each
 // column one refit; IRLS weights of the refinement's Cauchy loss; a step
 // kept only when the robust cost falls). One parameter at a time, the
@@ -1063,7 +1053,7 @@ JointCalibration FitCalibrationJointly(const FocalProfile& profile, int residual
   using Theta = std::array<double, kJointParameters>;
   JointCalibration joint;
   // First the focal length and the principal point, then with the aspect
-  // ratio and the distortion from there, each step of that stage at most 4
+  // ratio and the distortion terms from there, each step of that stage at most 4
   // differencing steps per parameter (all five at once from the given camera
   // settled in far-off basins: the demo room's cx 5 % off became focal +7.5 %,
   // cy -12 px).
