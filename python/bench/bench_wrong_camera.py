@@ -103,6 +103,14 @@ def mistakes(cam):
                 dict(cam, width=int(0.6 * w), height=int(0.6 * h)), "topleft"))
     out.append(("fx alone x0.94", with_params([fx * 0.94, fy, cx, cy]), "photo"))
     out.append(("fy x0.99 and cy -2 % of the size", with_params([fx, fy * 0.99, cx, cy - 0.02 * h]), "photo"))
+    # Tangential terms the camera lacks (or another camera's): p1 / p2 a few thousandths, each
+    # alone (a calibration's own p1, p2 are typically below 0.002).
+    for which, value in (("p1", 0.003), ("p2", -0.003), ("p1", 0.005), ("p2", 0.008), ("p1", -0.015)):
+        d = [0.0, 0.0, value, 0.0] if which == "p1" else [0.0, 0.0, 0.0, value]
+        base = list(rest[:4]) + [0.0] * (4 - len(rest[:4])) if cam["model"] == "OPENCV" else [0.0] * 4
+        out.append((f"tangential {which} {value:+.3f}",
+                    dict(cam, model="OPENCV", params=[fx, fy, cx, cy] + [b + e for b, e in zip(base, d)]),
+                    "photo"))
     out.append(("half crop, principal point centred",
                 with_params([fx, fy, w / 4, h / 4], width=w // 2, height=h // 2), "crop"))
     return out

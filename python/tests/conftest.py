@@ -54,6 +54,15 @@ def key_store(tmp_path, monkeypatch) -> Path:
     return store
 
 
+def fixed_key(folder: Path, byte: str = "5a") -> Path:
+    """A fixed, public test key in `folder` (lines, matches and answers the same on every run;
+    a random key made some answers key-dependent). Never for a real map."""
+    key = Path(folder) / f"fixed-{byte}.key"
+    key.write_text(f"# fixed public test key\ndirections sphere\n{byte * 32}\n")
+    key.chmod(0o600)
+    return key
+
+
 def data_dir() -> Path:
     """The real data sets, by the rule of docs/data.md: $LINECLOUD_DATA, else ../shared/data
     beside the checkout where it exists, else data/ in the checkout (scripts/get_data.sh)."""

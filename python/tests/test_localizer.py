@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import linecloud as lc
-from conftest import run_cli
+from conftest import fixed_key, run_cli
 from geometry import centre, rotation_error_deg
 
 
@@ -89,8 +89,9 @@ def test_bad_queries_and_options_raise(demo):
 
 @pytest.fixture(scope="module")
 def fountain_localizer(fountain, tmp_path_factory):
-    cloud = lc.lift(fountain["model"], database=fountain["database"],
-                    key_store=tmp_path_factory.mktemp("fountain-keys"))
+    folder = tmp_path_factory.mktemp("fountain-keys")
+    cloud = lc.lift(fountain["model"], database=fountain["database"], key_file=fixed_key(folder),
+                    key_store=folder / "keys")
     return cloud, lc.Localizer(cloud, threads=1)
 
 

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import linecloud as lc
-from conftest import run_cli
+from conftest import fixed_key, run_cli
 from test_schema import Served, _camera_text, _multipart
 
 FRAMES = ["0000.jpg", "0001.jpg", "0002.jpg"]
@@ -140,10 +140,7 @@ def rig(fountain, tmp_path_factory):
     maps.mkdir()
     gravity_world = prepared["gravity_world"]
     # A fixed key (the same lines, index and matches on every run).
-    key = folder / "rig.key"
-    key.write_text("# the rig test's fixed key\ndirections sphere\n" + "27" * 32 + "\n")
-    key.chmod(0o600)
-    lc.lift(folder / "model", database=fountain["database"], key_file=key,
+    lc.lift(folder / "model", database=fountain["database"], key_file=fixed_key(folder, "27"),
             key_store=tmp_path_factory.mktemp("rig-keys")).write(maps / "fountain.lcm")
     # The map's gravity from its owner (ID.json), for the +u methods.
     (maps / "fountain.json").write_text(json.dumps({"options": {"map_gravity": gravity_world}}))

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 import linecloud as lc
-from conftest import _binary, run_cli
+from conftest import _binary, fixed_key, run_cli
 
 TABLE = lc.localizer_options()
 BY_NAME = {o["name"]: o for o in TABLE}
@@ -192,8 +192,9 @@ def _multipart(parts):
 @pytest.fixture(scope="module")
 def fountain_map(fountain, tmp_path_factory):
     folder = tmp_path_factory.mktemp("schema-maps")
-    lc.lift(fountain["model"], database=fountain["database"],
-            key_store=tmp_path_factory.mktemp("schema-keys")).write(folder / "fountain.lcm")
+    keys = tmp_path_factory.mktemp("schema-keys")
+    lc.lift(fountain["model"], database=fountain["database"], key_file=fixed_key(keys),
+            key_store=keys / "store").write(folder / "fountain.lcm")
     return folder
 
 
@@ -483,10 +484,7 @@ def test_ctrl_c_stops_a_photo_during_sift(fountain, tmp_path):
     """Ctrl-C during a photo's SIFT extraction is heard there (between the scale space's
     octaves and levels), not after it: it took 5.9 s on a large photo."""
     cv2 = pytest.importorskip("cv2")
-    key = tmp_path / "fixed.key"
-    key.write_text("# fixed public test key\ndirections sphere\n" + "5a" * 32 + "\n")
-    key.chmod(0o600)
-    cloud = lc.lift(fountain["model"], database=fountain["database"], key_file=key,
+    cloud = lc.lift(fountain["model"], database=fountain["database"], key_file=fixed_key(tmp_path),
                     key_store=tmp_path / "keys")
     localizer = lc.Localizer(cloud)
     big = tmp_path / "big.png"  # 3072 x 2048: seconds of SIFT

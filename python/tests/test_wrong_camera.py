@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import linecloud as lc
-from conftest import run_cli
+from conftest import fixed_key, run_cli
 from test_schema import Served, _camera_text, _multipart
 
 cv2 = pytest.importorskip("cv2")
@@ -99,10 +99,7 @@ def _cases(fountain, tmp):
 def fountain_lcm(fountain, tmp_path_factory):
     """Group g00's map under a fixed key (the answers do not change from run to run)."""
     folder = tmp_path_factory.mktemp("wrong-camera")
-    key = folder / "fixed.key"
-    key.write_text("# fixed public test key\ndirections sphere\n" + "3c" * 32 + "\n")
-    key.chmod(0o600)
-    lc.lift(fountain["model"], database=fountain["database"], key_file=key,
+    lc.lift(fountain["model"], database=fountain["database"], key_file=fixed_key(folder, "3c"),
             key_store=folder / "keys").write(folder / "fountain.lcm")
     return folder
 

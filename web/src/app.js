@@ -14,6 +14,11 @@ const $ = (id) => document.getElementById(id);
 const MAX_PHOTO_BYTES = 16 * 1024 * 1024;
 // The page's colours, defined once in style.css (--exact, --near, --far, --lines).
 const colour = (name) => getComputedStyle(document.documentElement).getPropertyValue(`--${name}`).trim();
+// The recovered points and the camera are drawn over the lines: like the lines
+// transparent (three.js draws transparent objects after opaque ones, by
+// renderOrder), never hidden by them.
+const OVER_LINES = { transparent: true, opacity: 1, depthTest: false, depthWrite: false };
+const RECOVERED_LINE_OPACITY = 0.2;
 const state = {
   token: sessionStorage.getItem("linecloud-token") || "",
   session: 0, mapGen: 0, requestGen: 0,  // generations: an answer for an old one is dropped
@@ -107,6 +112,7 @@ function clearMap() {
   for (const b of $("maps").querySelectorAll("button")) b.setAttribute("aria-pressed", "false");
   removeFromView("lines");
   removeFromView("recovered");
+  updateTopButton();
 }
 
 function clearSession() {
@@ -183,9 +189,16 @@ async function openMap(id) {
       ["key", info.key_fingerprint],
     ]);
     $("map-info").replaceChildren(dl);
+    updateTopButton();
     showPrivacy(info, null);
-    await loadSegments(gen);
-    await loadAudit(id, gen);
+    // What this token may fetch (older servers do not say: then asked, and a 403 / 404 read).
+    const may = info.for_this_token ?? { segments: true, audit: true, audit_points: true };
+    if (may.segments) await loadSegments(gen);
+    else $("view-note").textContent = "The owner has not published this map's lines: this token gets poses only.";
+    if (may.audit) await loadAudit(id, gen, may.audit_points);
+    else showPrivacy(info, null, may.admin === false
+      ? "not shown to this token (the map's owner sees it)"
+      : "none published with this map (no ID.audit.json next to the map: `linecloud audit --out DIR`, then its report.json as ID.audit.json)");
     if (gen === state.mapGen) setStatus(`map ${id} open`);
   } catch (e) {
     if (gen === state.mapGen) setError(`Map ${id}: ${e.message}`);
@@ -205,7 +218,7 @@ function showPrivacy(info, audit, missing = "") {
   $("privacy").hidden = false;
 }
 
-async function loadAudit(id, gen) {
+async function loadAudit(id, gen, withPoints = true) {
   let report;
   try {
     report = await api(`/v1/maps/${encodeURIComponent(id)}/audit`);
@@ -236,7 +249,7 @@ async function loadAudit(id, gen) {
     row.insertCell().textContent = `${(100 * share).toFixed(1)} %`;
   }
   $("audit").hidden = false;
-  await loadRecoveredPoints(id, gen);
+  if (withPoints) await loadRecoveredPoints(id, gen);
 }
 
 // The points the audit's attack recovered, coloured by their error (the
@@ -257,9 +270,16 @@ async function loadRecoveredPoints(id, gen) {
   const geometry = new THREE.BufferGeometry();
   geometry.setAttribute("position", new THREE.BufferAttribute(new Float32Array(answer.bytes, 0, 3 * n), 3));
   geometry.setAttribute("color", new THREE.BufferAttribute(new Uint8Array(answer.bytes, 12 * n, 3 * n), 3, true));
-  view.recovered = new THREE.Points(geometry, new THREE.PointsMaterial({ size: 4, sizeAttenuation: false, vertexColors: true, depthTest: false }));
+  view.recovered = new THREE.Points(geometry, new THREE.PointsMaterial({ size: 4, sizeAttenuation: false, vertexColors: true, ...OVER_LINES }));
+  view.recovered.renderOrder = 1;
   view.recovered.visible = $("show-recovered").checked;
   view.scene.add(view.recovered);
+  // The lines dimmed under the points (at 0.6 the scene and the camera were lost in them);
+  // the opacity slider says so and gives them back.
+  if (view.recovered.visible && view.lines && Number($("opacity").value) > RECOVERED_LINE_OPACITY) {
+    $("opacity").value = String(RECOVERED_LINE_OPACITY);
+    view.lines.material.opacity = RECOVERED_LINE_OPACITY;
+  }
   view.dirty = true;
 }
 
@@ -380,8 +400,9 @@ function drawAll(view) {
   while (drawChunk(view)) { /* chunk after chunk */ }
 }
 
-// The scene's box from the 5th to the 95th percentile of the segments'
-// end points on each axis: a few far lines do not shrink the scene to a dot.
+// The scene's box from the 5th to the 95th percentile of the points (the
+// segments' end points, the recovered points) on each axis: a few far lines
+// do not shrink the scene to a dot.
 function robustFrame(positions) {
   const n = positions.length / 3;
   const stride = Math.max(1, Math.floor(n / 20000));
@@ -425,32 +446,72 @@ function resetView(view = state.view) {
   placeCamera(view, center.clone().add(back).addScaledVector(view.up, 0.6 * radius), center, view.up);
 }
 
+// What Fit frames: the scene the owner's audit recovered (when shown) and the
+// photos localized on this map; the lines only when there is neither (a
+// line runs far beyond the point it was lifted from).
+function sceneFrame(view) {
+  const points = [];
+  const recovered = view.recovered?.visible ? view.recovered.geometry.getAttribute("position").array : [];
+  for (const v of recovered) points.push(v);
+  for (const e of state.history) if (e.map === state.map) points.push(...e.center);
+  if (recovered.length === 0 && points.length < 6) return view.frame;
+  const frame = robustFrame(points);
+  frame.radius = Math.max(frame.radius, 0.05 * view.frame.radius);
+  return frame;
+}
+
+// Up in the map: its gravity; without one, the photos localized on it (the
+// mean of their cameras' up, -y) when they agree; else unknown.
+function sceneUp() {
+  const g = state.info?.gravity;
+  if (g) return new THREE.Vector3(...g).normalize().negate();
+  const sum = new THREE.Vector3();
+  let n = 0;
+  for (const e of state.history) {
+    if (e.map !== state.map) continue;
+    sum.add(new THREE.Vector3(0, -1, 0).applyMatrix4(quatToMatrix(e.q).transpose()));
+    n += 1;
+  }
+  return n && sum.length() > 0.5 * n ? sum.normalize() : null;
+}
+
+// Top view: offered once up is known (a map without gravity: after a photo).
+function updateTopButton() {
+  const known = !!sceneUp();
+  $("top").disabled = !known;
+  $("top").title = known ? "" : "Top view needs to know which way is up: the map has no gravity; localize a photo first";
+}
+
 // Fit: the scene framed along the current viewing direction.
 function fitView(view = state.view) {
   if (!view?.frame) return;
-  const { center, radius } = view.frame;
+  const { center, radius } = sceneFrame(view);
   const dir = view.camera.position.clone().sub(view.controls.target).normalize();
   const distance = radius / Math.sin(THREE.MathUtils.degToRad(view.camera.fov / 2));
   placeCamera(view, center.clone().addScaledVector(dir, distance), center, view.camera.up.clone());
 }
 
-// Top view: looking down along gravity (the audit's view of a floor plan).
+// Top view: looking down (the audit's view of a floor plan) on the scene Fit frames.
 function topView(view = state.view) {
-  if (!view?.frame) return;
-  const { center, radius } = view.frame;
-  placeCamera(view, center.clone().addScaledVector(view.up, 3 * radius), center, horizontal(view.up));
+  const up = sceneUp();
+  if (!view?.frame || !up) return;
+  const { center, radius } = sceneFrame(view);
+  placeCamera(view, center.clone().addScaledVector(up, 3 * radius), center, horizontal(up));
 }
 
-// Go to camera: the view from the localized photo's camera.
+// Go to camera: just behind and above the localized photo's camera, looking
+// where it looks: its frustum in front and the scene it saw beyond (from the
+// camera centre itself the nearest lines filled the view).
 function goToCamera(view = state.view) {
   const pose = state.pose;
   if (!view || !pose) return;
   const worldFromCam = quatToMatrix(pose.q).transpose();
   const axis = new THREE.Vector3(0, 0, 1).applyMatrix4(worldFromCam);
-  const down = new THREE.Vector3(0, 1, 0).applyMatrix4(worldFromCam);
+  const up = new THREE.Vector3(0, -1, 0).applyMatrix4(worldFromCam);
   const centre = new THREE.Vector3(...pose.center);
   const r = view.frame?.radius ?? 1;
-  placeCamera(view, centre, centre.clone().addScaledVector(axis, 0.5 * r), down.negate());
+  const eye = centre.clone().addScaledVector(axis, -0.3 * r).addScaledVector(up, 0.1 * r);
+  placeCamera(view, eye, centre.clone().addScaledVector(axis, 0.5 * r), up);
 }
 
 // Frames per second while the view turns, each frame drawn and waited for (a
@@ -597,7 +658,8 @@ function showFrustum(pose, cam) {
   const points = [];
   for (let i = 0; i < 4; ++i) points.push(centre, corners[i], corners[i], corners[(i + 1) % 4]);
   view.frustum = new THREE.LineSegments(new THREE.BufferGeometry().setFromPoints(points),
-                                        new THREE.LineBasicMaterial({ color: colour("near"), depthTest: false }));
+                                        new THREE.LineBasicMaterial({ color: colour("near"), ...OVER_LINES }));
+  view.frustum.renderOrder = 2;
   view.scene.add(view.frustum);
   view.dirty = true;
 }
@@ -803,6 +865,7 @@ async function localizeNow(file) {
 function addToHistory(entry) {
   state.history.unshift({ ...entry, when: new Date().toISOString(), id: state.history.length + 1 });
   renderHistory();
+  updateTopButton();
 }
 
 // One line of COLMAP's images.txt: IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME.
@@ -865,7 +928,9 @@ $("localize").addEventListener("submit", (ev) => {
 // More or fewer lines of the same map: its pose, audit and photo stay.
 $("limit").addEventListener("change", () => {
   const gen = state.mapGen;
-  if (state.map) loadSegments(gen).catch((e) => gen === state.mapGen && setError(`Lines: ${e.message}`));
+  if (state.map && state.info?.for_this_token?.segments !== false) {
+    loadSegments(gen).catch((e) => gen === state.mapGen && setError(`Lines: ${e.message}`));
+  }
 });
 $("show-lines").addEventListener("change", () => {
   if (state.view?.lines) {
@@ -906,5 +971,7 @@ $("show-recovered").addEventListener("change", () => {
   }
 });
 fillRecentCameras();
+// On a phone the map's details start folded: the photo panel comes next.
+if (window.matchMedia("(max-width: 700px)").matches) $("map-details").open = false;
 $("token").value = state.token;
 if (!webglAvailable()) $("webgl-missing").hidden = false;

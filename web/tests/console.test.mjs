@@ -232,6 +232,12 @@ try {
   page.on("request", (r) => { if (r.method() === "POST") posts += 1; });
   const notFound = [];
   page.on("response", (r) => { if (r.status() === 404) notFound.push(new URL(r.url()).pathname); });
+  // The map's lines and audit are asked for only when the token may fetch them (the map's
+  // for_this_token): no 403 / 404 in the browser's console for a reader or a map without an audit.
+  const refused = [];
+  page.on("response", (r) => {
+    if ([403, 404].includes(r.status()) && /\/(segments|audit)/.test(r.url())) refused.push(`${r.status()} ${new URL(r.url()).pathname}`);
+  });
 
   // ---- loading: compressed, then revalidated (no bytes again) ----------------
   await page.goto(base + "/");
@@ -280,9 +286,14 @@ try {
   assert.deepEqual(await page.evaluate(contrastProblems), []);
   let s = await scene(page);
   assert.equal(s.recovered, lines);
+  assert.equal(s.opacity, 0.2, "the lines dimmed under the recovered points");
+  assert.equal(await page.inputValue("#opacity"), "0.2", "and the slider says so");
   // Framed on the scene, not on its farthest lines: the target is inside the 5-95 % box.
   assert.ok(s.radius > 0 && s.radius < 100, `radius ${s.radius}`);
   assert.deepEqual(s.up, [0, -1, 0], "no gravity in this map: COLMAP's -y is up");
+  // No gravity and no photo yet: which way is up is unknown, no top view offered.
+  assert.equal(await page.isDisabled("#top"), true, "top view before anything says which way is up");
+  assert.match(await page.getAttribute("#top", "title"), /no gravity; localize a photo first/);
   // The audit's colours: on Okabe and Ito's scale, apart for every colour vision.
   const points = await (await fetch(`${base}/v1/maps/fountain/audit/points`, { headers: { Authorization: `Bearer ${owner}` } })).arrayBuffer();
   const rgb = new Uint8Array(points, 12 * lines, 3 * lines);
@@ -294,7 +305,11 @@ try {
     return t >= -0.01 && t <= 1.01 && [0, 1, 2].every((i) => Math.abs(a[i] + t * (b[i] - a[i]) - c[i]) <= 2);
   });
   for (let i = 0; i < lines; ++i) assert.ok(onScale([rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]]), `point ${i}: ${rgb.subarray(3 * i, 3 * i + 3)}`);
-  results.colour_blind_min_distance = colourBlindDistances(scale);
+  // The lines (grey) apart from every colour of the scale (the best-recovered points were sky
+  // blue on sky-blue lines).
+  const lineColour = await page.evaluate(() => getComputedStyle(document.documentElement).getPropertyValue("--lines").trim());
+  const lineRgb = [1, 3, 5].map((i) => parseInt(lineColour.slice(i, i + 2), 16));
+  results.colour_blind_min_distance = colourBlindDistances([...scale, lineRgb]);
   for (const [kind, d] of Object.entries(results.colour_blind_min_distance)) assert.ok(d > 0.1, `${kind}: ${d}`);
   await page.waitForTimeout(300);
   const pixels = await page.evaluate(() => window.linecloudViewPixels());
@@ -335,16 +350,39 @@ try {
   const [download] = await Promise.all([page.waitForEvent("download"), page.click("#history li button:text('images.txt')")]);
   assert.equal(download.suggestedFilename(), "0000.images.txt");
   assert.equal(readFileSync(await download.path()).toString(), `${entry.colmap}\n\n`);
-  // Go to camera: the view from the photo's camera centre.
+  // Go to camera: just behind and above the photo's camera, looking where it looks (from the
+  // centre itself the nearest lines filled the view).
   await page.click("#goto");
   s = await scene(page);
-  near(s.position, api.center, 1e-4, "view at the camera centre");
+  const worldFromCam = (q) => {  // the rows of cam_from_world's R: the camera's x, y, z axes in the map
+    const [w, x, y, z] = q;
+    return [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]];
+  };
+  const [, camY, camZ] = worldFromCam(api.q);
+  const eye = api.center.map((c, i) => c - 0.3 * s.radius * camZ[i] - 0.1 * s.radius * camY[i]);
+  near(s.position, eye, 1e-3 * s.radius, "the view behind and above the camera");
+  near(s.target, api.center.map((c, i) => c + 0.5 * s.radius * camZ[i]), 1e-3 * s.radius, "looking along its axis");
+  near(s.up, camY.map((v) => -v), 1e-6, "the photo's up");
   await page.screenshot({ path: `${shots}/fountain-photo.png` });
-  // Top view, lines off and on, their opacity.
+  // Fit: the scene the audit recovered and the photo, not the lines (a line runs far beyond
+  // its point): the target inside the recovered points' 5-95 % box, the frame smaller.
+  await page.click("#fit");
+  const fitted = await scene(page);
+  const xyz = new Float32Array(points, 0, 3 * lines);
+  for (let k = 0; k < 3; ++k) {
+    const axis = Array.from({ length: lines }, (_, i) => xyz[3 * i + k]).sort((a, b) => a - b);
+    const [lo, hi] = [axis[Math.floor(0.05 * lines)], axis[Math.floor(0.95 * lines)]];
+    assert.ok(fitted.target[k] >= lo && fitted.target[k] <= hi, `fit target ${k}: ${fitted.target[k]} outside ${lo}..${hi}`);
+  }
+  // Top view: the map has no gravity; the localized photo says which way is up.
+  assert.equal(await page.isDisabled("#top"), false, "a photo localized: up is known");
   await page.click("#top");
   s = await scene(page);
-  const upDot = s.position.map((v, i) => v - s.target[i]).reduce((a, v, i) => a + v * [0, -1, 0][i], 0);
-  assert.ok(upDot > 0.99 * Math.hypot(...s.position.map((v, i) => v - s.target[i])), "looking down along gravity");
+  const photoUp = camY.map((v) => -v);
+  const upDot = s.position.map((v, i) => v - s.target[i]).reduce((a, v, i) => a + v * photoUp[i], 0);
+  assert.ok(upDot > 0.99 * Math.hypot(...s.position.map((v, i) => v - s.target[i])), "looking down along the photo's up");
   await page.uncheck("#show-lines");
   assert.equal((await scene(page)).visible, false);
   await page.check("#show-lines");
@@ -474,6 +512,7 @@ try {
   assert.equal(await page.evaluate(() => sessionStorage.getItem("linecloud-token")), null);
   await assertNoRequestState(page, "signed out");
   assert.deepEqual(errors, [], `page errors: ${errors.join("; ")}`);
+  assert.deepEqual(refused, [], "asked only for what the token may fetch");
 
   // ---- keyboard only: sign in, open a map, turn the view, a photo, localize ---
   await page.close();
@@ -515,6 +554,9 @@ try {
   await phone.goto(base + "/");
   await signIn(phone, owner);
   await openMap(phone, "fountain");
+  // The photo panel right after the maps (the map's details folded), not two screens down.
+  results.phone_photo_panel_top = await phone.evaluate(() => document.querySelector("#photo-panel").getBoundingClientRect().top + window.scrollY);
+  assert.ok(results.phone_photo_panel_top < 844, `the photo panel starts ${results.phone_photo_panel_top} px down on an 844 px phone`);
   await localizeOnPage(phone, photo, camera);
   const layout = await phone.evaluate(() => ({
     scroll: document.documentElement.scrollWidth, client: document.documentElement.clientWidth,

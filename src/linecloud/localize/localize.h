@@ -167,6 +167,9 @@ struct JointCalibration {
       std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity(),
       std::numeric_limits<double>::infinity()};
   double deviance = 0;
+  // The factor (≥ 1) the standard errors widen by for the verdict: the
+  // fit's Wald statistic brought down to its deviance (FitCalibrationJointly).
+  double se_scale = 1;
   // χ² with `parameters` degrees of freedom at 99.7 %: the deviance beyond it
   // rejects the camera as given.
   double DevianceLimit() const {

@@ -1,6 +1,7 @@
 #include "linecloud/localize/query_json.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -309,6 +310,23 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
     };
     if (c.log_aspect.tested) j["calibration_check"]["log_aspect"] = extra(c.log_aspect);
     if (c.radial.tested) j["calibration_check"]["radial_k1"] = extra(c.radial);
+    if (c.joint.fitted) {
+      // The camera fitted as a whole: each fitted parameter's change and its
+      // marginal standard error, the given camera's deviance and its limit.
+      static constexpr std::array<const char*, kJointParameters> kNames = {
+          "log_focal", "cx_px", "cy_px", "log_aspect", "radial_lambda", "p1", "p2"};
+      nlohmann::ordered_json change, se;
+      for (size_t k = 0; k < kNames.size(); ++k) {
+        if (!c.joint.active[k]) continue;
+        change[kNames[k]] = c.joint.theta[k];
+        se[kNames[k]] = finite_or_null(c.joint.se[k]);
+      }
+      j["calibration_check"]["joint"] = {{"change", change},
+                                         {"se", se},
+                                         {"se_scale", c.joint.se_scale},
+                                         {"deviance", c.joint.deviance},
+                                         {"deviance_limit", c.joint.DevianceLimit()}};
+    }
   }
   if (with_inliers) j["inliers"] = r.inliers;
   if (with_inliers && !r.camera_observations.empty()) {

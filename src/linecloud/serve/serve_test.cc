@@ -249,6 +249,13 @@ TEST(Serve, ConsoleRoutesRevealNothingTheMapDoesNot) {
   // (a line cloud downloaded whole gives most of its points back).
   EXPECT_FALSE(info.contains("anchor_bbox")) << info.dump();
   EXPECT_EQ(info["publish_lines"], false);
+  // What the token may fetch, said up front (the console asks for nothing else).
+  EXPECT_EQ(
+      info["for_this_token"],
+      json({{"admin", false}, {"segments", false}, {"audit", false}, {"audit_points", false}}))
+      << info.dump();
+  EXPECT_EQ(json::parse(c.Get("/v1/maps/synth", Bearer("root-secret"))->body)["for_this_token"],
+            json({{"admin", true}, {"segments", true}, {"audit", true}, {"audit_points", false}}));
   EXPECT_TRUE(
       json::parse(c.Get("/v1/maps/synth", Bearer("root-secret"))->body).contains("anchor_bbox"));
   r = c.Get("/v1/maps/synth/segments?limit=999999999", Bearer("alice-secret"));
@@ -301,6 +308,11 @@ TEST(Serve, ConsoleRoutesRevealNothingTheMapDoesNot) {
   const json published = json::parse(c.Get("/v1/maps/synth", Bearer("alice-secret"))->body);
   EXPECT_EQ(published["publish_lines"], true);
   EXPECT_EQ(published["audit_recovered_share"], 0.6325);
+  EXPECT_EQ(
+      published["for_this_token"],
+      json({{"admin", false}, {"segments", true}, {"audit", false}, {"audit_points", false}}));
+  EXPECT_EQ(json::parse(c.Get("/v1/maps/synth", Bearer("root-secret"))->body)["for_this_token"],
+            json({{"admin", true}, {"segments", true}, {"audit", true}, {"audit_points", false}}));
   // A share no audit gives (7.5) is not shown to readers.
   WriteFileAtomically(f.tmp.Path("maps/synth.audit.json"), [&](std::ostream& os) {
     os << json{{"density_attack", {{"recovery", {{"within_diagonal_percent", {{"1", 7.5}}}}}}}}

@@ -1051,11 +1051,22 @@ struct Server::Impl {
   // GET /v1/maps/{id}: what `linecloud info` says; readers get no geometry.
   json DetailsRoute(const HttpRequest& req, const std::string& id, json* log) {
     const auto [token, map] = RequestMap(req, id, log);
-    if (!token || token->admin) return map->details;
+    const bool owner = !token || token->admin;
     json details = map->details;
-    details.erase("anchor_bbox");
-    // The key's fingerprint links maps lifted under one model key: the owner's to know.
-    details.erase("key_fingerprint");
+    if (!owner) {
+      details.erase("anchor_bbox");
+      // The key's fingerprint links maps lifted under one model key: the owner's to know.
+      details.erase("key_fingerprint");
+    }
+    // What this token may fetch of the map: a client (the console) asks only
+    // for those, instead of learning it from a 403 / 404.
+    const auto beside = [&](const char* suffix) {
+      return owner && FileExists(JoinPaths(options.maps_dir, map->id + suffix));
+    };
+    details["for_this_token"] = {{"admin", owner},
+                                 {"segments", owner || map->publish_lines},
+                                 {"audit", beside(".audit.json")},
+                                 {"audit_points", beside(".audit.ply")}};
     return details;
   }
 
