@@ -45,8 +45,10 @@ const run = (args) => execFileSync(binary, args, { env, stdio: ["ignore", "pipe"
 
 // Maps: fountain (with the owner's audit) and 100 000 random lines.
 mkdirSync(`${tmp}/maps`);
+// Under a fixed, public test key: the same lines, poses and audit on every run.
+writeFileSync(`${tmp}/fixed.key`, `# fixed public test key\ndirections sphere\n${"5a".repeat(32)}\n`, { mode: 0o600 });
 run(["lift", "--model", `${work}/groups/g00/map`, "--database", `${work}/colmap/database.db`,
-     "--out", `${tmp}/maps/fountain.lcm`, "--quiet"]);
+     "--key-file", `${tmp}/fixed.key`, "--out", `${tmp}/maps/fountain.lcm`, "--quiet"]);
 run(["audit", "--map", `${tmp}/maps/fountain.lcm`, "--model", `${work}/groups/g00/map`,
      "--out", `${tmp}/audit`, "--quiet"]);
 copyFileSync(`${tmp}/audit/report.json`, `${tmp}/maps/fountain.audit.json`);
