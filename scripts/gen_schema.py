@@ -110,7 +110,7 @@ def stub(table) -> str:
 def privacy_stub(lift_table, attack_table, audit_table) -> str:
     lines = [PRIVACY_BEGIN]
     positional = {o["name"]: o for o in lift_table if o["name"] in ("compact", "force")}
-    lines += _def("lift", ["model_dir: _Path", "database: _Path | None = None",
+    lines += _def("lift", ["model_dir: _Path | Any", "database: _Path | None = None",
                            "out: _Path | None = None", "key_store: _Path | None = None",
                            "key_file: _Path | None = None",
                            *_params([positional["compact"], positional["force"]], False), "*",

@@ -126,6 +126,44 @@ class Pose:
             d["scale"] = self.scale
         return d
 
+    # Read as the pose dicts of results and JSON are: pose["q"], pose["t"], pose["scale"],
+    # dict(pose) (estimate_pose and solve returned such dicts before they returned a Pose).
+    def keys(self) -> list[str]:
+        """As to_dict(): "scale" only when it is not 1."""
+        return ["q", "t"] + (["scale"] if self.scale != 1.0 else [])
+
+    def get(self, key: str, default: Any = None) -> Any:
+        return self[key] if key in self else default
+
+    def __getitem__(self, key: str) -> Any:
+        if key == "q":
+            return self.q.tolist()
+        if key == "t":
+            return self.t.tolist()
+        if key == "scale":
+            return self.scale
+        raise KeyError(key)
+
+    def __contains__(self, key: object) -> bool:
+        return key in self.keys()
+
+    def __eq__(self, other: object) -> bool:
+        """Exactly the same pose (q, t and scale to the bit; w >= 0 makes q unique)."""
+        if not isinstance(other, Pose):
+            return NotImplemented
+        return (np.array_equal(self.q, other.q) and np.array_equal(self.t, other.t)
+                and self.scale == other.scale)
+
+    __hash__ = None  # mutable, as numpy arrays are
+
+    @classmethod
+    def from_pycolmap(cls, rigid: Any) -> "Pose":
+        """A pycolmap.Rigid3d (its rotation's quaternion stored as x, y, z, w) or Sim3d (with
+        .scale)."""
+        x, y, z, w = np.asarray(rigid.rotation.quat, dtype=np.float64).reshape(4)
+        return cls([w, x, y, z], np.asarray(rigid.translation).reshape(3),
+                   float(getattr(rigid, "scale", 1.0)))
+
     def __repr__(self) -> str:
         q = ", ".join(f"{v:.6g}" for v in self.q)
         t = ", ".join(f"{v:.6g}" for v in self.t)

@@ -4,6 +4,8 @@ import json
 import os
 import sys
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -94,6 +96,36 @@ def test_lift_follows_the_key_store_rules(demo, tmp_path, key_store):
     # A different store: a different key, different lines.
     other = lc.lift(demo / "model", key_store=tmp_path / "other-store")
     assert not np.allclose(other.lines[:, :3], cloud.lines[:, :3])
+
+
+def test_lift_takes_a_pycolmap_reconstruction(demo, tmp_path):
+    """[newcomer] lift(pycolmap.Reconstruction): any object that writes a COLMAP model into a
+    folder (Reconstruction.write(path)) is lifted as that folder is — the same key, the same
+    lines — and its temporary folder is gone afterwards."""
+    import shutil
+
+    class Reconstruction:  # pycolmap's interface, without pycolmap (no PyPI here)
+        written = []
+
+        def write(self, path):
+            shutil.copytree(demo / "model", path, dirs_exist_ok=True)
+            self.written.append(Path(path))
+
+    store = tmp_path / "store"
+    from_folder = lc.lift(demo / "model", key_store=store)
+    from_object = lc.lift(Reconstruction(), key_store=store)
+    assert np.array_equal(from_object.lines, from_folder.lines)
+    assert np.array_equal(from_object.ids, from_folder.ids)
+    assert Reconstruction.written and not Reconstruction.written[0].exists()
+    # help() names what lift and the Localizer take (pybind11 showed "handle").
+    assert "pycolmap.Reconstruction" in lc.lift.__doc__.splitlines()[0]
+    for f in (lc.lift, lc.Localizer.localize_image, lc.Localizer.localize_features, lc.estimate_pose,
+              lc.attack, lc.audit):
+        assert "handle" not in f.__doc__.splitlines()[0], f.__doc__.splitlines()[0]
+    assert "numpy.ndarray" in lc.Localizer.localize_image.__doc__.splitlines()[0]
+    # An object that is neither a path nor writes a model: a TypeError naming what is taken.
+    with pytest.raises(TypeError, match=r"folder \(str or os.PathLike\) or a pycolmap.Reconstruction, got int"):
+        lc.lift(42, key_store=store)
 
 
 def test_warnings_go_to_the_log_sink(demo, tmp_path, capfd, monkeypatch):

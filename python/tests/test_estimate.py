@@ -25,6 +25,9 @@ def test_estimate_pose_finds_the_true_pose_and_its_inliers(method):
         xy = separate_line_outliers(rng, world, truth, xy, inlier)
     pose, info = lc.estimate_pose(method, xy, world, camera, ransac={"seed": 3})
     assert info["success"], info.get("reason")
+    # PoseLib's convention: the pose is the package's pose type (lc.Pose), q with w >= 0.
+    assert isinstance(pose, lc.Pose) and pose.q[0] >= 0
+    np.testing.assert_allclose(pose.center, -pose.R.T @ pose.t)
     assert rotation_error_deg(pose["q"], truth["q"]) < 1e-6
     np.testing.assert_allclose(pose["t"], truth["t"], atol=1e-7)
     mask = info["inliers"]

@@ -72,3 +72,19 @@ def test_a_result_reads_as_a_pose_and_a_pose_is_taken_as_cam_from_rig(demo):
         localizer.localize_features([keypoints, keypoints],
                                     [np.zeros((6, 128), np.uint8)] * 2, [first, first],
                                     method="m-p6L", cam_from_rig=[lc.Pose(), 3])
+
+
+def test_from_pycolmap_and_read_as_a_dict():
+    """[newcomer] pycolmap's Rigid3d keeps its quaternion as (x, y, z, w); estimate_pose and
+    solve return a Pose that still reads as the dicts they returned before."""
+    from types import SimpleNamespace
+    pose = lc.Pose([0.5, 0.5, -0.5, 0.5], [1.0, 2.0, 3.0])
+    rigid = SimpleNamespace(rotation=SimpleNamespace(quat=np.array([0.5, -0.5, 0.5, 0.5])),
+                            translation=np.array([1.0, 2.0, 3.0]))
+    assert lc.Pose.from_pycolmap(rigid) == pose
+    assert pose["q"] == [0.5, 0.5, -0.5, 0.5] and pose["t"] == [1.0, 2.0, 3.0]
+    assert dict(pose) == pose.to_dict() == {"q": [0.5, 0.5, -0.5, 0.5], "t": [1.0, 2.0, 3.0]}
+    assert "scale" not in pose and pose.get("scale", 1.0) == 1.0
+    assert "scale" in lc.Pose(pose.q, pose.t, 2.0)
+    with pytest.raises(KeyError):
+        pose["center"]

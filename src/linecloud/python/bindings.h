@@ -35,9 +35,40 @@ class GilReleased {
   bool outer_;  // the thread's outermost release (the one counted)
 };
 
+// Arguments that take several Python types: any object, named in the signatures help() and the
+// stubs show by what it may be (pybind11 shows a py::handle as "handle").
+#define LINECLOUD_PY_ARG(Name, text)                                      \
+  class Name : public pybind11::object {                                  \
+   public:                                                                \
+    static bool Any(PyObject*) { return true; }                           \
+    PYBIND11_OBJECT_DEFAULT(Name, pybind11::object, Any)                  \
+    static constexpr auto kTypeName = pybind11::detail::const_name(text); \
+  };
+LINECLOUD_PY_ARG(ImageArg, "str | os.PathLike | bytes | BinaryIO | numpy.ndarray | list")
+LINECLOUD_PY_ARG(CameraArg, "dict | str | pycolmap.Camera | list")
+LINECLOUD_PY_ARG(ArrayArg, "numpy.ndarray | list")
+LINECLOUD_PY_ARG(QueryArg, "dict")
+LINECLOUD_PY_ARG(CloudArg, "LineCloud | str | os.PathLike")
+LINECLOUD_PY_ARG(PathArg, "str | os.PathLike | None")
+LINECLOUD_PY_ARG(ModelArg, "str | os.PathLike | pycolmap.Reconstruction")
+LINECLOUD_PY_ARG(FlagArg, "bool | None")
+LINECLOUD_PY_ARG(OptionsArg, "dict | bool | None")
+LINECLOUD_PY_ARG(VectorArg, "numpy.ndarray | list | None")
+LINECLOUD_PY_ARG(PosesArg, "list[Pose | dict] | None")
+LINECLOUD_PY_ARG(SinkArg, "Callable[[str, str], None] | None")
+#undef LINECLOUD_PY_ARG
+
 void BindLineCloud(pybind11::module_& m);   // LineCloud, lift, read_colmap_model
 void BindLocalizer(pybind11::module_& m);   // Localizer
 void BindEstimation(pybind11::module_& m);  // estimate_pose, solve, methods
 void BindPrivacy(pybind11::module_& m);     // attack, audit
 
 }  // namespace linecloud::python
+
+namespace pybind11::detail {
+template <typename T>
+requires requires { T::kTypeName; }
+struct handle_type_name<T> {
+  static constexpr auto name = T::kTypeName;
+};
+}  // namespace pybind11::detail

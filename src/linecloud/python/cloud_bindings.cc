@@ -196,9 +196,8 @@ void BindLineCloud(py::module_& m) {
 
   m.def(
       "lift",
-      [](const std::filesystem::path& model_dir, py::handle database, py::handle out,
-         py::handle key_store, py::handle key_file, py::handle compact, py::handle force,
-         py::kwargs kwargs) {
+      [](ModelArg model, PathArg database, PathArg out, PathArg key_store, PathArg key_file,
+         FlagArg compact, FlagArg force, py::kwargs kwargs) {
         // The positional parameters of SPEC's lift(model_dir, database, out, key_store,
         // key_file, compact, force); the rest keywords of LiftOptionTable.
         const std::pair<const char*, py::handle> given[] = {
@@ -207,12 +206,39 @@ void BindLineCloud(py::module_& m) {
         for (const auto& [name, value] : given) {
           if (!value.is_none()) kwargs[name] = value;
         }
-        return Lift(model_dir, kwargs);
+        // A pycolmap.Reconstruction (or any object that writes a COLMAP model
+        // into a folder: .write(path)): written to a temporary folder, lifted
+        // from there (the key store knows a model by its tracks, not its path).
+        if (!py::isinstance<py::str>(model) && !py::hasattr(model, "__fspath__") &&
+            py::hasattr(model, "write")) {
+          py::object folder =
+              py::module_::import("tempfile")
+                  .attr("TemporaryDirectory")(py::arg("prefix") = "linecloud-model-");
+          const std::string path = py::str(folder.attr("name"));
+          py::object result;
+          try {
+            model.attr("write")(path);
+            result = py::cast(Lift(path, kwargs));
+          } catch (...) {
+            folder.attr("cleanup")();
+            throw;
+          }
+          folder.attr("cleanup")();
+          return result;
+        }
+        if (!py::isinstance<py::str>(model) && !py::hasattr(model, "__fspath__")) {
+          throw py::type_error(fmt::format(
+              "lift: model_dir must be a COLMAP model's folder (str or os.PathLike) or a "
+              "pycolmap.Reconstruction, got {}",
+              TypeName(model)));
+        }
+        return py::cast(Lift(py::cast<std::filesystem::path>(model), kwargs));
       },
       py::arg("model_dir"), py::arg("database") = py::none(), py::arg("out") = py::none(),
       py::arg("key_store") = py::none(), py::arg("key_file") = py::none(),
       py::arg("compact") = py::none(), py::arg("force") = py::none(),
-      "Lift a COLMAP model to a line cloud under the model's one key (the CLI's `lift`, its "
+      "Lift a COLMAP model (a folder, or a pycolmap.Reconstruction) to a line cloud under the "
+      "model's one key (the CLI's `lift`, its "
       "key-store rules and options: one point, one line). database: descriptors from COLMAP's "
       "database; out: also write the .lcm; key_store: the store's folder (default "
       "LINECLOUD_KEY_STORE or ~/.local/share/linecloud/keys); key_file: the model's key file. "

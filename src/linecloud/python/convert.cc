@@ -103,10 +103,6 @@ py::object FromJsonT(const Json& j) {
   }
 }
 
-std::string TypeName(py::handle value) {
-  return py::str(py::type::of(value).attr("__name__")).cast<std::string>();
-}
-
 // A 2-D array of `cols` columns (a 1-D one of `cols` values when `cols` is
 // the only row), its dtype kind one of `kinds`.
 py::array CheckedArray(py::handle value, int cols, const std::string& name, const char* kinds,
@@ -133,6 +129,10 @@ py::array CheckedArray(py::handle value, int cols, const std::string& name, cons
 }
 
 }  // namespace
+
+std::string TypeName(py::handle value) {
+  return py::str(py::type::of(value).attr("__name__")).cast<std::string>();
+}
 
 nlohmann::json ToJson(py::handle value, const std::string& where) {
   return ToJsonAt(value, where, 0);
@@ -195,6 +195,13 @@ py::dict PoseToDict(const Eigen::Quaterniond& q, const Eigen::Vector3d& t) {
   d["q"] = py::make_tuple(q.w(), q.x(), q.y(), q.z());
   d["t"] = py::make_tuple(t.x(), t.y(), t.z());
   return d;
+}
+
+py::object PoseObject(const Eigen::Quaterniond& q, const Eigen::Vector3d& t, double scale) {
+  static const py::handle pose_type =
+      py::object(py::module_::import("linecloud.pose").attr("Pose")).release();  // for the process
+  return pose_type(py::make_tuple(q.w(), q.x(), q.y(), q.z()), py::make_tuple(t.x(), t.y(), t.z()),
+                   scale);
 }
 
 std::vector<double> FiniteRows(py::handle value, int cols, const std::string& name, size_t* rows) {

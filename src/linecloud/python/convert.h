@@ -40,7 +40,11 @@ Camera CameraFromDict(py::handle camera, const std::string& where);
 py::dict CameraToDict(const Camera& camera);
 // {"q": [w, x, y, z], "t": [x, y, z]} (+ "scale" when given).
 Rigid3d PoseFromDict(py::handle pose, const std::string& where);
+// The Python type's name of `value` (for messages: "got int").
+std::string TypeName(py::handle value);
 py::dict PoseToDict(const Eigen::Quaterniond& q, const Eigen::Vector3d& t);
+// A linecloud.Pose (target_from_source; its q with w >= 0), as PoseLib returns its pose type.
+py::object PoseObject(const Eigen::Quaterniond& q, const Eigen::Vector3d& t, double scale = 1.0);
 
 // A 2-D numeric array of `cols` columns (any float or integer dtype, any
 // strides) as row-major doubles, every value finite. `rows` receives N.

@@ -223,9 +223,8 @@ Estimate MakeEstimate(const std::string& method_name, py::handle points2D, py::h
 py::tuple ResultToPython(const Estimate& e, const LocalizeResult& r) {
   py::object pose = py::none();
   if (r.has_pose) {
-    py::dict d = PoseToDict(r.query_from_world.rotation, r.query_from_world.translation);
-    if (e.method->similarity()) d["scale"] = r.query_from_world.scale;
-    pose = d;
+    pose = PoseObject(r.query_from_world.rotation, r.query_from_world.translation,
+                      e.method->similarity() ? r.query_from_world.scale : 1.0);
   }
   py::array_t<bool> mask(static_cast<py::ssize_t>(e.query.observations.size()));
   std::fill_n(mask.mutable_data(), mask.size(), false);
@@ -261,10 +260,10 @@ py::tuple ResultToPython(const Estimate& e, const LocalizeResult& r) {
                      py::arg("map_gravity") = py::none(), py::arg("points_local") = py::none(), \
                      py::arg("cam_from_rig") = py::none()
 
-py::tuple EstimatePose(const std::string& method, py::handle points2D, py::handle map_side,
-                       py::handle camera, py::handle ransac, py::handle refine, py::handle success,
-                       py::handle gravity, py::handle map_gravity, py::handle points_local,
-                       py::handle cam_from_rig) {
+py::tuple EstimatePose(const std::string& method, ArrayArg points2D, ArrayArg map_side,
+                       CameraArg camera, OptionsArg ransac, OptionsArg refine, OptionsArg success,
+                       VectorArg gravity, VectorArg map_gravity, VectorArg points_local,
+                       PosesArg cam_from_rig) {
   const Estimate e = MakeEstimate(method, points2D, map_side, camera, ransac, refine, success,
                                   gravity, map_gravity, points_local, cam_from_rig);
   // Ctrl-C: RANSAC polls Python's signal handlers while it runs without the GIL (a handler that
@@ -315,9 +314,7 @@ py::list Solve(const std::string& method, const py::kwargs& sample) {
   }
   py::list out;
   for (const Sim3d& s : solutions) {
-    py::dict d = PoseToDict(s.rotation, s.translation);
-    if (problem.method->similarity()) d["scale"] = s.scale;
-    out.append(d);
+    out.append(PoseObject(s.rotation, s.translation, problem.method->similarity() ? s.scale : 1.0));
   }
   return out;
 }

@@ -276,7 +276,7 @@ void AddImage(py::handle image, const std::string& name, PhotoStorage* storage, 
   }
 }
 
-py::dict LocalizeImages(const PyLocalizer& self, py::handle image, py::handle camera,
+py::dict LocalizeImages(const PyLocalizer& self, ImageArg image, CameraArg camera,
                         const py::kwargs& kwargs) {
   const std::string where = "Localizer.localize_image";
   const Request r = MakeRequest(self, kwargs, where, true);
@@ -308,8 +308,8 @@ py::dict LocalizeImages(const PyLocalizer& self, py::handle image, py::handle ca
   return ResultToDict(result, r.with_inliers);
 }
 
-py::dict LocalizeFeatures(const PyLocalizer& self, py::handle keypoints, py::handle descriptors,
-                          py::handle camera, const py::kwargs& kwargs) {
+py::dict LocalizeFeatures(const PyLocalizer& self, ArrayArg keypoints, ArrayArg descriptors,
+                          CameraArg camera, const py::kwargs& kwargs) {
   const std::string where = "Localizer.localize_features";
   const Request r = MakeRequest(self, kwargs, where, true);
   bool many_k = false, many_d = false;
@@ -363,7 +363,7 @@ py::dict LocalizeFeatures(const PyLocalizer& self, py::handle keypoints, py::han
   return ResultToDict(result, r.with_inliers);
 }
 
-py::dict LocalizeQuery(const PyLocalizer& self, py::handle query, const py::kwargs& kwargs) {
+py::dict LocalizeQuery(const PyLocalizer& self, QueryArg query, const py::kwargs& kwargs) {
   const std::string where = "Localizer.localize_query";
   const Request r = MakeRequest(self, kwargs, where, false);
   if (!py::isinstance<py::dict>(query)) {

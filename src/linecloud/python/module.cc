@@ -82,7 +82,7 @@ namespace {
 // The library's log sink as a Python callable sink(level, line): called with the GIL taken (the
 // library calls it from threads that released it); an exception it raises is reported as
 // unraisable and the work goes on. None restores the default (stdout / stderr).
-void SetLogSink(py::object sink) {
+void SetLogSink(linecloud::python::SinkArg sink) {
   linecloud::LogSink cpp;
   if (!sink.is_none()) {
     if (!PyCallable_Check(sink.ptr())) {

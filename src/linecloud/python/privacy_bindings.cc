@@ -26,7 +26,7 @@ LineCloud CloudOf(py::handle cloud, std::string* name) {
   return ReadLineCloud(*name);
 }
 
-py::array_t<double> Attack(py::handle cloud_or_path, const py::kwargs& kwargs) {
+py::array_t<double> Attack(CloudArg cloud_or_path, const py::kwargs& kwargs) {
   DensityAttackOptions options;
   SetFromTable(kwargs, std::span(AttackOptionTable()), {}, "attack", &options);
   options.Check();
@@ -43,7 +43,7 @@ py::array_t<double> Attack(py::handle cloud_or_path, const py::kwargs& kwargs) {
   return DoubleArray(xyz.data(), r.points.size(), 3);
 }
 
-py::dict Audit(py::handle cloud_or_path, const std::filesystem::path& model_dir,
+py::dict Audit(CloudArg cloud_or_path, const std::filesystem::path& model_dir,
                const py::kwargs& kwargs) {
   AuditOptions options;
   const nlohmann::json o =
