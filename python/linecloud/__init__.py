@@ -26,9 +26,12 @@ from ._core import (
     lift,
     lift_options,
     localizer_options,
+    memory_in_use,
     methods,
+    photo_memory_mb,
     read_colmap_model,
     set_log_sink,
+    set_memory_limit,
     solve,
 )
 
@@ -58,8 +61,11 @@ __all__ = [
     "lift",
     "lift_options",
     "localizer_options",
+    "memory_in_use",
     "methods",
+    "photo_memory_mb",
     "read_colmap_model",
     "set_log_sink",
+    "set_memory_limit",
     "solve",
 ]

@@ -251,3 +251,42 @@ def test_eight_python_threads_share_one_localizer(fountain, fountain_localizer):
     import os
     if (os.cpu_count() or 1) >= 2:
         assert cpu / wall > 1.3, f"CPU {cpu:.2f} s over wall {wall:.2f} s: no parallelism"
+
+
+def test_a_process_bounds_its_photos_memory(fountain, fountain_localizer):
+    """[newcomer] What a thread localizing photos holds (photo_memory_mb) and a bound for the
+    process (set_memory_limit, as serve's --memory-budget-mb): never more reserved at once,
+    a photo that alone needs more is a ValueError naming both."""
+    cloud, localizer = fountain_localizer
+    need = lc.photo_memory_mb(1536, 1024)
+    assert 400 < need < 700, need  # ~320 bytes per pixel
+    with pytest.raises(ValueError, match=r"mb must be a number in \[0, 1e7\]"):
+        lc.set_memory_limit(-1)
+    try:
+        lc.set_memory_limit(100)
+        with pytest.raises(ValueError, match=rf"needs {int(need)} MB of scale space, more than the memory limit of 100 MB"):
+            localizer.localize_image(fountain["photo"], fountain["camera"])
+        # Room for one photo at a time: three threads take turns, every one localized.
+        lc.set_memory_limit(need * 1.5)
+        assert lc.memory_in_use()["limit_mb"] == pytest.approx(need * 1.5, abs=1)
+        peak, done = [0.0], threading.Event()
+
+        def watch():
+            while not done.is_set():
+                peak[0] = max(peak[0], lc.memory_in_use()["reserved_mb"])
+                time.sleep(0.002)
+
+        watcher = threading.Thread(target=watch)
+        watcher.start()
+        try:
+            with ThreadPoolExecutor(3) as pool:
+                results = list(pool.map(lambda _: localizer.localize_image(fountain["photo"], fountain["camera"]),
+                                        range(3)))
+        finally:
+            done.set()
+            watcher.join()
+        assert all(r["success"] for r in results)
+        assert need * 0.9 <= peak[0] <= need * 1.5, peak[0]
+    finally:
+        lc.set_memory_limit(0)
+    assert lc.memory_in_use()["limit_mb"] == 0

@@ -170,6 +170,9 @@ struct JointCalibration {
   // The factor (≥ 1) the standard errors widen by for the verdict: the
   // fit's Wald statistic brought down to its deviance (FitCalibrationJointly).
   double se_scale = 1;
+  // How far the pose moves from the camera as given to the fitted one
+  // (rotation in degrees, centre in world units).
+  double pose_shift_deg = 0, pose_shift_centre = 0;
   // χ² with `parameters` degrees of freedom at 99.7 %: the deviance beyond it
   // rejects the camera as given.
   double DevianceLimit() const {

@@ -324,6 +324,8 @@ nlohmann::ordered_json LocalizeResultToJson(const MethodInfo& method, const Loca
       j["calibration_check"]["joint"] = {{"change", change},
                                          {"se", se},
                                          {"se_scale", c.joint.se_scale},
+                                         {"pose_shift_deg", c.joint.pose_shift_deg},
+                                         {"pose_shift_centre", c.joint.pose_shift_centre},
                                          {"deviance", c.joint.deviance},
                                          {"deviance_limit", c.joint.DevianceLimit()}};
     }

@@ -8,7 +8,9 @@
 #include <pybind11/stl.h>
 #include <pybind11/stl/filesystem.h>
 
+#include "linecloud/features/sift.h"
 #include "linecloud/features/sift_opencv.h"
+#include "linecloud/features/sift_scale_space.h"
 #include "linecloud/io/json_util.h"
 #include "linecloud/io/lcm_format.h"
 #include "linecloud/localize/query_json.h"
@@ -381,6 +383,48 @@ py::dict LocalizeQuery(const PyLocalizer& self, QueryArg query, const py::kwargs
 }  // namespace
 
 void BindLocalizer(py::module_& m) {
+  // A photo's memory, and a bound for the process: SIFT's scale space is most of it (~320
+  // bytes per pixel after the downscaling to max_image_size; decoding adds ~8).
+  constexpr double kMB = 1024.0 * 1024.0;
+  m.def(
+      "set_memory_limit",
+      [](double mb) {
+        if (!(mb >= 0 && mb <= 1e7)) {
+          throw py::value_error(fmt::format(
+              "set_memory_limit: mb must be a number in [0, 1e7] (0: no limit), got {}", mb));
+        }
+        SetSiftMemoryLimit(static_cast<size_t>(mb * kMB));
+      },
+      py::arg("mb"),
+      "Bounds SIFT's scale space of all photos the process extracts at once (every Localizer, "
+      "every thread) to `mb` megabytes: a photo waits for room while others finish; one that "
+      "alone needs more raises ValueError naming both. 0: no limit (the default). As `linecloud "
+      "serve --memory-budget-mb` does for the service.");
+  m.def(
+      "memory_in_use",
+      [] {
+        const SiftMemoryUse use = SiftMemoryInUse();
+        py::dict d;
+        d["limit_mb"] = static_cast<double>(use.limit) / kMB;
+        d["reserved_mb"] = static_cast<double>(use.reserved) / kMB;
+        d["pooled_mb"] = static_cast<double>(use.pooled) / kMB;
+        return d;
+      },
+      "SIFT's scale space now: limit_mb (0: none), reserved_mb (by photos being extracted), "
+      "pooled_mb (kept mapped for the next ones).");
+  m.def(
+      "photo_memory_mb",
+      [](int width, int height) {
+        if (width < 1 || height < 1 || width > 1'000'000 || height > 1'000'000) {
+          throw py::value_error(fmt::format(
+              "photo_memory_mb: width and height must be in [1, 1e6], got {} x {}", width, height));
+        }
+        return static_cast<double>(SiftScaleSpaceBytes(width, height)) / kMB;
+      },
+      py::arg("width"), py::arg("height"),
+      "The megabytes of SIFT's scale space one photo of this size takes while it is extracted "
+      "(after the downscaling to 3 200 px; its decoding adds ~8 bytes per pixel): what each "
+      "thread localizing photos holds, and what set_memory_limit counts.");
   m.def(
       "localizer_options", [] { return FromJson(LocalizerOptionTableJson()); },
       "The Localizer's options, one dict each (name, flag, scope, type, default, help; min / "
