@@ -1510,8 +1510,11 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
     // move to it counts in the calibration's share (entry 0008, focal x0.97
     // with cx +2 %: deviance 1 340, every parameter of the joint fit under
     // its limit, a 1.3° "success" with σ 0.63°).
+    // (With the focal length refined the joint fit starts from the camera as
+    // given, not the one the pose was found with: not counted.)
     CalibrationCheck& check = *result.calibration_check;
-    if (check.joint.fitted && check.joint.deviance > check.joint.DevianceLimit()) {
+    if (!check.refit_principal && check.joint.fitted &&
+        check.joint.deviance > check.joint.DevianceLimit()) {
       check.rotation_deg = std::hypot(check.rotation_deg, check.joint.pose_shift_deg);
       check.position = std::hypot(check.position, check.joint.pose_shift_centre);
     }
