@@ -173,11 +173,17 @@ struct JointCalibration {
   // How far the pose moves from the camera as given to the fitted one
   // (rotation in degrees, centre in world units).
   double pose_shift_deg = 0, pose_shift_centre = 0;
-  // χ² with `parameters` degrees of freedom at 99.7 %: the deviance beyond it
-  // rejects the camera as given.
+  // χ² with `parameters` degrees of freedom at 99.7 %, times the deviance's
+  // overdispersion on real photos: the deviance beyond it rejects the camera
+  // as given. A true camera's deviance is larger than χ² says: over fountain
+  // 0000 under 42 keys and 3 maps of its own camera, median 10.0 for seven
+  // parameters where χ²₇'s is 6.35 (the map's own small errors, residuals not
+  // independent), and two of 42 beyond 21.6 — a true camera refused in CI
+  // (p1 +0.0027) and in the wrong-camera bench (cy +13 px, with p1 +0.0029).
+  static constexpr double kOverdispersion = 1.6;
   double DevianceLimit() const {
     constexpr std::array<double, 8> kLimit = {0, 8.81, 11.62, 13.93, 16.01, 17.96, 19.80, 21.58};
-    return kLimit[static_cast<size_t>(std::clamp(parameters, 1, 7))];
+    return kOverdispersion * kLimit[static_cast<size_t>(std::clamp(parameters, 1, 7))];
   }
 };
 
