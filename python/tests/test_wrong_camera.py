@@ -81,6 +81,9 @@ def _cases(fountain, tmp):
         ("distortion wrong: k1 -0.1 for an undistorted photo", photo,
          dict(cam, model="OPENCV", params=[fx, fy, cx, cy, -0.1, 0, 0, 0]), "looks wrong"),
         ("aspect fy x1.05", photo, dict(cam, params=[fx, 1.05 * fy, cx, cy]), "looks wrong"),
+        # Tangential terms the photo does not have, beyond the check's limit (0.004).
+        ("tangential p1 +0.008", photo, dict(cam, model="OPENCV", params=[fx, fy, cx, cy, 0, 0, 0.008, 0]),
+         "tangential distortion looks wrong"),
         ("turned, width and height swapped only", turned, dict(cam, width=h, height=w),
          "the photo looks turned"),
         ("downscaled to 640 px, width and height changed only", small,
