@@ -1060,8 +1060,9 @@ struct Server::Impl {
     }
     // What this token may fetch of the map: a client (the console) asks only
     // for those, instead of learning it from a 403 / 404.
+    const std::string map_id = map->id;  // (clang: a structured binding is not captured)
     const auto beside = [&](const char* suffix) {
-      return owner && FileExists(JoinPaths(options.maps_dir, map->id + suffix));
+      return owner && FileExists(JoinPaths(options.maps_dir, map_id + suffix));
     };
     details["for_this_token"] = {{"admin", owner},
                                  {"segments", owner || map->publish_lines},
