@@ -48,16 +48,23 @@ class Pose:
 
     def __init__(self, q: Sequence[float] = (1.0, 0.0, 0.0, 0.0),
                  t: Sequence[float] = (0.0, 0.0, 0.0), scale: float = 1.0):
-        q = np.asarray(q, dtype=np.float64).reshape(-1)
-        t = np.asarray(t, dtype=np.float64).reshape(-1)
-        if q.shape != (4,) or not np.all(np.isfinite(q)) or not np.linalg.norm(q) > 0:
+        # Copies: the caller's arrays stay the caller's.
+        q = np.array(q, dtype=np.float64).reshape(-1)
+        t = np.array(t, dtype=np.float64).reshape(-1)
+        norm = np.linalg.norm(q) if q.shape == (4,) else 0.0
+        if q.shape != (4,) or not np.all(np.isfinite(q)) or not (np.isfinite(norm) and norm > 0):
             raise ValueError(f"Pose: q must be a finite non-zero (w, x, y, z), got {q.tolist()}")
         if t.shape != (3,) or not np.all(np.isfinite(t)):
             raise ValueError(f"Pose: t must be 3 finite numbers, got {t.tolist()}")
+        if isinstance(scale, (bool, str, bytes)) or not isinstance(scale, (int, float, np.number)):
+            raise TypeError(f"Pose: scale must be a number, got {type(scale).__name__}")
         if not (np.isfinite(scale) and scale > 0):
             raise ValueError(f"Pose: scale must be a finite positive number, got {scale}")
-        q = q / np.linalg.norm(q)
-        self.q = q if q[0] >= 0 else -q
+        q = q / norm
+        # q and -q are one rotation: the one with w > 0, or at w = 0 the first non-zero
+        # component positive (so that == compares rotations).
+        lead = q[np.flatnonzero(q)[0]]
+        self.q = q if lead > 0 else -q
         self.t = t
         self.scale = float(scale)
 
@@ -148,7 +155,7 @@ class Pose:
         return key in self.keys()
 
     def __eq__(self, other: object) -> bool:
-        """Exactly the same pose (q, t and scale to the bit; w >= 0 makes q unique)."""
+        """Exactly the same pose (q, t and scale to the bit; q's sign is fixed, so q unique)."""
         if not isinstance(other, Pose):
             return NotImplemented
         return (np.array_equal(self.q, other.q) and np.array_equal(self.t, other.t)

@@ -260,8 +260,9 @@ def test_a_process_bounds_its_photos_memory(fountain, fountain_localizer):
     cloud, localizer = fountain_localizer
     need = lc.photo_memory_mb(1536, 1024)
     assert 400 < need < 700, need  # ~320 bytes per pixel
-    with pytest.raises(ValueError, match=r"mb must be a number in \[0, 1e7\]"):
-        lc.set_memory_limit(-1)
+    for bad in (-1, 1e-7, float("nan"), 1e8):  # (a tiny limit was 0 bytes: none)
+        with pytest.raises(ValueError, match=r"mb must be 0 \(no limit\) or a number in \[1, 1e7\]"):
+            lc.set_memory_limit(bad)
     try:
         lc.set_memory_limit(100)
         with pytest.raises(ValueError, match=rf"needs {int(need)} MB of scale space, more than the memory limit of 100 MB"):
@@ -287,6 +288,18 @@ def test_a_process_bounds_its_photos_memory(fountain, fountain_localizer):
             watcher.join()
         assert all(r["success"] for r in results)
         assert need * 0.9 <= peak[0] <= need * 1.5, peak[0]
+        # The limit lowered below a photo's need while it waits for room: a ValueError once
+        # the room is there, not a wait for ever (an outsider's photo never returned).
+        lc.set_memory_limit(need * 1.2)
+        first = threading.Thread(target=lambda: localizer.localize_image(fountain["photo"], fountain["camera"]))
+        first.start()
+        time.sleep(0.2)
+        threading.Timer(0.2, lambda: lc.set_memory_limit(100)).start()
+        started = time.monotonic()
+        with pytest.raises(ValueError, match=r"more than the memory limit of 100 MB"):
+            localizer.localize_image(fountain["photo"], fountain["camera"])
+        first.join(30)
+        assert not first.is_alive() and time.monotonic() - started < 30
     finally:
         lc.set_memory_limit(0)
     assert lc.memory_in_use()["limit_mb"] == 0

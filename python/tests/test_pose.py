@@ -88,3 +88,17 @@ def test_from_pycolmap_and_read_as_a_dict():
     assert "scale" in lc.Pose(pose.q, pose.t, 2.0)
     with pytest.raises(KeyError):
         pose["center"]
+
+
+def test_pose_edge_cases_an_outsider_found():
+    """q that overflows its norm, q and -q at w = 0, the caller's arrays, a scale of another type."""
+    with pytest.raises(ValueError, match="finite non-zero"):
+        lc.Pose([1e308, 1e308, 0, 0])
+    assert lc.Pose([0, 1, 0, 0]) == lc.Pose([0, -1, 0, 0])
+    t = np.array([1.0, 2.0, 3.0])
+    pose = lc.Pose([1, 0, 0, 0], t)
+    t[0] = 99
+    assert pose.t[0] == 1.0
+    for bad in ("2", None, True):
+        with pytest.raises(TypeError, match="scale must be a number"):
+            lc.Pose(scale=bad)

@@ -500,3 +500,23 @@ def test_ctrl_c_stops_a_photo_during_sift(fountain, tmp_path):
     assert extract_s > 1.5, whole["times_ms"]
     assert 0.3 <= elapsed < min(0.3 + 0.5, 0.6 * extract_s), (elapsed, extract_s)
     assert localizer.localize_image(fountain["photo"], fountain["camera"])["success"]
+
+
+def test_ctrl_c_stops_a_photo_waiting_for_memory(fountain, tmp_path):
+    """Ctrl-C is heard while a photo waits for room under set_memory_limit (polled every 50 ms),
+    not only once the other photo's SIFT has finished (~0.5 s later)."""
+    import time
+    cloud = lc.lift(fountain["model"], database=fountain["database"], key_file=fixed_key(tmp_path),
+                    key_store=tmp_path / "keys")
+    localizer = lc.Localizer(cloud)
+    photo, camera = fountain["photo"], fountain["camera"]
+    lc.set_memory_limit(lc.photo_memory_mb(1536, 1024) * 1.2)  # room for one photo at a time
+    try:
+        other = threading.Thread(target=lambda: localizer.localize_image(photo, camera))
+        other.start()
+        time.sleep(0.15)  # the other photo is in SIFT: this one waits for room
+        elapsed = _interrupted_after(0.1, lambda: localizer.localize_image(photo, camera))
+        other.join()
+    finally:
+        lc.set_memory_limit(0)
+    assert elapsed < 0.3, f"Ctrl-C heard after {elapsed:.2f} s"

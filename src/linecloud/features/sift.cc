@@ -188,7 +188,8 @@ SiftFeatures ExtractSiftColmap(const GreyImage& input, const SiftOptions& option
   // finest level, which the cap drops).
   const bool own = !options.vlfeat_scale_space && options.first_octave >= -1;
   SiftFilter sift(image.width, image.height, options.num_octaves, options.octave_resolution,
-                  options.first_octave, /*vlfeat_gradients=*/!own, options.deadline);
+                  options.first_octave, /*vlfeat_gradients=*/!own,
+                  SiftDeadline(options.deadline, options.should_stop));
   VlSiftFilt* f = sift.get();
   vl_sift_set_peak_thresh(f, options.peak_threshold);
   vl_sift_set_edge_thresh(f, options.edge_threshold);

@@ -405,18 +405,31 @@ class MappingPool {
   }
 
   // Reserves `bytes` under the limit (at once without one), unless the limit
-  // alone is smaller or `until` passes first.
-  enum class Reservation { kMade, kOverLimit, kTimedOut };
-  Reservation Reserve(size_t bytes, std::optional<std::chrono::steady_clock::time_point> until,
-                      size_t* limit) {
+  // alone is smaller — also a limit lowered while it waits (an outsider's
+  // photo waited forever for room a lowered limit could never give) — or
+  // `deadline` passes or its caller asks to stop first (polled every 50 ms,
+  // the lock released: the caller's stop may take Python's GIL).
+  enum class Reservation { kMade, kOverLimit, kTimedOut, kStopped };
+  Reservation Reserve(size_t bytes, const SiftDeadline& deadline, size_t* limit) {
+    using Clock = std::chrono::steady_clock;
     std::unique_lock<std::mutex> lock(mutex_);
-    *limit = limit_;
-    if (limit_ && bytes > limit_) return Reservation::kOverLimit;
+    const auto over = [&] { return limit_ && bytes > limit_; };
     const auto fits = [&] { return !limit_ || reserved_ + bytes <= limit_; };
-    if (until) {
-      if (!room_.wait_until(lock, *until, fits)) return Reservation::kTimedOut;
-    } else {
-      room_.wait(lock, fits);
+    while (true) {
+      *limit = limit_;
+      if (over()) return Reservation::kOverLimit;
+      if (fits()) break;
+      const Clock::time_point slice = Clock::now() + std::chrono::milliseconds(50);
+      const Clock::time_point until = deadline.at ? std::min(*deadline.at, slice) : slice;
+      room_.wait_until(lock, until, [&] { return over() || fits(); });
+      if (over() || fits()) continue;
+      if (deadline.at && Clock::now() >= *deadline.at) return Reservation::kTimedOut;
+      if (deadline.stop) {
+        lock.unlock();
+        const bool stop = deadline.stop();
+        lock.lock();
+        if (stop) return Reservation::kStopped;
+      }
     }
     reserved_ += bytes;
     if (limit_) Evict(limit_ - reserved_);
@@ -535,7 +548,7 @@ SiftFilter::SiftFilter(int width, int height, int octaves, int levels, int first
                        bool vlfeat_gradients, SiftDeadline wait_until) {
   const size_t need = SiftFilterBytes(width, height, octaves, levels, first_octave);
   size_t limit = 0;
-  switch (MappingPool::Get().Reserve(need, wait_until.at, &limit)) {
+  switch (MappingPool::Get().Reserve(need, wait_until, &limit)) {
     case MappingPool::Reservation::kMade:
       break;
     case MappingPool::Reservation::kOverLimit:
@@ -545,6 +558,8 @@ SiftFilter::SiftFilter(int width, int height, int octaves, int levels, int first
       throw DeadlinePassed(fmt::format(
           "the deadline passed while SIFT waited for {} MB of scale space (limit {} MB)",
           need >> 20, limit >> 20));
+    case MappingPool::Reservation::kStopped:
+      throw DeadlinePassed("stopped by the caller while SIFT waited for memory");
   }
   reserved_ = need;
   bounded_ = limit != 0;

@@ -1,5 +1,6 @@
 // LineCloud, lift and read_colmap_model: maps in and out of Python.
 #include <filesystem>
+#include <optional>
 
 #include <fmt/format.h>
 #include <pybind11/stl.h>
@@ -42,7 +43,7 @@ py::object Descriptors(const LineCloud& cloud) {
 
 // A cloud from arrays: lines N x 6 (v unit, w = X x v), ids N (unique), and
 // optionally descriptors N x D uint8. Checked as a file's content would be.
-LineCloud MakeCloud(py::handle lines, py::handle ids, py::handle descriptors) {
+LineCloud MakeCloud(ArrayArg lines, ArrayArg ids, VectorArg descriptors) {
   LineCloud cloud;
   size_t n = 0;
   const std::vector<double> rows = FiniteRows(lines, 6, "lines", &n);
@@ -197,7 +198,7 @@ void BindLineCloud(py::module_& m) {
   m.def(
       "lift",
       [](ModelArg model, PathArg database, PathArg out, PathArg key_store, PathArg key_file,
-         FlagArg compact, FlagArg force, py::kwargs kwargs) {
+         FlagArg compact, FlagArg force, py::kwargs kwargs) -> LineCloud {
         // The positional parameters of SPEC's lift(model_dir, database, out, key_store,
         // key_file, compact, force); the rest keywords of LiftOptionTable.
         const std::pair<const char*, py::handle> given[] = {
@@ -215,16 +216,16 @@ void BindLineCloud(py::module_& m) {
               py::module_::import("tempfile")
                   .attr("TemporaryDirectory")(py::arg("prefix") = "linecloud-model-");
           const std::string path = py::str(folder.attr("name"));
-          py::object result;
+          std::optional<LineCloud> result;
           try {
             model.attr("write")(path);
-            result = py::cast(Lift(path, kwargs));
+            result.emplace(Lift(path, kwargs));
           } catch (...) {
             folder.attr("cleanup")();
             throw;
           }
           folder.attr("cleanup")();
-          return result;
+          return std::move(*result);
         }
         if (!py::isinstance<py::str>(model) && !py::hasattr(model, "__fspath__")) {
           throw py::type_error(fmt::format(
@@ -232,7 +233,7 @@ void BindLineCloud(py::module_& m) {
               "pycolmap.Reconstruction, got {}",
               TypeName(model)));
         }
-        return py::cast(Lift(py::cast<std::filesystem::path>(model), kwargs));
+        return Lift(py::cast<std::filesystem::path>(model), kwargs);
       },
       py::arg("model_dir"), py::arg("database") = py::none(), py::arg("out") = py::none(),
       py::arg("key_store") = py::none(), py::arg("key_file") = py::none(),

@@ -389,9 +389,9 @@ void BindLocalizer(py::module_& m) {
   m.def(
       "set_memory_limit",
       [](double mb) {
-        if (!(mb >= 0 && mb <= 1e7)) {
+        if (!(mb == 0 || (mb >= 1 && mb <= 1e7))) {
           throw py::value_error(fmt::format(
-              "set_memory_limit: mb must be a number in [0, 1e7] (0: no limit), got {}", mb));
+              "set_memory_limit: mb must be 0 (no limit) or a number in [1, 1e7], got {}", mb));
         }
         SetSiftMemoryLimit(static_cast<size_t>(mb * kMB));
       },
