@@ -194,11 +194,9 @@ async function openMap(id) {
     // What this token may fetch (older servers do not say: then asked, and a 403 / 404 read).
     const may = info.for_this_token ?? { segments: true, audit: true, audit_points: true };
     if (may.segments) await loadSegments(gen);
-    else $("view-note").textContent = "The owner has not published this map's lines: this token gets poses only.";
+    else $("view-note").textContent = NO_LINES_NOTE;
     if (may.audit) await loadAudit(id, gen, may.audit_points);
-    else showPrivacy(info, null, may.admin === false
-      ? "not shown to this token (the map's owner sees it)"
-      : "none published with this map (no ID.audit.json next to the map: `linecloud audit --out DIR`, then its report.json as ID.audit.json)");
+    else showPrivacy(info, null, noAudit(may.admin === false, "no ID.audit.json next to the map"));
     if (gen === state.mapGen) setStatus(`map ${id} open`);
   } catch (e) {
     if (gen === state.mapGen) setError(`Map ${id}: ${e.message}`);
@@ -218,6 +216,14 @@ function showPrivacy(info, audit, missing = "") {
   $("privacy").hidden = false;
 }
 
+const NO_LINES_NOTE = "The owner has not published this map's lines: this token gets poses only.";
+
+// Why the privacy panel shows no audit: a reader's token, or none beside the map (`why`).
+function noAudit(reader, why) {
+  return reader ? "not shown to this token (the map's owner sees it)"
+    : `none published with this map (${why}: \`linecloud audit --out DIR\`, then its report.json as ID.audit.json)`;
+}
+
 async function loadAudit(id, gen, withPoints = true) {
   let report;
   try {
@@ -225,9 +231,7 @@ async function loadAudit(id, gen, withPoints = true) {
   } catch (e) {
     if (gen !== state.mapGen) return;
     if (e.status !== 404) setError(`Audit: ${e.message}`);
-    else showPrivacy(state.info, null, e.serverMessage === "no audit for this token"
-      ? "not shown to this token (the map's owner sees it)"
-      : `none published with this map (${e.serverMessage}: \`linecloud audit --out DIR\`, then its report.json as ID.audit.json)`);
+    else showPrivacy(state.info, null, noAudit(e.serverMessage === "no audit for this token", e.serverMessage));
     return;
   }
   if (gen !== state.mapGen) return;
@@ -460,11 +464,17 @@ function sceneFrame(view) {
   return frame;
 }
 
+// Up by the map's gravity (it points down), or null.
+function gravityUp() {
+  const g = state.info?.gravity;
+  return g ? new THREE.Vector3(...g).normalize().negate() : null;
+}
+
 // Up in the map: its gravity; without one, the photos localized on it (the
 // mean of their cameras' up, -y) when they agree; else unknown.
 function sceneUp() {
-  const g = state.info?.gravity;
-  if (g) return new THREE.Vector3(...g).normalize().negate();
+  const gravity = gravityUp();
+  if (gravity) return gravity;
   const sum = new THREE.Vector3();
   let n = 0;
   for (const e of state.history) {
@@ -538,7 +548,7 @@ async function loadSegments(gen) {
     answer = await api(`/v1/maps/${encodeURIComponent(state.map)}/segments?limit=${limit}`, { binary: true });
   } catch (e) {
     if (e.status !== 403) throw e;
-    if (gen === state.mapGen) $("view-note").textContent = "The owner has not published this map's lines: this token gets poses only.";
+    if (gen === state.mapGen) $("view-note").textContent = NO_LINES_NOTE;
     return;
   }
   if (gen !== state.mapGen) return;
@@ -559,8 +569,7 @@ async function loadSegments(gen) {
   view.lines.visible = $("show-lines").checked;
   view.scene.add(view.lines);
   view.frame = robustFrame(positions);
-  const g = state.info?.gravity;
-  view.up = g ? new THREE.Vector3(...g).normalize().negate() : new THREE.Vector3(0, -1, 0);
+  view.up = gravityUp() ?? new THREE.Vector3(0, -1, 0);
   resetView(view);
   $("view-note").textContent = shown > 20000
     ? "Many lines: while the view moves a uniform subset is drawn, the rest is added once it rests." : "";

@@ -457,7 +457,7 @@ std::string CalibrationFailure(const CalibrationCheck& check, double given_focal
       checked ? 0.004 : 0.0};
   const std::array<double, kJointParameters> narrow = {
       limits[0], std::max(0.05, limits[1]), std::max(0.05, limits[2]), 0.03, 0.1, 0.01, 0.01};
-  if (j.fitted && j.deviance > j.DevianceLimit()) {
+  if (j.RejectsGiven()) {
     for (int k = 0; k < kJointParameters; ++k) {
       const size_t i = static_cast<size_t>(k);
       if (!j.active[i] || (k == 0 && check.refit_principal)) continue;
@@ -1513,8 +1513,7 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
     // (With the focal length refined the joint fit starts from the camera as
     // given, not the one the pose was found with: not counted.)
     CalibrationCheck& check = *result.calibration_check;
-    if (!check.refit_principal && check.joint.fitted &&
-        check.joint.deviance > check.joint.DevianceLimit()) {
+    if (!check.refit_principal && check.joint.RejectsGiven()) {
       check.rotation_deg = std::hypot(check.rotation_deg, check.joint.pose_shift_deg);
       check.position = std::hypot(check.position, check.joint.pose_shift_centre);
     }

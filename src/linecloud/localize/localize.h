@@ -185,6 +185,8 @@ struct JointCalibration {
     constexpr std::array<double, 8> kLimit = {0, 8.81, 11.62, 13.93, 16.01, 17.96, 19.80, 21.58};
     return kOverdispersion * kLimit[static_cast<size_t>(std::clamp(parameters, 1, 7))];
   }
+  // The data reject the camera as given (fitted, its deviance beyond the limit).
+  bool RejectsGiven() const { return fitted && deviance > DevianceLimit(); }
 };
 
 // The calibration check (one camera, focal length not refined): the focal

@@ -210,16 +210,17 @@ void BindLineCloud(py::module_& m) {
         // A pycolmap.Reconstruction (or any object that writes a COLMAP model
         // into a folder: .write(path)): written to a temporary folder, lifted
         // from there (the key store knows a model by its tracks, not its path).
-        if (!py::isinstance<py::str>(model) && !py::hasattr(model, "__fspath__") &&
-            py::hasattr(model, "write")) {
+        const bool path = py::isinstance<py::str>(model) || py::hasattr(model, "__fspath__");
+        if (path) return Lift(py::cast<std::filesystem::path>(model), kwargs);
+        if (py::hasattr(model, "write")) {
           py::object folder =
               py::module_::import("tempfile")
                   .attr("TemporaryDirectory")(py::arg("prefix") = "linecloud-model-");
-          const std::string path = py::str(folder.attr("name"));
+          const std::string folder_path = py::str(folder.attr("name"));
           std::optional<LineCloud> result;
           try {
-            model.attr("write")(path);
-            result.emplace(Lift(path, kwargs));
+            model.attr("write")(folder_path);
+            result.emplace(Lift(folder_path, kwargs));
           } catch (...) {
             folder.attr("cleanup")();
             throw;
@@ -227,13 +228,10 @@ void BindLineCloud(py::module_& m) {
           folder.attr("cleanup")();
           return std::move(*result);
         }
-        if (!py::isinstance<py::str>(model) && !py::hasattr(model, "__fspath__")) {
-          throw py::type_error(fmt::format(
-              "lift: model_dir must be a COLMAP model's folder (str or os.PathLike) or a "
-              "pycolmap.Reconstruction, got {}",
-              TypeName(model)));
-        }
-        return Lift(py::cast<std::filesystem::path>(model), kwargs);
+        throw py::type_error(
+            fmt::format("lift: model_dir must be a COLMAP model's folder (str or os.PathLike) or a "
+                        "pycolmap.Reconstruction, got {}",
+                        TypeName(model)));
       },
       py::arg("model_dir"), py::arg("database") = py::none(), py::arg("out") = py::none(),
       py::arg("key_store") = py::none(), py::arg("key_file") = py::none(),

@@ -646,11 +646,27 @@ struct Server::Impl {
     return {token, std::move(map)};
   }
 
-  // The owner's file `ID + suffix` beside the map: admin tokens only, 404 when absent.
+  // The maps' owner: an admin token, or anyone on a server without tokens.
+  static bool Owner(const std::optional<TokenEntry>& token) { return !token || token->admin; }
+  // Who may have a map's lines (/segments): its owner, and every token of it once published.
+  static bool MaySeeLines(const std::optional<TokenEntry>& token, const LoadedMap& map) {
+    return Owner(token) || map.publish_lines;
+  }
+  static void RefuseUnpublishedLines(const std::optional<TokenEntry>& token, const LoadedMap& map) {
+    if (!MaySeeLines(token, map)) {
+      Throw(403, "the map's lines are for admin tokens: its owner has not published them");
+    }
+  }
+
+  // The owner's file `ID + suffix` beside the map.
+  std::string OwnerFilePath(const LoadedMap& map, const std::string& suffix) const {
+    return JoinPaths(options.maps_dir, map.id + suffix);
+  }
+  // ... for a request: admin tokens only, 404 when absent.
   std::string OwnerFile(const std::optional<TokenEntry>& token, const LoadedMap& map,
                         const std::string& suffix) const {
-    if (token && !token->admin) Throw(404, "no audit for this token");
-    const std::string path = JoinPaths(options.maps_dir, map.id + suffix);
+    if (!Owner(token)) Throw(404, "no audit for this token");
+    const std::string path = OwnerFilePath(map, suffix);
     if (!FileExists(path)) Throw(404, fmt::format("no {} next to the map", "ID" + suffix));
     return path;
   }
@@ -660,9 +676,7 @@ struct Server::Impl {
   std::string Segments(const HttpRequest& req, const std::string& id, HttpResponse& res,
                        json* log) {
     const auto [token, map] = RequestMap(req, id, log);
-    if (token && !token->admin && !map->publish_lines) {
-      Throw(403, "the map's lines are for admin tokens: its owner has not published them");
-    }
+    RefuseUnpublishedLines(token, *map);
     const size_t total = map->segments.size() / 6;
     size_t limit = std::min<size_t>(total, 20000);
     if (const auto limit_param = req.Query("limit")) {
@@ -911,9 +925,7 @@ struct Server::Impl {
     if (token) req.account = "token " + token->id;  // else the address (HttpServer's default)
     const std::string tail = map_path ? map_path->tail : "";
     const auto map = geopose ? GeoPoseMap(req, token) : FindMap(map_path->id, token);
-    if (tail == "/segments" && token && !token->admin && !map->publish_lines) {
-      Throw(403, "the map's lines are for admin tokens: its owner has not published them");
-    }
+    if (tail == "/segments") RefuseUnpublishedLines(token, *map);
     if (geopose || tail == "/localize" || tail == "/segments") Throttle(token);
   }
 
@@ -1051,7 +1063,7 @@ struct Server::Impl {
   // GET /v1/maps/{id}: what `linecloud info` says; readers get no geometry.
   json DetailsRoute(const HttpRequest& req, const std::string& id, json* log) {
     const auto [token, map] = RequestMap(req, id, log);
-    const bool owner = !token || token->admin;
+    const bool owner = Owner(token);
     json details = map->details;
     if (!owner) {
       details.erase("anchor_bbox");
@@ -1060,14 +1072,11 @@ struct Server::Impl {
     }
     // What this token may fetch of the map: a client (the console) asks only
     // for those, instead of learning it from a 403 / 404.
-    const std::string map_id = map->id;  // (clang: a structured binding is not captured)
-    const auto beside = [&](const char* suffix) {
-      return owner && FileExists(JoinPaths(options.maps_dir, map_id + suffix));
-    };
-    details["for_this_token"] = {{"admin", owner},
-                                 {"segments", owner || map->publish_lines},
-                                 {"audit", beside(".audit.json")},
-                                 {"audit_points", beside(".audit.ply")}};
+    details["for_this_token"] = {
+        {"admin", owner},
+        {"segments", MaySeeLines(token, *map)},
+        {"audit", owner && FileExists(OwnerFilePath(*map, ".audit.json"))},
+        {"audit_points", owner && FileExists(OwnerFilePath(*map, ".audit.ply"))}};
     return details;
   }
 
