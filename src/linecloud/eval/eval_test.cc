@@ -565,10 +565,12 @@ TEST(EvalReport, StrechaSceneMeetsTheMeasuredTargets) {
   EXPECT_GE(d.at("p6L").localized, 0.9 * d.at("p6L").queries);
   // One run's ratio of two medians over 11 photos moves with the map COLMAP
   // builds (not reproducible run to run, docs/image.md "How much one run
-  // says"): p6L / p3P was 1.12x here and 1.61x in CI's run of 2026-11-25 at
-  // 0.006 deg, a tenth of how far the reference itself is from Strecha's
-  // ground truth. Hence 2x for one run, and both far below that resolution.
-  EXPECT_LE(d.at("p6L").median_rotation_deg, 2.0 * d.at("p3P").median_rotation_deg);
+  // says"): p6L / p3P over nine maps prepared afresh (six here, three on CI)
+  // 0.90, 0.92, 1.03, 1.12, 1.28, 1.31, 1.40, 1.61 and 2.30 (CI, 2026-11-29:
+  // 0.0060° against 0.0026°), every one a tenth of how far the reference
+  // itself is from Strecha's ground truth. Hence 3x for one run (the log
+  // ratio's spread is about 0.3), and both far below that resolution.
+  EXPECT_LE(d.at("p6L").median_rotation_deg, 3.0 * d.at("p3P").median_rotation_deg);
   EXPECT_LT(d.at("p6L").median_rotation_deg, truth->max_rotation_deg);
   // The rig path on real photos (`localize --image A --image B --rig`): each
   // group's two photos, matched one by one, as one generalized camera. The
