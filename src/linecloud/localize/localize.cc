@@ -703,6 +703,13 @@ int RefineStage(const MethodInfo& method, const PoseData& data, const std::vecto
   return summary.iterations;
 }
 
+// The joint fit's differencing step per camera parameter (log k, cx and cy
+// shifts in px, log aspect, radial λ, p1, p2) for an image of this size: also
+// the units in which refitted cameras are compared (FocalProfile::NearestFit).
+std::array<double, kJointParameters> JointSteps(double width, double height) {
+  return {0.01, 0.005 * width, 0.005 * height, 0.005, 0.01, 0.001, 0.001};
+}
+
 // The focal length's profile: for a factor k on the camera's focal length(s),
 // the pose refined anew (the LM) on RANSAC's inliers, its final robust cost,
 // and the sum of squared reprojection errors there (px², each at most the
@@ -957,7 +964,7 @@ class FocalProfile {
   // else RANSAC's.
   Sim3d NearestFit(const Change& change) const {
     const Camera& c = query_->cameras[0];
-    const Change unit = {0.01, 0.005 * c.width, 0.005 * c.height, 0.005, 0.01, 0.001, 0.001};
+    const Change unit = JointSteps(c.width, c.height);
     const Sim3d* nearest = &start_;
     double least = std::numeric_limits<double>::infinity();
     for (const auto& [other, fit] : *fits_) {
@@ -1134,7 +1141,7 @@ JointCalibration FitCalibrationJointly(const FocalProfile& profile, int residual
   all.insert(all.end(), {4, 5, 6});
   std::vector<int> active = {0, 1, 2};
   int m = 3;
-  const Theta h = {0.01, 0.005 * size[0], 0.005 * size[1], 0.005, 0.01, 0.001, 0.001};
+  const Theta h = JointSteps(size[0], size[1]);
   std::array<std::array<double, 2>, kJointParameters> range;
   for (const int k : all) {
     range[static_cast<size_t>(k)] = profile.Over(static_cast<FocalProfile::Parameter>(k)).Range();
@@ -1332,15 +1339,18 @@ void AddCalibrationUncertainty(const ProfileTest& test, double prior, Calibratio
 
 // prior_log_focal / prior_principal (a fraction of the image's size): how far
 // the camera as given is trusted (1 σ); +∞ for a focal length refined.
+// *near_given: every profile (focal length, cx, cy) found the given value
+// best between its steps either side — a camera near its best fit.
 CalibrationCheck CheckCalibration(const FocalProfile& profile, int residuals_per_datum,
                                   int pose_parameters, double given_focal, const Camera& camera,
-                                  double prior_log_focal, double prior_principal) {
+                                  double prior_log_focal, double prior_principal,
+                                  bool* near_given) {
   CalibrationCheck check;
   const ProfileTest focal =
       TestProfile(profile, residuals_per_datum, pose_parameters, /*step=*/0.02);
   AddCalibrationUncertainty(focal, prior_log_focal, &check);
   check.best_fit_focal = std::exp(focal.best) * given_focal;
-  check.near_given = focal.bracketed;
+  *near_given = focal.bracketed;
   check.at_edge[0] = focal.at_edge;
   if (std::isfinite(focal.se)) {
     check.log_focal_se = focal.se;
@@ -1362,7 +1372,7 @@ CalibrationCheck CheckCalibration(const FocalProfile& profile, int residuals_per
     check.at_edge[static_cast<size_t>(1 + axis)] = shift.at_edge;
     check.principal_se[axis] = shift.se;
     check.principal_deviance[axis] = shift.deviance;
-    check.near_given = check.near_given && shift.bracketed;
+    *near_given = *near_given && shift.bracketed;
   }
   return check;
 }
@@ -1513,12 +1523,13 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
     // distance trade off, the position is then undetermined).
     const SuccessCriteria& c = options.success;
     const FocalProfile profile(method, scaled, map, check_inliers, pose, options, &unused_ms);
+    bool near_given = false;
     const int residuals_per_datum = method.lines ? 1 : 2;
     const int pose_parameters = method.similarity() ? 7 : 6;
     CalibrationCheck& check = result.calibration_check.emplace(
         CheckCalibration(profile, residuals_per_datum, pose_parameters, focal, scaled.cameras[0],
                          options.refine_focal ? std::numeric_limits<double>::infinity() : 0.01,
-                         c.max_principal_discrepancy / kCalibrationZ));
+                         c.max_principal_discrepancy / kCalibrationZ, &near_given));
     if (options.refine_focal) {  // the refined focal length is the one checked: not refused
       check.best_fit_focal = focal;
       check.deviance = 0;
@@ -1531,7 +1542,7 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
       check.joint =
           FitCalibrationJointly(given_camera, residuals_per_datum, pose_parameters,
                                 check.image_size, SeparateFocalLengths(query.cameras[0]),
-                                ProfileStarts(check, focal, result.given_focal), check.near_given);
+                                ProfileStarts(check, focal, result.given_focal), near_given);
       check.refit_principal =
           std::array<double, 2>{check.given_principal[0] + check.joint.theta[1],
                                 check.given_principal[1] + check.joint.theta[2]};
@@ -1543,7 +1554,7 @@ LocalizeResult LocalizeUsable(const MethodInfo& method, const Query& query,
       check.joint =
           FitCalibrationJointly(profile, residuals_per_datum, pose_parameters, check.image_size,
                                 SeparateFocalLengths(scaled.cameras[0]),
-                                ProfileStarts(check, focal, result.given_focal), check.near_given);
+                                ProfileStarts(check, focal, result.given_focal), near_given);
       CheckAspectAndDistortion(profile, residuals_per_datum, pose_parameters, scaled.cameras[0],
                                &check);
     }

@@ -208,9 +208,6 @@ struct CalibrationCheck {
                                         std::numeric_limits<double>::infinity()};
   std::array<double, 2> principal_deviance = {0, 0};
   std::array<double, 2> image_size = {0, 0};  // width, height (px)
-  // Every profile (focal length, cx, cy) found the given value best between
-  // its steps either side: a camera near its best fit (not reported).
-  bool near_given = false;
   // The pose's 1-σ RMS uncertainty from the calibration's (rotation in
   // degrees, centre in world units): for each parameter, how the refitted
   // pose moves with it times its mean square error, from a prior (the camera
