@@ -39,7 +39,8 @@ export LINECLOUD_FOUNTAIN_WORK="$PWD/build/eval/fountain-P11" LINECLOUD_HERZJESU
 cost=build/Testing/Temporary/CTestCostData.txt
 if [ ! -f "$cost" ]; then
   mkdir -p "$(dirname "$cost")"
-  printf '%s 1 %s\n' Identity.VersionsOfARealMapGiveNothingBackBeyondNoise 94 \
+  printf '%s 1 %s\n' Identity.VersionsOfARealMapGiveNothingBackBeyondNoise 130 \
+    Identity.ARebuildFromNewFeaturesGivesNothingBack 80 \
     Guard.APlantedCacheLinkOrFifoIsNeverUsed 15 "Solvers/MinimalSolverTest.RecoversTheTruePoseAndSatisfiesItsEquations/m_p6L" 13 \
     DensityAttack.RecoversMostPointsOfADenseTexturedFacade 12 Resist.KeepsPointsTheAttackCannotRecover 12 \
     Hostile.DribblingClientsDoNotStarveOthers 11 Hostile.MixedTrafficSoakAnswersEveryoneRight 10 \

@@ -20,6 +20,39 @@ struct LiftArgs {
   bool quiet = false;
 };
 
+// Where each point's direction came from: parts that add up to the whole.
+std::string IdentityLine(const IdentityResult& id, size_t points) {
+  const size_t kept = id.from_observations + id.from_released_place;
+  std::string line = fmt::format(
+      "identity (one line per physical point across releases): of {} points, {} keep a "
+      "released line ({} through their observations, {} found at their place{}; {} of the {} "
+      "are the released line itself, the others parallel to it), {} share the direction of a "
+      "point of this version within --same-place, {} get a new line",
+      points, kept, id.from_observations, id.from_released_place,
+      id.from_released_place
+          ? fmt::format(": {} by their descriptor, {} the nearest", id.released_place_by_sketch,
+                        id.from_released_place - id.released_place_by_sketch)
+          : "",
+      id.on_released_line, kept, id.from_same_place, id.fresh);
+  if (id.left_out) {
+    line +=
+        fmt::format(", {} left out (they merge points released with different lines)", id.left_out);
+  }
+  if (id.shared_images) {
+    line += fmt::format("; aligned with the released version through {} images", id.shared_images);
+    if (id.from_observations >= 10) {
+      line += fmt::format(" (points {:.2g} % of the diagonal from their lines, median)",
+                          100 * id.misalignment);
+    } else {
+      line += fmt::format(
+          " (checked: {} points lie within a tenth of --same-place of a released line, {} "
+          "would by chance)",
+          id.released_place_close, id.released_place_close_by_chance);
+    }
+  }
+  return line;
+}
+
 void RunLift(LiftArgs args) {
   args.flags.Apply(&args.settings);
   const LiftModelOptions& o = args.settings.options;
@@ -41,6 +74,16 @@ void RunLift(LiftArgs args) {
                               : "",
       r.seconds, o.out_path);
   const bool new_key = r.key_source.starts_with("new");
+  if (new_key && !r.georeferenced.empty()) {
+    // [rebuild] Two stores, one place: nothing ties the two keys together.
+    std::cerr << fmt::format(
+        "warning: this model is georeferenced ({}). Another map of this place released "
+        "under another key (another machine, another owner, another store) gives its points "
+        "back once the two are aligned — georeferenced maps come nearly aligned. Release every "
+        "map of a place from one key store (linecloud keys export / import moves it to another "
+        "machine); `linecloud audit --other` measures two maps together.\n",
+        r.georeferenced);
+  }
   if (args.quiet) {  // [newcomer] one line, and the new key's warning in one more
     if (new_key) {
       std::cout << fmt::format(
@@ -50,23 +93,9 @@ void RunLift(LiftArgs args) {
     }
     return;
   }
-  std::cout << fmt::format("key: {} ({}), fingerprint {}\n", r.key_path, r.key_source,
-                           ToHex(cloud.key_fingerprint));
-  const IdentityResult& id = r.identity;
-  std::cout << fmt::format(
-      "identity (one line per physical point across releases): {} points keep the line of a "
-      "released point they share observations with ({} of them the very same line), {} take the "
-      "direction of a point within --same-place of them, {} lie on a released line, {} get a "
-      "new line{}{}\n",
-      id.from_observations, id.on_released_line, id.from_same_place, id.from_released_place,
-      id.fresh,
-      id.left_out ? fmt::format(", {} left out (they merge points released with different lines)",
-                                id.left_out)
-                  : "",
-      id.shared_images ? fmt::format("; aligned with the released version through {} images "
-                                     "(points {:.2g} % of the diagonal from their lines)",
-                                     id.shared_images, 100 * id.misalignment)
-                       : "");
+  std::cout << fmt::format("key: {} ({}), fingerprint {}; its ledger in the key store {}\n",
+                           r.key_path, r.key_source, ToHex(cloud.key_fingerprint), r.key_store);
+  std::cout << IdentityLine(r.identity, r.num_points) << "\n";
   if (new_key) {
     std::cout << "This key now belongs to the model: every later lift of it (any output, "
                  "encoding or option) reuses it. Keep it secret and never delete it: two "

@@ -25,6 +25,7 @@ void RegisterCommands(CLI::App& app) {
   app.set_version_flag("--version", "linecloud 0.1.0");
   RegisterDemoCommand(app);
   RegisterLiftCommand(app);
+  RegisterKeysCommand(app);
   RegisterInfoCommand(app);
   RegisterExportCommand(app);
   RegisterSolveCommand(app);

@@ -155,6 +155,20 @@ ColmapDatabase::ColmapDatabase(const std::string& path) : path_(path) {
 
 ColmapDatabase::~ColmapDatabase() { sqlite3_close(db_); }
 
+size_t ColmapDatabase::ImagesWithPositionPriors() const {
+  const auto count = [&](const char* sql) {
+    Statement stmt(db_, path_, sql);
+    return stmt.Step() ? static_cast<size_t>(std::max<int64_t>(stmt.Int64(0), 0)) : size_t{0};
+  };
+  if (count("SELECT COUNT(*) FROM sqlite_master WHERE type = 'table' AND name = 'pose_priors'")) {
+    return count("SELECT COUNT(*) FROM pose_priors");
+  }
+  if (!count("SELECT COUNT(*) FROM pragma_table_info('images') WHERE name = 'prior_tx'")) return 0;
+  return count(
+      "SELECT COUNT(*) FROM images WHERE prior_tx IS NOT NULL AND prior_ty IS NOT NULL AND "
+      "prior_tz IS NOT NULL AND (prior_tx != 0 OR prior_ty != 0 OR prior_tz != 0)");
+}
+
 std::vector<Camera> ColmapDatabase::ReadCameras() const {
   std::vector<Camera> cameras;
   Statement stmt(db_, path_,

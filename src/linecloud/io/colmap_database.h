@@ -66,6 +66,10 @@ class ColmapDatabase {
   FeatureMatches ReadMatches(uint32_t image_id1, uint32_t image_id2) const;
   std::vector<ImagePairMatches> ReadAllMatches() const;
   std::vector<TwoViewGeometry> ReadTwoViewGeometries() const;
+  // Images with a position prior (COLMAP fills it from the photo's EXIF GPS):
+  // images.prior_tx/ty/tz not null and not all 0 (COLMAP 3.8), or the rows
+  // of the pose_priors table (3.9 and later).
+  size_t ImagesWithPositionPriors() const;
 
   const std::string& path() const { return path_; }
 

@@ -1,4 +1,5 @@
 #include "linecloud/io/lift_model.h"
+#include "linecloud/geometry/line_grid.h"
 
 #include <fmt/format.h>
 
@@ -224,6 +225,32 @@ LiftingKey ModelKey(const Reconstruction& model, const std::string& model_name,
   return known->key;
 }
 
+namespace {
+
+// A model in geographic coordinates (UTM, ECEF: far from the origin for its
+// size) or whose photos carry GPS: another owner's map of the place is then
+// in (nearly) the same frame, or easily put there.
+std::string GeoreferencedBecause(std::span<const Eigen::Vector3d> points, size_t gps_images) {
+  std::vector<std::string> why;
+  if (gps_images > 0) why.push_back(fmt::format("{} of its photos carry GPS", gps_images));
+  if (!points.empty()) {
+    const Eigen::AlignedBox3d box = RobustBox(points, 0.005, 0.0);
+    const double size = box.diagonal().norm();
+    const double distance = box.center().norm();
+    if (distance > 1000 && distance > 100 * size) {
+      why.push_back(fmt::format(
+          "its coordinates look geographic (its centre lies {:.0f} units from the origin, "
+          "{:.0f} times its size)",
+          distance, distance / std::max(size, 1e-300)));
+    }
+  }
+  std::string out;
+  for (const std::string& w : why) out += (out.empty() ? "" : "; ") + w;
+  return out;
+}
+
+}  // namespace
+
 LiftModelResult LiftModel(const LiftModelOptions& o) {
   o.Check();
   const auto start = std::chrono::steady_clock::now();
@@ -232,9 +259,11 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
   if (ids.empty()) Fail("{}: the model has no 3D points to lift", o.model_dir);
 
   PointDescriptors descriptors;
+  size_t gps_images = 0;
   if (!o.database.empty()) {
     const ColmapDatabase db(o.database);
     descriptors = ComputePointDescriptors(rec, ids, db, o.aggregation);
+    gps_images = db.ImagesWithPositionPriors();
   }
   const KeyStore store(o.key_store.empty() ? KeyStore::DefaultDirectory() : o.key_store);
   RefuseOutputInKeyStore(o, store);
@@ -255,7 +284,16 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
         ledger_path);
   }
   ReleaseLedger ledger = ReadLedger(ledger_path);
-  const IdentityInputData identity_input = MakeIdentityInput(rec, key.key, ids);
+  IdentityInputData identity_input = MakeIdentityInput(rec, key.key, ids);
+  if (descriptors.dim > 0) {
+    const DescriptorSketcher sketcher(key.key, descriptors.dim);
+    identity_input.sketches.resize(ids.size());
+    for (size_t i = 0; i < ids.size(); ++i) {
+      identity_input.sketches[i] = sketcher.Sketch(
+          std::span<const uint8_t>(descriptors.data.data() + i * descriptors.dim, descriptors.dim));
+    }
+    identity_input.input.sketches = identity_input.sketches;
+  }
   LiftModelResult result;
   IdentityOptions identity_options = o.identity;
   // A key that released maps before ledgers existed: its lines are the keyed
@@ -331,6 +369,8 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
   result.num_points = ids.size();
   result.key_path = key.path;
   result.key_source = key.source;
+  result.key_store = store.dir();
+  result.georeferenced = GeoreferencedBecause(identity_input.points, gps_images);
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }

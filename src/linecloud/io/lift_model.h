@@ -54,6 +54,10 @@ struct LiftModelResult {
   // "new key in the key store", "key store", "new key file", "key file",
   // or "legacy key file" (OUT.key from before the key store).
   std::string key_source;
+  std::string key_store;  // the store holding the key's registration and ledger
+  // Why another release of this place would be easy to align with this one
+  // (empty when nothing says so): geographic coordinates, photos with GPS.
+  std::string georeferenced;
   IdentityResult identity;  // where each point's direction came from
   double seconds = 0;
 };
@@ -70,7 +74,8 @@ struct IdentityInputData {
   std::vector<uint32_t> observation_start;
   std::vector<uint64_t> observations;
   std::vector<std::pair<uint64_t, Eigen::Vector3d>> images;
-  IdentityInput input;  // views of the above
+  std::vector<uint64_t> sketches;  // descriptor sketches, when the lift has descriptors
+  IdentityInput input;             // views of the above
   IdentityInputData() = default;
   IdentityInputData(const IdentityInputData&) = delete;
   IdentityInputData(IdentityInputData&&) = default;

@@ -21,7 +21,8 @@ struct Model {
   std::vector<uint32_t> start;
   std::vector<uint64_t> observations;
   std::vector<std::pair<uint64_t, Eigen::Vector3d>> images;
-  IdentityInput Input() const { return {ids, points, start, observations, images}; }
+  std::vector<uint64_t> sketches;  // empty: no descriptors
+  IdentityInput Input() const { return {ids, points, start, observations, images, sketches}; }
 };
 
 Model MakeModel(const LiftingKey& key, size_t n, uint64_t first_id = 1,
@@ -38,7 +39,13 @@ Model MakeModel(const LiftingKey& key, size_t n, uint64_t first_id = 1,
     image_hash.push_back(h.ImageFeatures(image_prefix + std::to_string(i) + ".jpg", 20, first));
     m.images.push_back({image_hash.back(), Eigen::Vector3d(20 * std::cos(i), 20 * std::sin(i), 3)});
   }
+  for (int i = 0; i < 10; ++i) {
+    // Also by name, as lift lists them: a version with other features keeps the names.
+    m.images.push_back({h.Image(image_prefix + std::to_string(i) + ".jpg"), m.images[i].second});
+  }
+  std::uniform_int_distribution<uint64_t> bits;
   for (size_t k = 0; k < n; ++k) {
+    m.sketches.push_back(bits(rng) | 1);
     m.ids.push_back(first_id + k);
     m.points.emplace_back(u(rng), u(rng), u(rng));
     m.start.push_back(static_cast<uint32_t>(m.observations.size()));
@@ -169,6 +176,8 @@ TEST(IdentityRule, ALedgerIsReadBackAndADamagedOneIsAnError) {
   ASSERT_EQ(back.lines.size(), ledger.lines.size());
   EXPECT_EQ(back.observations, ledger.observations);
   for (size_t i = 0; i < back.lines.size(); ++i) EXPECT_EQ(back.lines[i].w, ledger.lines[i].w);
+  EXPECT_EQ(back.sketch, ledger.sketch);
+  EXPECT_EQ(back.sketch, m.sketches);
   EXPECT_TRUE(ReadLedger(tmp.Path("absent.ledger")).empty());
   std::string bytes = ReadFileToString(tmp.Path("a.ledger"));
   bytes[bytes.size() / 2] ^= 1;
@@ -176,7 +185,7 @@ TEST(IdentityRule, ALedgerIsReadBackAndADamagedOneIsAnError) {
   EXPECT_THROW(ReadLedger(tmp.Path("b.ledger")), Error);
   // Counts claiming more than the file holds: refused before reading.
   bytes = ReadFileToString(tmp.Path("a.ledger"));
-  bytes[std::string("linecloud-release-ledger 1\n").size() + 7] = 0x7f;
+  bytes[std::string("linecloud-release-ledger 2\n").size() + 7] = 0x7f;
   WriteFileAtomically(tmp.Path("c.ledger"), [&](std::ostream& os) { os << bytes; });
   try {
     ReadLedger(tmp.Path("c.ledger"));
@@ -184,6 +193,145 @@ TEST(IdentityRule, ALedgerIsReadBackAndADamagedOneIsAnError) {
   } catch (const Error& e) {
     EXPECT_NE(std::string(e.what()).find("corrupt release ledger"), std::string::npos) << e.what();
   }
+}
+
+// [rebuild] A version whose features were extracted again (another SIFT
+// setting): the same photos (names), no shared observation, the points
+// re-triangulated with noise, renumbered, in another gauge. Each point finds
+// its own released line by place through the images' alignment (its sketch
+// picks it among the lines passing near it) and takes the released line
+// itself: the version publishes no line that crosses a released one.
+Model Rebuilt(const Model& v1, const Sim3d& gauge, double noise, uint64_t first_id) {
+  Model v2 = MakeModel(kKey, v1.ids.size(), first_id, "img", 50);  // other features
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> g(0, noise);
+  std::uniform_int_distribution<int> bit(0, 63);
+  for (size_t k = 0; k < v2.points.size(); ++k) {
+    v2.points[k] = gauge * (v1.points[k] + Eigen::Vector3d(g(rng), g(rng), g(rng)));
+    v2.sketches[k] = v1.sketches[k] ^ (uint64_t{1} << bit(rng)) ^ (uint64_t{1} << bit(rng));
+  }
+  for (auto& [h, c] : v2.images) c = gauge * c;
+  return v2;
+}
+
+TEST(IdentityRule, AVersionWithFeaturesExtractedAgainTakesItsReleasedLines) {
+  const Model v1 = MakeModel(kKey, 3000);
+  const IdentityResult r1 = AssignDirections(kKey, v1.Input(), {}, {});
+  const ReleaseLedger ledger = Release(v1, r1);
+  const Sim3d gauge(2.0, Eigen::Quaterniond(Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ())),
+                    Eigen::Vector3d(1, -2, 3));
+  const double diagonal = RobustBoxDiagonalForTest(v1.points);
+  const Model v2 = Rebuilt(v1, gauge, 1e-4 * diagonal, 90000);
+  IdentityOptions o;
+  o.same_place = 3e-3;
+  const IdentityResult r2 = AssignDirections(kKey, v2.Input(), ledger, o);
+  EXPECT_EQ(r2.from_observations, 0u);
+  EXPECT_EQ(r2.shared_images, 10u);
+  EXPECT_EQ(r2.from_released_place, 3000u);
+  EXPECT_EQ(r2.on_released_line, 3000u);
+  EXPECT_GT(r2.released_place_close, 10 * std::max<size_t>(r2.released_place_close_by_chance, 1));
+  size_t own = 0;
+  for (size_t k = 0; k < 3000; ++k) {
+    own += r2.ledger_line[k] == static_cast<int64_t>(k);
+    // The published line is the released line, moved into this gauge.
+    const PluckerLine released = Transform(gauge, ledger.lines[r2.ledger_line[k]]);
+    EXPECT_LT(released.DistanceTo(r2.anchors[k]), 1e-9 * diagonal) << k;
+    EXPECT_LT(released.v.cross(r2.directions[k]).norm(), 1e-9) << k;
+  }
+  EXPECT_EQ(own, 3000u);
+  // Without sketches (a lift without descriptors) the nearest line is taken.
+  Model bare = v2;
+  bare.sketches.clear();
+  EXPECT_EQ(AssignDirections(kKey, bare.Input(), ledger, o).from_released_place, 3000u);
+}
+
+// The outsider's case: two points 2 same_place apart were released with
+// different lines; the rebuild moved them within same_place of each other.
+// Each must keep its own released line — copying its neighbour's direction
+// would cross its own released line next to it.
+TEST(IdentityRule, APointsOwnReleasedLineComesBeforeANeighboursDirection) {
+  Model v1 = MakeModel(kKey, 400);
+  const double eps = 1e-3 * RobustBoxDiagonalForTest(v1.points);
+  const Eigen::Vector3d step(2 * eps, 0, 0);
+  for (size_t k = 1; k < 200; k += 2) v1.points[k] = v1.points[k - 1] + step;
+  const IdentityResult r1 = AssignDirections(kKey, v1.Input(), {}, {});
+  const ReleaseLedger ledger = Release(v1, r1);
+  Model v2 = Rebuilt(v1, Sim3d(), 0, 7000);
+  for (size_t k = 1; k < 200; k += 2) {  // the other 200 stay: they verify the alignment
+    v2.points[k - 1] += 0.6 * step / 2;
+    v2.points[k] -= 0.6 * step / 2;
+  }
+  const IdentityResult r2 = AssignDirections(kKey, v2.Input(), ledger, {});
+  size_t own = 0;
+  for (size_t k = 0; k < 400; ++k) own += r2.ledger_line[k] == static_cast<int64_t>(k);
+  EXPECT_EQ(own, 400u);
+  EXPECT_EQ(r2.from_same_place, 0u);
+}
+
+// Two released lines pass near a rebuilt point: the nearer is another
+// point's, the farther its own (its descriptor's sketch says so).
+TEST(IdentityRule, TheSketchPicksAPointsOwnLineOverANearerOne) {
+  const Model v1 = MakeModel(kKey, 200);
+  ReleaseLedger ledger = Release(v1, AssignDirections(kKey, v1.Input(), {}, {}));
+  const double diagonal = RobustBoxDiagonalForTest(v1.points);
+  Model v2 = Rebuilt(v1, Sim3d(), 0, 5000);
+  // Point 0 moved 2e-4 of the diagonal off its line, and a line of point 1's
+  // sketch passing 1e-5 from it.
+  const Eigen::Vector3d off = ledger.lines[0].v.unitOrthogonal();
+  v2.points[0] = v1.points[0] + 2e-4 * diagonal * off;
+  const Eigen::Vector3d v = Eigen::Vector3d(1, 2, 3).normalized();
+  ledger.lines.push_back(
+      PluckerLine::FromPointAndDirection(v2.points[0] + 1e-5 * diagonal * v.unitOrthogonal(), v));
+  ledger.compact.push_back(0);
+  ledger.sketch.push_back(v1.sketches[1]);
+  const IdentityResult r = AssignDirections(kKey, v2.Input(), ledger, {});
+  EXPECT_EQ(r.ledger_line[0], 0);
+  v2.sketches.clear();
+  EXPECT_EQ(AssignDirections(kKey, v2.Input(), ledger, {}).ledger_line[0], 200);
+}
+
+// The same photos but a reconstruction that does not fit the released one
+// (its points scrambled): no observation and no place verifies the
+// alignment: refused, with the figures.
+TEST(IdentityRule, ARebuiltVersionThatDoesNotFitIsRefused) {
+  const Model v1 = MakeModel(kKey, 3000);
+  const ReleaseLedger ledger = Release(v1, AssignDirections(kKey, v1.Input(), {}, {}));
+  Model v2 = Rebuilt(v1, Sim3d(), 0, 90000);
+  std::mt19937_64 rng(5);
+  std::shuffle(v2.points.begin(), v2.points.end(), rng);
+  for (auto& x : v2.points) x = Eigen::Vector3d(x.y(), x.z(), x.x()) * 0.9;
+  try {
+    AssignDirections(kKey, v2.Input(), ledger, {});
+    FAIL() << "an unverified version was lifted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot be aligned with its released version"),
+              std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("would by chance"), std::string::npos) << e.what();
+  }
+}
+
+TEST(DescriptorSketch, HammingDistanceFollowsTheAngle) {
+  const DescriptorSketcher sketcher(kKey, 128);
+  std::mt19937_64 rng(2);
+  std::uniform_int_distribution<int> byte(0, 255);
+  std::vector<uint8_t> a(128), b(128), c(128);
+  double near_bits = 0, far_bits = 0;
+  for (int t = 0; t < 50; ++t) {
+    for (int k = 0; k < 128; ++k) {
+      a[k] = static_cast<uint8_t>(byte(rng) / 2);
+      b[k] = static_cast<uint8_t>(std::clamp(a[k] + byte(rng) / 16 - 8, 0, 255));  // a match
+      c[k] = static_cast<uint8_t>(byte(rng) / 2);                                  // unrelated
+    }
+    near_bits += SketchDistance(sketcher.Sketch(a), sketcher.Sketch(b));
+    far_bits += SketchDistance(sketcher.Sketch(a), sketcher.Sketch(c));
+  }
+  EXPECT_LT(near_bits / 50, 8);
+  EXPECT_GT(far_bits / 50, 2 * near_bits / 50);
+  EXPECT_EQ(sketcher.Sketch(a), DescriptorSketcher(kKey, 128).Sketch(a));  // keyed, fixed
+  EXPECT_NE(sketcher.Sketch(a),
+            DescriptorSketcher(LiftingKey(LiftingKey::Bytes{9}), 128).Sketch(a));
+  EXPECT_EQ(SketchDistance(0, sketcher.Sketch(a)), 64);
 }
 
 }  // namespace

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <thread>
 #include <cerrno>
@@ -17,6 +18,7 @@
 #include <filesystem>
 #include <limits>
 
+#include "linecloud/lifting/release_ledger.h"
 #include "linecloud/util/error.h"
 #include "linecloud/util/file.h"
 
@@ -63,8 +65,7 @@ std::string_view NextLine(std::string_view text, size_t* pos, const std::string&
   return line;
 }
 
-Sketch ReadSketch(const std::string& path) {
-  const std::string text = ReadFileToString(path);
+Sketch ParseSketch(const std::string& text, const std::string& path) {
   size_t pos = 0;
   const std::string_view magic = NextLine(text, &pos, path);
   if (magic != kSketchMagic && magic != kSketchMagicV1) {
@@ -92,6 +93,82 @@ Sketch ReadSketch(const std::string& path) {
     Fail("{}: corrupt model sketch (unsorted elements)", path);
   }
   return s;
+}
+
+Sketch ReadSketch(const std::string& path) { return ParseSketch(ReadFileToString(path), path); }
+
+// Writes `s` to `path`, merged with the sketch already there (one sketch per
+// key: a model grown since, or an imported entry, adds to it).
+void WriteMergedSketch(const std::string& path, Sketch s) {
+  if (FileExists(path)) {
+    const Sketch old = ReadSketch(path);
+    std::vector<uint64_t> merged;
+    std::set_union(old.elements.begin(), old.elements.end(), s.elements.begin(), s.elements.end(),
+                   std::back_inserter(merged));
+    s.max_element = std::min(old.max_element, s.max_element);
+    merged.erase(std::upper_bound(merged.begin(), merged.end(), s.max_element), merged.end());
+    if (merged.size() > kMaxSketchElements) {
+      merged.resize(kMaxSketchElements);
+      s.max_element = merged.back();
+    }
+    s.elements = std::move(merged);
+  }
+  const std::string text = SketchText(s);
+  WriteFileAtomically(
+      path, [&](std::ostream& os) { os << text; }, 0600);
+}
+
+// A key bundle: "linecloud-key-bundle 1\n", then per section a line
+// "NAME SIZE\n" and SIZE bytes (key, model, ledger; the ledger may be empty),
+// then a BLAKE2b-256 of everything before.
+constexpr std::string_view kBundleMagic = "linecloud-key-bundle 1\n";
+constexpr const char* kBundleSections[] = {"key", "model", "ledger"};
+
+std::array<unsigned char, 32> BundleChecksum(std::string_view data) {
+  EnsureSodiumInitialized();
+  std::array<unsigned char, 32> sum;
+  crypto_generichash(sum.data(), sum.size(), reinterpret_cast<const unsigned char*>(data.data()),
+                     data.size(), nullptr, 0);
+  return sum;
+}
+
+std::array<std::string, 3> ReadBundle(const std::string& path) {
+  constexpr uint64_t kMaxBundle = uint64_t{1} << 36;  // 64 GiB
+  std::error_code ec;
+  const uint64_t size = std::filesystem::file_size(path, ec);
+  if (ec) Fail("{}: cannot read the key bundle ({})", path, ec.message());
+  const std::string head = ReadFilePrefix(path, kBundleMagic.size());
+  if (head != kBundleMagic) Fail("{}: not a linecloud key bundle (linecloud keys export)", path);
+  if (size > kMaxBundle) Fail("{}: {} bytes, more than any key bundle", path, size);
+  const std::string data = ReadFileToString(path);
+  if (data.size() < kBundleMagic.size() + 32) Fail("{}: truncated key bundle", path);
+  const std::string_view body(data.data(), data.size() - 32);
+  if (BundleChecksum(body) != [&] {
+        std::array<unsigned char, 32> stored;
+        std::memcpy(stored.data(), data.data() + body.size(), 32);
+        return stored;
+      }()) {
+    Fail("{}: damaged key bundle (checksum)", path);
+  }
+  std::array<std::string, 3> sections;
+  size_t pos = kBundleMagic.size();
+  for (int k = 0; k < 3; ++k) {
+    const size_t end = body.find('\n', pos);
+    if (end == std::string_view::npos) Fail("{}: damaged key bundle (section {})", path, k);
+    const std::string line(body.substr(pos, end - pos));
+    const std::string want = std::string(kBundleSections[k]) + " ";
+    unsigned long long bytes = 0;
+    char extra = 0;
+    if (line.rfind(want, 0) != 0 ||
+        std::sscanf(line.c_str() + want.size(), "%llu%c", &bytes, &extra) != 1 ||
+        bytes > body.size() - end - 1) {
+      Fail("{}: damaged key bundle (section '{}')", path, kBundleSections[k]);
+    }
+    sections[k] = std::string(body.substr(end + 1, bytes));
+    pos = end + 1 + bytes;
+  }
+  if (pos != body.size()) Fail("{}: damaged key bundle (trailing bytes)", path);
+  return sections;
 }
 
 std::string AbsolutePath(const std::string& path) {
@@ -368,23 +445,100 @@ void KeyStore::Register(const LiftingKey& key, const std::string& key_path,
     s.max_element = s.elements.back();
   }
   // One sketch per key: a later registration (a model grown since) adds to it.
-  const std::string path = JoinPaths(dir_, ToHex(key.Fingerprint()) + ".model");
-  if (FileExists(path)) {
-    const Sketch old = ReadSketch(path);
-    std::vector<uint64_t> merged;
-    std::set_union(old.elements.begin(), old.elements.end(), s.elements.begin(), s.elements.end(),
-                   std::back_inserter(merged));
-    s.max_element = std::min(old.max_element, s.max_element);
-    merged.erase(std::upper_bound(merged.begin(), merged.end(), s.max_element), merged.end());
-    if (merged.size() > kMaxSketchElements) {
-      merged.resize(kMaxSketchElements);
-      s.max_element = merged.back();
-    }
-    s.elements = std::move(merged);
+  WriteMergedSketch(JoinPaths(dir_, ToHex(key.Fingerprint()) + ".model"), std::move(s));
+}
+
+void KeyStore::ExportEntry(const LiftingKey::Id& fingerprint, const std::string& bundle) const {
+  const std::string model = JoinPaths(dir_, ToHex(fingerprint) + ".model");
+  if (!FileExists(model)) Fail("{}: the key store has no entry {}", dir_, ToHex(fingerprint));
+  const Sketch sketch = ReadSketch(model);
+  const std::string ledger = JoinPaths(dir_, ToHex(fingerprint) + ".ledger");
+  const std::array<std::string, 3> sections = {
+      ReadFileToString(sketch.key_path), ReadFileToString(model),
+      FileExists(ledger) ? ReadFileToString(ledger) : std::string()};
+  std::string out(kBundleMagic);
+  for (int k = 0; k < 3; ++k) {
+    out += fmt::format("{} {}\n", kBundleSections[k], sections[k].size());
+    out += sections[k];
   }
-  const std::string text = SketchText(s);
+  const auto sum = BundleChecksum(out);
+  out.append(reinterpret_cast<const char*>(sum.data()), sum.size());
   WriteFileAtomically(
-      path, [&](std::ostream& os) { os << text; }, 0600);
+      bundle, [&](std::ostream& os) { os << out; }, 0600);
+}
+
+std::string KeyStore::ImportEntry(const std::string& bundle, bool replace_ledger) const {
+  const std::array<std::string, 3> sections = ReadBundle(bundle);
+  const ProtectedWriteScope writing_the_store;
+  // Each part checked by its own reader from a private file in the store.
+  const auto staged = [&](const std::string& name, const std::string& bytes) {
+    const std::string path = JoinPaths(dir_, ".import-" + name);
+    WriteFileAtomically(
+        path, [&](std::ostream& os) { os << bytes; }, 0600);
+    return path;
+  };
+  const std::string key_tmp = staged("key", sections[0]);
+  const LiftingKey key = [&] {
+    try {
+      return ReadKeyFile(key_tmp);
+    } catch (const Error& e) {
+      std::filesystem::remove(key_tmp);
+      Fail("{}: the bundle's key is damaged ({})", bundle, e.what());
+    }
+  }();
+  const std::string fp = ToHex(key.Fingerprint());
+  Sketch sketch = ParseSketch(sections[1], bundle + " (model registration)");
+  const std::string key_path = JoinPaths(dir_, fp + ".key");
+  std::vector<std::string> did;
+  if (FileExists(key_path)) {
+    std::filesystem::remove(key_tmp);
+    if (ReadKeyFile(key_path).Fingerprint() != key.Fingerprint()) {
+      Fail("{}: holds another key under the bundle's fingerprint {}", key_path, fp);
+    }
+    did.push_back("the key was already here");
+  } else {
+    const std::optional<KeyStoreMatch> other = Find(sketch.elements);
+    if (other && other->key.Fingerprint() != key.Fingerprint()) {
+      std::filesystem::remove(key_tmp);
+      Fail(
+          "{}: this store already holds another key ({}) for the bundle's model: two keys of "
+          "one place give its points back. Retire that key (or use another store) first",
+          dir_, ToHex(other->key.Fingerprint()));
+    }
+    std::filesystem::rename(key_tmp, key_path);
+    did.push_back(fmt::format("key {}", key_path));
+  }
+  const std::string ledger_path = JoinPaths(dir_, fp + ".ledger");
+  if (!sections[2].empty()) {
+    const std::string ledger_tmp = staged("ledger", sections[2]);
+    try {
+      (void)ReadLedger(ledger_tmp);
+    } catch (const Error& e) {
+      std::filesystem::remove(ledger_tmp);
+      Fail("{}: the bundle's release ledger is damaged ({})", bundle, e.what());
+    }
+    if (FileExists(ledger_path) && ReadFileToString(ledger_path) != sections[2]) {
+      if (!replace_ledger) {
+        std::filesystem::remove(ledger_tmp);
+        Fail(
+            "{}: this store's release ledger of key {} differs from the bundle's ({} vs {} "
+            "lines): each store released maps the other does not know. Keep one store per "
+            "place; --replace-ledger takes the bundle's",
+            ledger_path, fp, ReadLedger(ledger_path).lines.size(),
+            ReadLedger(ledger_tmp).lines.size());
+      }
+    }
+    std::filesystem::rename(ledger_tmp, ledger_path);
+    did.push_back(fmt::format("ledger of {} released lines", ReadLedger(ledger_path).lines.size()));
+  } else if (sketch.with_ledger && !FileExists(ledger_path)) {
+    Fail("{}: the bundle's entry records releases but holds no ledger", bundle);
+  }
+  sketch.key_path = key_path;
+  WriteMergedSketch(JoinPaths(dir_, fp + ".model"), std::move(sketch));
+  did.push_back("the model's registration");
+  std::string out;
+  for (const std::string& d : did) out += (out.empty() ? "" : "; ") + d;
+  return out;
 }
 
 }  // namespace linecloud

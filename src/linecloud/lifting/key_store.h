@@ -100,6 +100,16 @@ class KeyStore {
   void Register(const LiftingKey& key, const std::string& key_path,
                 std::span<const uint64_t> elements) const;
 
+  // One place, one key, on every machine (issue [rebuild]): the entry of
+  // `fingerprint` — its key, the model's registration, its release ledger —
+  // as one bundle file (mode 0600, as secret as the key).
+  void ExportEntry(const LiftingKey::Id& fingerprint, const std::string& bundle) const;
+  // Installs a bundle's entry in this store (the key as FINGERPRINT.key).
+  // Refuses a bundle whose model has another key here, and a ledger that
+  // differs from the one here unless `replace_ledger`. Hold the lock.
+  // Returns what it installed.
+  std::string ImportEntry(const std::string& bundle, bool replace_ledger) const;
+
  private:
   std::string dir_;
 };

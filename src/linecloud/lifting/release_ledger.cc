@@ -14,8 +14,10 @@
 namespace linecloud {
 namespace {
 
-constexpr std::string_view kMagic = "linecloud-release-ledger 1\n";
-constexpr size_t kLineBytes = 6 * 8 + 1;
+constexpr std::string_view kMagic = "linecloud-release-ledger 2\n";
+constexpr std::string_view kMagicV1 = "linecloud-release-ledger 1\n";
+constexpr size_t kLineBytesV1 = 6 * 8 + 1;
+constexpr size_t kLineBytes = kLineBytesV1 + 8;
 constexpr size_t kObservationBytes = 8 + 4;
 constexpr size_t kImageBytes = 8 + 3 * 8;
 constexpr size_t kChecksumBytes = 32;
@@ -109,6 +111,33 @@ uint64_t ObservationHasher::ImageFeatures(std::string_view name, size_t count,
   return Image(std::string_view(reinterpret_cast<const char*>(words.data()), 8 * words.size()));
 }
 
+DescriptorSketcher::DescriptorSketcher(const LiftingKey& key, int dim) : dim_(dim) {
+  if (dim <= 0 || dim > 4096) Fail("descriptor sketch: dimension {}", dim);
+  const LiftingKey::Bytes subkey = key.DeriveSubkey("linecloud/ledger/descriptor-sketch/v1");
+  std::vector<unsigned char> bits(static_cast<size_t>(dim) * 64 / 8 + 1);
+  static_assert(crypto_stream_chacha20_KEYBYTES == 32);
+  const unsigned char nonce[crypto_stream_chacha20_NONCEBYTES] = {0};
+  crypto_stream_chacha20(bits.data(), bits.size(), nonce, subkey.data());
+  signs_.resize(static_cast<size_t>(dim) * 64);
+  for (size_t k = 0; k < signs_.size(); ++k) signs_[k] = (bits[k / 8] >> (k % 8)) & 1 ? 1 : -1;
+}
+
+uint64_t DescriptorSketcher::Sketch(std::span<const uint8_t> d) const {
+  if (d.size() != static_cast<size_t>(dim_)) {
+    Fail("descriptor sketch: {} values, expected {}", d.size(), dim_);
+  }
+  uint64_t out = 0;
+  for (int b = 0; b < 64; ++b) {
+    const int8_t* s = signs_.data() + static_cast<size_t>(b) * dim_;
+    int64_t sum = 0;
+    for (int k = 0; k < dim_; ++k) sum += s[k] * static_cast<int64_t>(d[k]);
+    out |= static_cast<uint64_t>(sum > 0) << b;
+  }
+  return out == 0 ? 1 : out;
+}
+
+int SketchDistance(uint64_t a, uint64_t b) { return a == 0 || b == 0 ? 64 : std::popcount(a ^ b); }
+
 std::string LedgerPath(const std::string& dir, const LiftingKey::Id& fingerprint) {
   return JoinPaths(dir, ToHex(fingerprint) + ".ledger");
 }
@@ -118,9 +147,11 @@ ReleaseLedger ReadLedger(const std::string& path) {
   if (!FileExists(path)) return ledger;
   const size_t header = kMagic.size() + 3 * 8;
   std::string data = ReadFilePrefix(path, header);
-  if (data.size() < kMagic.size() || data.compare(0, kMagic.size(), kMagic) != 0) {
+  const bool v1 = data.size() >= kMagicV1.size() && data.compare(0, kMagicV1.size(), kMagicV1) == 0;
+  if (!v1 && (data.size() < kMagic.size() || data.compare(0, kMagic.size(), kMagic) != 0)) {
     Fail("{}: not a linecloud release ledger", path);
   }
+  const size_t line_bytes = v1 ? kLineBytesV1 : kLineBytes;
   if (data.size() < header) Fail("{}: truncated release ledger (header)", path);
   size_t pos = kMagic.size();
   const uint64_t n_lines = Get<uint64_t>(data, &pos);
@@ -130,7 +161,7 @@ ReleaseLedger ReadLedger(const std::string& path) {
   if (n_lines >= kMax || n_obs >= kMax || n_images >= kMax) {
     Fail("{}: corrupt release ledger (counts {} / {} / {})", path, n_lines, n_obs, n_images);
   }
-  const uint64_t size = header + n_lines * kLineBytes + n_obs * kObservationBytes +
+  const uint64_t size = header + n_lines * line_bytes + n_obs * kObservationBytes +
                         n_images * kImageBytes + kChecksumBytes;
   std::error_code ec;
   const uint64_t on_disk = std::filesystem::file_size(path, ec);
@@ -147,10 +178,12 @@ ReleaseLedger ReadLedger(const std::string& path) {
   }
   ledger.lines.resize(n_lines);
   ledger.compact.resize(n_lines);
+  ledger.sketch.assign(n_lines, 0);
   for (uint64_t i = 0; i < n_lines; ++i) {
     for (int k = 0; k < 3; ++k) ledger.lines[i].v[k] = Get<double>(data, &pos);
     for (int k = 0; k < 3; ++k) ledger.lines[i].w[k] = Get<double>(data, &pos);
     ledger.compact[i] = Get<uint8_t>(data, &pos);
+    if (!v1) ledger.sketch[i] = Get<uint64_t>(data, &pos);
     if (!ledger.lines[i].IsValid(1e-6)) Fail("{}: corrupt release ledger (line {})", path, i);
   }
   ledger.observations.resize(n_obs);
@@ -177,9 +210,9 @@ ReleaseLedger ReadLedger(const std::string& path) {
 }
 
 void WriteLedger(const std::string& path, const ReleaseLedger& ledger) {
-  if (ledger.compact.size() != ledger.lines.size()) {
-    Fail("{}: release ledger with {} lines but {} compact indices", path, ledger.lines.size(),
-         ledger.compact.size());
+  if (ledger.compact.size() != ledger.lines.size() || ledger.sketch.size() != ledger.lines.size()) {
+    Fail("{}: release ledger with {} lines but {} compact indices and {} sketches", path,
+         ledger.lines.size(), ledger.compact.size(), ledger.sketch.size());
   }
   // Streamed through the checksum in blocks: no second copy of a large ledger.
   WriteFileAtomically(
@@ -204,6 +237,7 @@ void WriteLedger(const std::string& path, const ReleaseLedger& ledger) {
           for (int k = 0; k < 3; ++k) Put<double>(&block, ledger.lines[i].v[k]);
           for (int k = 0; k < 3; ++k) Put<double>(&block, ledger.lines[i].w[k]);
           Put<uint8_t>(&block, ledger.compact[i]);
+          Put<uint64_t>(&block, ledger.sketch[i]);
           flush(false);
         }
         for (const auto& [hash, line] : ledger.observations) {

@@ -7,17 +7,20 @@
 //
 // Observations and images are named by keyed hashes (SipHash-2-4 under a
 // subkey of the model's key) of (image features, keypoint index) and of the
-// image's name and of its features (its first keypoints): the ledger holds no point, no image name
-// and no descriptor. Its lines are the released lines (what the published maps hold anyway); the
-// image centres are the one geometric addition, kept as private as the key
-// (mode 0600, in the store).
+// image's name and of its features (its first keypoints): the ledger holds no point and no image
+// name. Each line also keeps a 64-bit keyed sketch of its point's descriptor (DescriptorSketcher:
+// signs of 64 keyed random projections, whose Hamming distance tracks the descriptors' angle),
+// which tells a rebuilt version's points their own released line among the lines passing near
+// them; a sketch says less than the descriptor a published map carries. Its lines are the released
+// lines (what the published maps hold anyway); the image centres are the one geometric addition,
+// kept as private as the key (mode 0600, in the store).
 //
-// File: "linecloud-release-ledger 1\n", then three little-endian u64 counts
+// File: "linecloud-release-ledger 2\n", then three little-endian u64 counts
 // (lines, observations, images), then the lines (v, w: 6 float64; compact
-// index: u8), the observations (hash u64, line u32), the images (hash u64,
-// centre: 3 float64), then a BLAKE2b-256 of everything before it. Read header
-// → counts → size check → body → checksum: a damaged ledger is an error
-// naming the file, never a silently smaller one.
+// index: u8; descriptor sketch: u64, 0 for none), the observations (hash u64, line u32), the images
+// (hash u64, centre: 3 float64), then a BLAKE2b-256 of everything before it. Read header → counts →
+// size check → body → checksum: a damaged ledger is an error naming the file, never a silently
+// smaller one. Version-1 ledgers (no sketches) are read as version 2 with every sketch 0.
 #pragma once
 
 #include <cstdint>
@@ -37,6 +40,7 @@ namespace linecloud {
 struct ReleaseLedger {
   std::vector<PluckerLine> lines;  // released lines, ledger frame
   std::vector<uint8_t> compact;    // their compact direction index (compact256 keys)
+  std::vector<uint64_t> sketch;    // their point's descriptor sketch, 0: none
   // (observation hash, line index), sorted by hash, hashes unique.
   std::vector<std::pair<uint64_t, uint32_t>> observations;
   // (image hash, camera centre in the ledger frame), sorted by hash, unique.
@@ -74,6 +78,22 @@ class ObservationHasher {
  private:
   unsigned char key_[16];
 };
+
+// Keyed SimHash of a descriptor (Charikar, STOC 2002): bit b is the sign of
+// the descriptor's projection on a keyed random ±1 vector; two descriptors at
+// angle θ differ in a bit with probability ≈ θ/π. Never 0 (0 means none).
+class DescriptorSketcher {
+ public:
+  DescriptorSketcher(const LiftingKey& key, int dim);
+  uint64_t Sketch(std::span<const uint8_t> descriptor) const;
+
+ private:
+  int dim_;
+  std::vector<int8_t> signs_;  // 64 x dim
+};
+
+// Bits of two sketches that differ; 64 when either is none.
+int SketchDistance(uint64_t a, uint64_t b);
 
 // FINGERPRINT.ledger in the key store `dir`.
 std::string LedgerPath(const std::string& dir, const LiftingKey::Id& fingerprint);

@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include <fmt/format.h>
+#include <Eigen/Geometry>
 
 #include "linecloud/geometry/line_grid.h"
 #include "linecloud/io/lcm_format.h"
@@ -16,6 +17,7 @@
 #include "linecloud/lifting/identity.h"
 #include "linecloud/lifting/lifting.h"
 #include "linecloud/draw/audit_figure.h"
+#include "linecloud/privacy/map_alignment.h"
 #include "linecloud/privacy/recovery_score.h"
 #include "linecloud/privacy/two_key_attack.h"
 #include "linecloud/util/error.h"
@@ -97,8 +99,8 @@ size_t CountRecovered(const TwoLiftingsAttack& attack, const std::vector<size_t>
 // then also scored by what it recovers beyond them (what the second map adds).
 PairingReport PairingOf(const TwoLiftingsAttack& attack, const std::vector<size_t>* partner,
                         const std::vector<Eigen::Vector3d>& secret, double within, double seconds,
-                        std::vector<uint8_t>* recovered,
-                        const std::vector<uint8_t>* own = nullptr) {
+                        std::vector<uint8_t>* recovered, const std::vector<uint8_t>* own = nullptr,
+                        const std::vector<uint8_t>* density = nullptr) {
   const double points = static_cast<double>(secret.size());
   PairingReport p;
   p.pairing = attack.pairing;
@@ -114,7 +116,34 @@ PairingReport PairingOf(const TwoLiftingsAttack& attack, const std::vector<size_
     p.recovered_beyond_own = beyond;
     p.share_recovered_beyond_own = secret.empty() ? 0.0 : beyond / points;
   }
+  if (density) {
+    size_t beyond = 0;
+    for (size_t i = 0; i < recovered->size(); ++i) beyond += (*recovered)[i] && !(*density)[i];
+    p.recovered_beyond_density = beyond;
+    p.share_recovered_beyond_density = secret.empty() ? 0.0 : beyond / points;
+  }
+  if (density && own) {
+    size_t beyond = 0;
+    for (size_t i = 0; i < recovered->size(); ++i) {
+      beyond += (*recovered)[i] && !(*density)[i] && !(*own)[i];
+    }
+    p.recovered_beyond_map = beyond;
+    p.share_recovered_beyond_map = secret.empty() ? 0.0 : beyond / points;
+  }
   return p;
+}
+
+MapAlignmentReport AlignmentOf(const MapAlignment& a) {
+  MapAlignmentReport r;
+  r.aligned = a.aligned;
+  r.why_not = a.why_not;
+  r.descriptor_pairs = a.descriptor_pairs;
+  r.ransac_inliers = a.ransac_inliers;
+  r.refined_pairs = a.refined_pairs;
+  r.median_line_distance_diagonal = a.median_line_distance;
+  r.scale = a.a_from_b.scale;
+  r.rotation_deg = Eigen::AngleAxisd(a.a_from_b.rotation).angle() * 180 / M_PI;
+  return r;
 }
 
 double SecondsSince(std::chrono::steady_clock::time_point start) {
@@ -125,9 +154,59 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
 // different directions cross there), and with `other` (another version or
 // lifting of the model) what pairing the two maps by equal id, by nearest
 // descriptor and by crossing lines recovers.
+// The other map aligned first from the two files (map_alignment.h), then one
+// estimate per line of `cloud`: the attacker's best pairings. `density`: the
+// density attack on `cloud` when the audit ran it (scored beyond it), else
+// null. The alignment needs only rough estimates: the attack's first step.
+void AlignedPairingsOf(const LineCloud& cloud, const LineCloud& other,
+                       const DensityAttackResult* density,
+                       const std::vector<Eigen::Vector3d>& secret, double within,
+                       const std::vector<uint8_t>& own, const AuditOptions& o,
+                       PairingAttacksReport* p) {
+  DensityAttackOptions rough = o.attack;
+  rough.refine_rounds = 0;
+  const DensityAttackResult cloud_rough =
+      density ? DensityAttackResult() : RunDensityAttack(cloud, rough);
+  const DensityAttackResult& estimates = density ? *density : cloud_rough;
+  std::vector<uint8_t> by_density(secret.size(), 0);
+  for (size_t i = 0; density && i < secret.size(); ++i) {
+    by_density[i] = (density->points[i] - secret[i]).norm() <= within;
+  }
+  const MapAlignment alignment =
+      AlignMaps(cloud, other, estimates, RunDensityAttack(other, rough), {});
+  p->alignment = AlignmentOf(alignment);
+  if (!alignment.aligned) return;
+  const LineCloud moved = TransformedCloud(other, alignment.a_from_b);
+  std::vector<uint8_t> recovered;
+  const auto add = [&](const TwoLiftingsAttack& attack, double seconds, const char* name) {
+    PairingReport r = PairingOf(attack, nullptr, secret, within, seconds, &recovered, &own,
+                                density ? &by_density : nullptr);
+    r.pairing = fmt::format("{}, after alignment", name);
+    return r;
+  };
+  auto start = std::chrono::steady_clock::now();
+  const TwoLiftingsAttack by_descriptor = IntersectLinesOfNearestDescriptor(cloud, moved);
+  p->aligned_by_descriptor = add(by_descriptor, SecondsSince(start), "nearest descriptor");
+  start = std::chrono::steady_clock::now();
+  const TwoLiftingsAttack by_line =
+      IntersectCrossingLines(cloud, moved, o.crossing_tolerance, o.attack.threads);
+  p->aligned_by_nearest_line = add(by_line, SecondsSince(start), "nearest line");
+  size_t most = 0, most_beyond = 0;
+  for (const auto* a : {&p->aligned_by_descriptor, &p->aligned_by_nearest_line}) {
+    most = std::max(most, (*a)->recovered);
+    most_beyond =
+        std::max(most_beyond, (*a)->recovered_beyond_map.value_or(*(*a)->recovered_beyond_own));
+  }
+  const double points = static_cast<double>(std::max<size_t>(secret.size(), 1));
+  p->most_recovered_aligned = most;
+  p->share_most_recovered_aligned = most / points;
+  p->most_recovered_aligned_beyond_map = most_beyond;
+  p->share_most_recovered_aligned_beyond_map = most_beyond / points;
+}
+
 PairingAttacksReport PairingAttacksOf(const LineCloud& cloud, const LineCloud* other,
                                       const std::vector<Eigen::Vector3d>& secret, double diagonal,
-                                      const AuditOptions& o) {
+                                      const DensityAttackResult* density, const AuditOptions& o) {
   const Eigen::AlignedBox3d box = RobustBox(secret, 0.005, 0.05);
   const double tolerance = o.crossing_tolerance * diagonal;
   const double within = o.recovered_within * diagonal;
@@ -141,17 +220,20 @@ PairingAttacksReport PairingAttacksOf(const LineCloud& cloud, const LineCloud* o
   p.self_crossings = PairingOf(self, &partner, secret, within, SecondsSince(start), &own);
   if (!other) return p;
   start = std::chrono::steady_clock::now();
-  p.by_id = PairingOf(IntersectLinesOfEqualId(cloud, *other), nullptr, secret, within,
-                      SecondsSince(start), &recovered, &own);
+  // Each attack runs before its time is read (arguments have no order).
+  const TwoLiftingsAttack by_id = IntersectLinesOfEqualId(cloud, *other);
+  p.by_id = PairingOf(by_id, nullptr, secret, within, SecondsSince(start), &recovered, &own);
   if (cloud.has_descriptors() && other->has_descriptors() &&
       cloud.descriptor_dim == other->descriptor_dim) {
     start = std::chrono::steady_clock::now();
-    p.by_descriptor = PairingOf(IntersectLinesOfNearestDescriptor(cloud, *other), nullptr, secret,
-                                within, SecondsSince(start), &recovered, &own);
+    const TwoLiftingsAttack by_descriptor = IntersectLinesOfNearestDescriptor(cloud, *other);
+    p.by_descriptor =
+        PairingOf(by_descriptor, nullptr, secret, within, SecondsSince(start), &recovered, &own);
   }
   start = std::chrono::steady_clock::now();
-  p.by_crossing = PairingOf(IntersectCrossingLinesInBox(cloud, *other, box, tolerance), nullptr,
-                            secret, within, SecondsSince(start), &recovered, &own);
+  const TwoLiftingsAttack by_crossing = IntersectCrossingLinesInBox(cloud, *other, box, tolerance);
+  p.by_crossing =
+      PairingOf(by_crossing, nullptr, secret, within, SecondsSince(start), &recovered, &own);
   // What the second map adds: the most any pairing recovers beyond the map's
   // own crossings.
   size_t worst = 0;
@@ -161,6 +243,9 @@ PairingAttacksReport PairingAttacksOf(const LineCloud& cloud, const LineCloud* o
   p.most_recovered_beyond_own = worst;
   p.share_most_recovered_beyond_own =
       secret.empty() ? 0.0 : static_cast<double>(worst) / secret.size();
+  if (cloud.has_descriptors() && other->has_descriptors()) {
+    AlignedPairingsOf(cloud, *other, density, secret, within, own, o, &p);
+  }
   return p;
 }
 
@@ -254,8 +339,10 @@ AuditReport RunAudit(const LineCloud& cloud, const AuditOptions& o) {
   report.encoding = LineEncodingName(cloud.encoding);
   report.diagonal = diagonal;
   if (o.metric_scale > 0) report.metric_scale = o.metric_scale;
+  std::optional<DensityAttackResult> density;
   if (!o.skip_density_attack) {
-    const DensityAttackResult attack = RunDensityAttack(cloud, o.attack);
+    density = RunDensityAttack(cloud, o.attack);
+    const DensityAttackResult& attack = *density;
     const RecoveryScore score = ScoreRecovery(attack.points, secret, o.metric_scale);
     report.density_attack = DensityAttackOf(attack, o.attack, score);
     if (!o.out_dir.empty()) {
@@ -281,7 +368,8 @@ AuditReport RunAudit(const LineCloud& cloud, const AuditOptions& o) {
     const TwoLiftingsAttack attack = AttackTwoLiftings(cloud, *other, o.attack.threads);
     report.two_keys = TwoKeyOf(attack, secret, diagonal, cloud.size(), o.other_map_path);
   }
-  report.pairing_attacks = PairingAttacksOf(cloud, other ? &*other : nullptr, secret, diagonal, o);
+  report.pairing_attacks = PairingAttacksOf(cloud, other ? &*other : nullptr, secret, diagonal,
+                                            density ? &*density : nullptr, o);
   if (!o.out_dir.empty()) {
     CreateDirectories(o.out_dir);
     WriteFileAtomically(JoinPaths(o.out_dir, "report.json"),

@@ -137,6 +137,11 @@ ojson ToJson(const PairingReport& p) {
              {"seconds", p.seconds}};
   if (p.recovered_beyond_own) j["recovered_beyond_own"] = *p.recovered_beyond_own;
   if (p.share_recovered_beyond_own) j["share_recovered_beyond_own"] = *p.share_recovered_beyond_own;
+  if (p.recovered_beyond_density) j["recovered_beyond_density"] = *p.recovered_beyond_density;
+  if (p.share_recovered_beyond_density)
+    j["share_recovered_beyond_density"] = *p.share_recovered_beyond_density;
+  if (p.recovered_beyond_map) j["recovered_beyond_map"] = *p.recovered_beyond_map;
+  if (p.share_recovered_beyond_map) j["share_recovered_beyond_map"] = *p.share_recovered_beyond_map;
   return j;
 }
 
@@ -152,11 +157,43 @@ PairingReport PairingFrom(const JsonFields& f, size_t lines) {
   if (f.Has("recovered_beyond_own")) p.recovered_beyond_own = f.Count("recovered_beyond_own");
   if (f.Has("share_recovered_beyond_own"))
     p.share_recovered_beyond_own = f.Share("share_recovered_beyond_own");
+  if (f.Has("recovered_beyond_density"))
+    p.recovered_beyond_density = f.Count("recovered_beyond_density");
+  if (f.Has("share_recovered_beyond_density"))
+    p.share_recovered_beyond_density = f.Share("share_recovered_beyond_density");
+  if (f.Has("recovered_beyond_map")) p.recovered_beyond_map = f.Count("recovered_beyond_map");
+  if (f.Has("share_recovered_beyond_map"))
+    p.share_recovered_beyond_map = f.Share("share_recovered_beyond_map");
   if (p.recovered > lines) {
     Fail("{}: {} points recovered from a map of {} lines", f.Where("recovered"), p.recovered,
          lines);
   }
   return p;
+}
+
+ojson ToJson(const MapAlignmentReport& a) {
+  ojson j = {{"aligned", a.aligned},
+             {"descriptor_pairs", a.descriptor_pairs},
+             {"ransac_inliers", a.ransac_inliers},
+             {"refined_pairs", a.refined_pairs},
+             {"median_line_distance_diagonal", a.median_line_distance_diagonal},
+             {"scale", a.scale},
+             {"rotation_deg", a.rotation_deg}};
+  if (!a.why_not.empty()) j["why_not"] = a.why_not;
+  return j;
+}
+
+MapAlignmentReport AlignmentFrom(const JsonFields& f) {
+  MapAlignmentReport a;
+  a.aligned = f.Bool("aligned");
+  a.why_not = f.StringOr("why_not", "");
+  a.descriptor_pairs = f.Count("descriptor_pairs");
+  a.ransac_inliers = f.Count("ransac_inliers");
+  a.refined_pairs = f.Count("refined_pairs");
+  a.median_line_distance_diagonal = f.NonNegative("median_line_distance_diagonal");
+  a.scale = f.NonNegative("scale");
+  a.rotation_deg = f.NonNegative("rotation_deg");
+  return a;
 }
 
 ojson ToJson(const PairingAttacksReport& p) {
@@ -169,6 +206,16 @@ ojson ToJson(const PairingAttacksReport& p) {
   if (p.most_recovered_beyond_own) j["most_recovered_beyond_own"] = *p.most_recovered_beyond_own;
   if (p.share_most_recovered_beyond_own)
     j["share_most_recovered_beyond_own"] = *p.share_most_recovered_beyond_own;
+  if (p.alignment) j["alignment"] = ToJson(*p.alignment);
+  if (p.aligned_by_descriptor) j["aligned_by_descriptor"] = ToJson(*p.aligned_by_descriptor);
+  if (p.aligned_by_nearest_line) j["aligned_by_nearest_line"] = ToJson(*p.aligned_by_nearest_line);
+  if (p.most_recovered_aligned) j["most_recovered_aligned"] = *p.most_recovered_aligned;
+  if (p.share_most_recovered_aligned)
+    j["share_most_recovered_aligned"] = *p.share_most_recovered_aligned;
+  if (p.most_recovered_aligned_beyond_map)
+    j["most_recovered_aligned_beyond_map"] = *p.most_recovered_aligned_beyond_map;
+  if (p.share_most_recovered_aligned_beyond_map)
+    j["share_most_recovered_aligned_beyond_map"] = *p.share_most_recovered_aligned_beyond_map;
   return j;
 }
 
@@ -184,6 +231,18 @@ PairingAttacksReport PairingAttacksFrom(const JsonFields& f, size_t lines) {
     p.most_recovered_beyond_own = f.Count("most_recovered_beyond_own");
   if (f.Has("share_most_recovered_beyond_own"))
     p.share_most_recovered_beyond_own = f.Share("share_most_recovered_beyond_own");
+  if (f.Has("alignment")) p.alignment = AlignmentFrom(f.Object("alignment"));
+  if (f.Has("aligned_by_descriptor"))
+    p.aligned_by_descriptor = PairingFrom(f.Object("aligned_by_descriptor"), lines);
+  if (f.Has("aligned_by_nearest_line"))
+    p.aligned_by_nearest_line = PairingFrom(f.Object("aligned_by_nearest_line"), lines);
+  if (f.Has("most_recovered_aligned")) p.most_recovered_aligned = f.Count("most_recovered_aligned");
+  if (f.Has("share_most_recovered_aligned"))
+    p.share_most_recovered_aligned = f.Share("share_most_recovered_aligned");
+  if (f.Has("most_recovered_aligned_beyond_map"))
+    p.most_recovered_aligned_beyond_map = f.Count("most_recovered_aligned_beyond_map");
+  if (f.Has("share_most_recovered_aligned_beyond_map"))
+    p.share_most_recovered_aligned_beyond_map = f.Share("share_most_recovered_aligned_beyond_map");
   return p;
 }
 
@@ -249,12 +308,32 @@ std::string PairingAttacksMarkdown(const PairingAttacksReport& p) {
       "| pairing | pairs | recovered | share | beyond its own |\n|---|---|---|---|---|\n",
       p.recovered_within_diagonal, p.crossing_tolerance_diagonal);
   for (const std::optional<PairingReport>& a :
-       {std::optional<PairingReport>(p.self_crossings), p.by_id, p.by_descriptor, p.by_crossing}) {
+       {std::optional<PairingReport>(p.self_crossings), p.by_id, p.by_descriptor, p.by_crossing,
+        p.aligned_by_descriptor, p.aligned_by_nearest_line}) {
     if (!a) continue;
     md += fmt::format(
         "| {} | {} | {} | {} | {} |\n", Cell(a->pairing), a->pairs, a->recovered,
         SharePercent(a->share_recovered),
         a->share_recovered_beyond_own ? SharePercent(*a->share_recovered_beyond_own) : "—");
+  }
+  if (p.alignment) {
+    const MapAlignmentReport& a = *p.alignment;
+    md += a.aligned
+              ? fmt::format(
+                    "\nThe other map aligned from the two files alone (as an attacker would: "
+                    "density estimates, {} descriptor pairs, {} agreeing, refined on {} crossing "
+                    "pairs, median line distance {:.2g} of the diagonal; scale {:.4g}, rotation "
+                    "{:.2f}°). One estimate per line after alignment: the attacker's best "
+                    "recovers {} ({} beyond what this map gives by itself: its own crossings and "
+                    "the density attack).\n",
+                    a.descriptor_pairs, a.ransac_inliers, a.refined_pairs,
+                    a.median_line_distance_diagonal, a.scale, a.rotation_deg,
+                    SharePercent(p.share_most_recovered_aligned.value_or(0)),
+                    p.share_most_recovered_aligned_beyond_map
+                        ? SharePercent(*p.share_most_recovered_aligned_beyond_map)
+                        : "—")
+              : fmt::format("\nThe other map could not be aligned with this one: {}.\n",
+                            Cell(a.why_not));
   }
   return md;
 }

@@ -57,6 +57,23 @@ struct PairingReport {
   // With a second map: what this pairing recovers beyond the map's own crossings.
   std::optional<size_t> recovered_beyond_own;
   std::optional<double> share_recovered_beyond_own;
+  // With the density attack run: what this pairing recovers that it does not.
+  std::optional<size_t> recovered_beyond_density;
+  std::optional<double> share_recovered_beyond_density;
+  // Beyond both the map's own crossings and the density attack: what the
+  // second map adds to what this map gives by itself.
+  std::optional<size_t> recovered_beyond_map;
+  std::optional<double> share_recovered_beyond_map;
+};
+
+// The second map brought into this map's frame from the two files alone
+// (map_alignment.h), as an attacker would before pairing.
+struct MapAlignmentReport {
+  bool aligned = false;
+  std::string why_not;  // empty when aligned
+  size_t descriptor_pairs = 0, ransac_inliers = 0, refined_pairs = 0;
+  double median_line_distance_diagonal = 0;  // refined pairs' lines, share of the diagonal
+  double scale = 1, rotation_deg = 0;        // of this map from the other
 };
 
 struct PairingAttacksReport {
@@ -65,6 +82,14 @@ struct PairingAttacksReport {
   std::optional<PairingReport> by_id, by_descriptor, by_crossing;  // with a second map
   std::optional<size_t> most_recovered_beyond_own;
   std::optional<double> share_most_recovered_beyond_own;
+  // The second map aligned first; then one estimate per line of this map: its
+  // line paired with the other map's line of nearest descriptor, or with the
+  // other map's nearest line (within the crossing tolerance), intersected.
+  std::optional<MapAlignmentReport> alignment;
+  std::optional<PairingReport> aligned_by_descriptor, aligned_by_nearest_line;
+  // The attacker's best of those two.
+  std::optional<size_t> most_recovered_aligned, most_recovered_aligned_beyond_map;
+  std::optional<double> share_most_recovered_aligned, share_most_recovered_aligned_beyond_map;
 };
 
 struct AuditReport {

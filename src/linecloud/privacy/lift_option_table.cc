@@ -106,7 +106,8 @@ std::vector<OptionField<S>> MakeTable() {
     OptionField<S> f = MemberField<S, double>(
         "same_place", OptionType::kNumber,
         "Points closer than this share of the scene diagonal count as one place: they get "
-        "parallel lines, within this map and against the lines released before",
+        "parallel lines within this map, and a point this close to a line released before "
+        "takes that line (up to 3x as far when its descriptor matches the line's)",
         [](S& s) -> double& { return s.options.identity.same_place; });
     f.min = 0;
     f.max = 0.1;
