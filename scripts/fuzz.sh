@@ -8,13 +8,20 @@ SECONDS_PER_TARGET="${1:-30}"
 # The sanitizer build's folder, configured by scripts/sanitize.sh: one clang ASan + UBSan build for both.
 bash scripts/sanitize.sh --configure-only
 cmake --build build-san -j2 --target lcm_fuzzer colmap_binary_fuzzer colmap_text_fuzzer \
-  json_fuzzer colmap_database_fuzzer image_fuzzer index_cache_fuzzer http_fuzzer
+  json_fuzzer colmap_database_fuzzer image_fuzzer index_cache_fuzzer http_fuzzer key_store_fuzzer
 # The seed files come from the demo of the Release build (scripts/run.sh), else of this one.
 tool=./build/linecloud
 if [ ! -x "$tool" ]; then cmake --build build-san -j2 --target linecloud; tool=./build-san/linecloud; fi
 corpus=build-san/corpus
-rm -rf "$corpus" && mkdir -p "$corpus"/{lcm,bin,txt,json,db,image,cache,http}
+rm -rf "$corpus" && mkdir -p "$corpus"/{lcm,bin,txt,json,db,image,cache,http,keys}
 "$tool" demo --out "$corpus/demo" --points 300 --images 4 --queries 1 >/dev/null
+# A ledger and a key bundle: the demo's model lifted into a store of the corpus, then exported.
+LINECLOUD_KEY_STORE="$corpus/store" "$tool" lift --model "$corpus/demo/model" \
+  --out "$corpus/lifted.lcm" --quiet >/dev/null
+LINECLOUD_KEY_STORE="$corpus/store" "$tool" keys export --model "$corpus/demo/model" \
+  --out "$corpus/bundle" >/dev/null
+{ printf '\x00'; cat "$corpus"/store/*.ledger; } > "$corpus/keys/ledger"
+{ printf '\x01'; cat "$corpus/bundle"; } > "$corpus/keys/bundle"
 cp "$corpus/demo/map.lcm" "$corpus/lcm/full.lcm"
 cp "$corpus/demo/map_compact.lcm" "$corpus/lcm/compact.lcm"
 i=0
@@ -101,5 +108,6 @@ form=$'--B\r\nContent-Disposition: form-data; name="camera"\r\n\r\nPINHOLE 8 8 5
 printf 'POST /v1/maps/synth/localize HTTP/1.1\r\nHost: a\r\nAuthorization: Bearer root-secret\r\nContent-Type: multipart/form-data; boundary=B\r\nContent-Length: %d\r\n\r\n%s' "${#form}" "$form" > "$corpus/http/multipart"
 run index_cache_fuzzer "$corpus/cache"
 run http_fuzzer "$corpus/http"
+run key_store_fuzzer "$corpus/keys"
 run_all
 echo "fuzzing finished: no crashes"

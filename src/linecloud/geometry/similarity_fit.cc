@@ -19,7 +19,8 @@ Sim3d FitIndexed(std::span<const Eigen::Vector3d> src, std::span<const Eigen::Ve
   const Eigen::Matrix4d m = Eigen::umeyama(a, b, true);
   const Eigen::Matrix3d sr = m.topLeftCorner<3, 3>();
   const double s = std::cbrt(sr.determinant());
-  if (!(s > 0) || !std::isfinite(s) || !m.allFinite()) return Sim3d(0.0, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero());
+  if (!(s > 0) || !std::isfinite(s) || !m.allFinite())
+    return Sim3d(0.0, Eigen::Quaterniond::Identity(), Eigen::Vector3d::Zero());
   return Sim3d(s, Eigen::Quaterniond(sr / s).normalized(), m.topRightCorner<3, 1>());
 }
 

@@ -23,8 +23,8 @@
 namespace linecloud {
 
 struct MapAlignmentOptions {
-  double max_ratio = 0.8;          // descriptor pairs for the fit
-  double tolerance = 0.02;         // share of a's diagonal (density estimates)
+  double max_ratio = 0.8;   // descriptor pairs for the fit
+  double tolerance = 0.02;  // share of a's diagonal (density estimates)
   int ransac_iterations = 2000;
   int refine_iterations = 30;
   double min_crossing_angle_deg = 5;  // pairs closer to parallel do not refine
@@ -38,8 +38,8 @@ struct MapAlignment {
   bool aligned = false;
   std::string why_not;  // when not aligned
   size_t descriptor_pairs = 0;
-  size_t ransac_inliers = 0;  // pairs whose estimated points agree
-  size_t refined_pairs = 0;   // pairs whose lines cross within the final tolerance
+  size_t ransac_inliers = 0;        // pairs whose estimated points agree
+  size_t refined_pairs = 0;         // pairs whose lines cross within the final tolerance
   double median_line_distance = 0;  // of those, share of a's diagonal
 };
 
