@@ -34,7 +34,8 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
     return d;
   }();
   const std::string file = dir + "/input";
-  std::ofstream(file, std::ios::binary).write(input.data(), static_cast<std::streamsize>(input.size()));
+  std::ofstream(file, std::ios::binary)
+      .write(input.data(), static_cast<std::streamsize>(input.size()));
   try {
     if (data[0] % 2 == 0) {
       const linecloud::ReleaseLedger ledger = linecloud::ReadLedger(file);

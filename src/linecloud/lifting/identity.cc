@@ -261,6 +261,12 @@ void FindReleasedLines(Assignment* a) {
 void CheckAlignment(Assignment* a) {
   IdentityResult& r = a->r;
   if (a->ledger.empty()) return;
+  if (a->compact_key && a->rotated) {
+    Fail(
+        "this version of the model has another gauge than its released version, and a "
+        "compact256 key's 256 directions cannot follow the rotation between them: align it "
+        "to the released model first (colmap model_aligner), or lift with a sphere key");
+  }
   std::vector<double>& distances = a->observed_distances;
   if (distances.size() >= 10) {
     std::nth_element(distances.begin(), distances.begin() + distances.size() / 2, distances.end());
@@ -296,12 +302,6 @@ void CheckAlignment(Assignment* a) {
           r.released_place_close_by_chance);
     }
     r.misalignment = r.released_place_distance;
-  }
-  if (a->compact_key && a->rotated && r.from_observations > 0) {
-    Fail(
-        "this version of the model has another gauge than its released version, and a "
-        "compact256 key's 256 directions cannot follow the rotation between them: align it "
-        "to the released model first (colmap model_aligner), or lift with a sphere key");
   }
 }
 

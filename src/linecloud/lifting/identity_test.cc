@@ -311,6 +311,25 @@ TEST(IdentityRule, ARebuiltVersionThatDoesNotFitIsRefused) {
   }
 }
 
+// A compact256 key's 256 directions cannot follow a rotation: a version in
+// another gauge is refused, naming why.
+TEST(IdentityRule, ACompactKeysVersionInAnotherGaugeIsRefused) {
+  const LiftingKey compact(LiftingKey::Bytes{7, 1, 2, 3}, DirectionSet::kCompact256);
+  const Model v1 = MakeModel(compact, 300);
+  const ReleaseLedger ledger = Release(v1, AssignDirections(compact, v1.Input(), {}, {}));
+  const Sim3d gauge(1.0, Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitX())),
+                    Eigen::Vector3d::Zero());
+  Model v2 = MakeModel(compact, 300, 500);
+  for (auto& x : v2.points) x = gauge * x;
+  for (auto& [h, c] : v2.images) c = gauge * c;
+  try {
+    AssignDirections(compact, v2.Input(), ledger, {});
+    FAIL() << "a rotated version of a compact256 key was lifted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("compact256"), std::string::npos) << e.what();
+  }
+}
+
 TEST(DescriptorSketch, HammingDistanceFollowsTheAngle) {
   const DescriptorSketcher sketcher(kKey, 128);
   std::mt19937_64 rng(2);
