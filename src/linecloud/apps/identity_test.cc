@@ -372,6 +372,20 @@ TEST(Identity, TwoStoresOfOnePlaceAreAuditedAfterAlignment) {
   EXPECT_TRUE(theirs.key_source.starts_with("new"));
   EXPECT_NE(theirs.georeferenced.find("coordinates look geographic"), std::string::npos)
       << theirs.georeferenced;
+  // Photos with GPS (COLMAP's position priors, from EXIF) say so too.
+  const std::string gps = tmp.Path("gps.db");
+  std::filesystem::copy_file(JoinPaths(work, "colmap/database.db"), gps);
+  sqlite3* db = nullptr;
+  ASSERT_EQ(sqlite3_open(gps.c_str(), &db), SQLITE_OK);
+  ASSERT_EQ(sqlite3_exec(db,
+                         "UPDATE images SET prior_tx = 7.5, prior_ty = 45.1, prior_tz = 300 "
+                         "WHERE image_id <= 3;",
+                         nullptr, nullptr, nullptr),
+            SQLITE_OK);
+  sqlite3_close(db);
+  const LiftModelResult with_gps = Lift(base, tmp.Path("gps.lcm"), tmp.Path("keys-c"), work, gps);
+  EXPECT_NE(with_gps.georeferenced.find("3 of its photos carry GPS"), std::string::npos)
+      << with_gps.georeferenced;
   const PairingAttacksReport p =
       Attack(tmp.Path("mine.lcm"), base, tmp.Path("theirs.lcm"), tmp.Path("keys-a"));
   // Frames as they are: the lines never meet.
