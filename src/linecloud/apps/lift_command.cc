@@ -74,16 +74,6 @@ void RunLift(LiftArgs args) {
                               : "",
       r.seconds, o.out_path);
   const bool new_key = r.key_source.starts_with("new");
-  if (new_key && !r.georeferenced.empty()) {
-    // [rebuild] Two stores, one place: nothing ties the two keys together.
-    std::cerr << fmt::format(
-        "warning: this model is georeferenced ({}). Another map of this place released "
-        "under another key (another machine, another owner, another store) gives its points "
-        "back once the two are aligned — georeferenced maps come nearly aligned. Release every "
-        "map of a place from one key store (linecloud keys export / import moves it to another "
-        "machine); `linecloud audit --other` measures two maps together.\n",
-        r.georeferenced);
-  }
   if (args.quiet) {  // [newcomer] one line, and the new key's warning in one more
     if (new_key) {
       std::cout << fmt::format(

@@ -18,6 +18,7 @@
 #include "linecloud/lifting/lifting.h"
 #include "linecloud/lifting/release_ledger.h"
 #include "linecloud/util/error.h"
+#include "linecloud/util/log.h"
 #include "linecloud/util/file.h"
 
 namespace linecloud {
@@ -239,8 +240,8 @@ std::string GeoreferencedBecause(std::span<const Eigen::Vector3d> points, size_t
     const double distance = box.center().norm();
     if (distance > 1000 && distance > 100 * size) {
       why.push_back(fmt::format(
-          "its coordinates look geographic (its centre lies {:.0f} units from the origin, "
-          "{:.0f} times its size)",
+          "its coordinates look geographic: its centre lies {:.0f} units from the origin, "
+          "{:.0f} times its size",
           distance, distance / std::max(size, 1e-300)));
     }
   }
@@ -371,6 +372,16 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
   result.key_source = key.source;
   result.key_store = store.dir();
   result.georeferenced = GeoreferencedBecause(identity_input.points, gps_images);
+  if (key.create && !result.georeferenced.empty()) {
+    // [rebuild] Two stores, one place: nothing ties the two keys together.
+    LogWarning(
+        "this model is georeferenced: {}. Another map of this place released under another "
+        "key (another machine, another owner, another store) gives its points back once the "
+        "two are aligned, and georeferenced maps come nearly aligned. Release every map of a "
+        "place from one key store (linecloud keys export / import moves it to another "
+        "machine); `linecloud audit --other` measures two maps together",
+        result.georeferenced);
+  }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }
