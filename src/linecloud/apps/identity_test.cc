@@ -16,6 +16,7 @@
 #include <fmt/format.h>
 
 #include <gtest/gtest.h>
+#include <sodium.h>
 #include <sqlite3.h>
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
@@ -443,6 +444,36 @@ TEST(Identity, AKeyBundleMovesAStoreEntry) {
     EXPECT_NE(std::string(e.what()).find("--replace-ledger"), std::string::npos) << e.what();
   }
   EXPECT_NO_THROW(b.ImportEntry(tmp.Path("entry.lckeys"), true));
+  // A bundle whose checksum is right but whose ledger is damaged: refused,
+  // and nothing of it is left in the store (no key without its ledger).
+  {
+    std::string crafted = ReadFileToString(tmp.Path("entry.lckeys"));
+    // Sections "NAME SIZE\n" + bytes after the magic line: key, model, ledger.
+    size_t at = crafted.find('\n') + 1;
+    for (int section = 0; section < 2; ++section) {
+      const size_t line_end = crafted.find('\n', at);
+      at = line_end + 1 + std::stoull(crafted.substr(crafted.find(' ', at) + 1, line_end));
+    }
+    ASSERT_EQ(crafted.compare(at, 7, "ledger "), 0);
+    crafted[crafted.find('\n', at) + 100] ^= 1;
+    crypto_generichash(reinterpret_cast<unsigned char*>(crafted.data()) + crafted.size() - 32, 32,
+                       reinterpret_cast<const unsigned char*>(crafted.data()), crafted.size() - 32,
+                       nullptr, 0);
+    WriteFileAtomically(tmp.Path("crafted.lckeys"), [&](std::ostream& os) { os << crafted; });
+    const KeyStore d(tmp.Path("keys-d"));
+    try {
+      d.ImportEntry(tmp.Path("crafted.lckeys"), false);
+      FAIL() << "a damaged ledger was imported";
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("release ledger is damaged"), std::string::npos)
+          << e.what();
+    }
+    size_t left = 0;
+    for (const auto& entry : std::filesystem::directory_iterator(tmp.Path("keys-d"))) {
+      left += entry.path().filename() != ".lock";
+    }
+    EXPECT_EQ(left, 0u);
+  }
   std::string bytes = ReadFileToString(tmp.Path("entry.lckeys"));
   bytes[bytes.size() / 2] ^= 1;
   WriteFileAtomically(tmp.Path("bad.lckeys"), [&](std::ostream& os) { os << bytes; });

@@ -423,10 +423,17 @@ IdentityResult AssignDirections(const LiftingKey& key, const IdentityInput& in,
   r.keep.assign(n, 1);
   r.anchors.assign(in.points.begin(), in.points.end());
   a.assigned.assign(n, 0);
+  AlignWithLedger(&a);
+  // The place's size: this version's, or the released scene's when that is
+  // larger (a piece of the scene lifted on its own keeps the scene's
+  // same_place, or its points would miss their released lines).
   a.diagonal = RobustBox(in.points, 0.005, 0.0).diagonal().norm();
+  if (ledger.diagonal > 0) {
+    a.diagonal = std::max(a.diagonal, ledger.diagonal / r.ledger_from_model.scale);
+  }
+  r.diagonal = a.diagonal;
   r.same_place_distance = std::max(o.same_place * a.diagonal, 1e-12);
   a.snap = std::min(kSketchReach * o.same_place, kMaxSnap) * a.diagonal;
-  AlignWithLedger(&a);
   KeepObservedLines(&a);
   if (!ledger.empty() && r.shared_images < 3 && r.from_observations < 10) {
     // Nothing ties this version to the released one: neither a similarity
@@ -450,6 +457,10 @@ bool RecordRelease(const IdentityInput& in, const IdentityResult& r,
                    std::span<const size_t> released, ReleaseLedger* ledger) {
   const size_t lines_before = ledger->lines.size();
   bool sketched = false;
+  const double diagonal_before = ledger->diagonal;
+  if (!released.empty()) {
+    ledger->diagonal = std::max(ledger->diagonal, r.diagonal * r.ledger_from_model.scale);
+  }
   const Sim3d& t = r.ledger_from_model;
   const Eigen::Matrix3d rotation = t.rotation.toRotationMatrix();
   std::vector<std::pair<uint64_t, uint32_t>> added;
@@ -497,7 +508,8 @@ bool RecordRelease(const IdentityInput& in, const IdentityResult& r,
   ledger->images.erase(std::unique(ledger->images.begin(), ledger->images.end(),
                                    [](const auto& a, const auto& b) { return a.first == b.first; }),
                        ledger->images.end());
-  return ledger->lines.size() != lines_before || !added.empty() || !new_images.empty() || sketched;
+  return ledger->lines.size() != lines_before || !added.empty() || !new_images.empty() ||
+         sketched || ledger->diagonal != diagonal_before;
 }
 
 }  // namespace linecloud

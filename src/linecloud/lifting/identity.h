@@ -98,6 +98,7 @@ struct IdentityResult {
   size_t shared_images = 0;
   double misalignment = 0;         // median, share of the diagonal
   double same_place_distance = 0;  // model units
+  double diagonal = 0;             // the place's size used (model units)
 };
 
 // The farthest (share of the scene diagonal, and at most `same_place`) a

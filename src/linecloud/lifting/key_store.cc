@@ -470,11 +470,23 @@ void KeyStore::ExportEntry(const LiftingKey::Id& fingerprint, const std::string&
 std::string KeyStore::ImportEntry(const std::string& bundle, bool replace_ledger) const {
   const std::array<std::string, 3> sections = ReadBundle(bundle);
   const ProtectedWriteScope writing_the_store;
-  // Each part checked by its own reader from a private file in the store.
+  // Every part is staged and checked by its own reader before anything is
+  // installed: a refused bundle leaves the store as it was.
+  std::vector<std::string> staged_files;
+  struct Cleanup {
+    std::vector<std::string>* files;
+    ~Cleanup() {
+      for (const std::string& f : *files) {
+        std::error_code ec;
+        std::filesystem::remove(f, ec);
+      }
+    }
+  } cleanup{&staged_files};
   const auto staged = [&](const std::string& name, const std::string& bytes) {
     const std::string path = JoinPaths(dir_, ".import-" + name);
     WriteFileAtomically(
         path, [&](std::ostream& os) { os << bytes; }, 0600);
+    staged_files.push_back(path);
     return path;
   };
   const std::string key_tmp = staged("key", sections[0]);
@@ -482,56 +494,59 @@ std::string KeyStore::ImportEntry(const std::string& bundle, bool replace_ledger
     try {
       return ReadKeyFile(key_tmp);
     } catch (const Error& e) {
-      std::filesystem::remove(key_tmp);
       Fail("{}: the bundle's key is damaged ({})", bundle, e.what());
     }
   }();
   const std::string fp = ToHex(key.Fingerprint());
   Sketch sketch = ParseSketch(sections[1], bundle + " (model registration)");
   const std::string key_path = JoinPaths(dir_, fp + ".key");
-  std::vector<std::string> did;
-  if (FileExists(key_path)) {
-    std::filesystem::remove(key_tmp);
+  const bool have_key = FileExists(key_path);
+  if (have_key) {
     if (ReadKeyFile(key_path).Fingerprint() != key.Fingerprint()) {
       Fail("{}: holds another key under the bundle's fingerprint {}", key_path, fp);
     }
-    did.push_back("the key was already here");
   } else {
     const std::optional<KeyStoreMatch> other = Find(sketch.elements);
     if (other && other->key.Fingerprint() != key.Fingerprint()) {
-      std::filesystem::remove(key_tmp);
       Fail(
           "{}: this store already holds another key ({}) for the bundle's model: two keys of "
           "one place give its points back. Retire that key (or use another store) first",
           dir_, ToHex(other->key.Fingerprint()));
     }
-    std::filesystem::rename(key_tmp, key_path);
-    did.push_back(fmt::format("key {}", key_path));
   }
   const std::string ledger_path = JoinPaths(dir_, fp + ".ledger");
+  std::string ledger_tmp;
+  size_t ledger_lines = 0;
   if (!sections[2].empty()) {
-    const std::string ledger_tmp = staged("ledger", sections[2]);
+    ledger_tmp = staged("ledger", sections[2]);
     try {
-      (void)ReadLedger(ledger_tmp);
+      ledger_lines = ReadLedger(ledger_tmp).lines.size();
     } catch (const Error& e) {
-      std::filesystem::remove(ledger_tmp);
       Fail("{}: the bundle's release ledger is damaged ({})", bundle, e.what());
     }
-    if (FileExists(ledger_path) && ReadFileToString(ledger_path) != sections[2]) {
-      if (!replace_ledger) {
-        std::filesystem::remove(ledger_tmp);
-        Fail(
-            "{}: this store's release ledger of key {} differs from the bundle's ({} vs {} "
-            "lines): each store released maps the other does not know. Keep one store per "
-            "place; --replace-ledger takes the bundle's",
-            ledger_path, fp, ReadLedger(ledger_path).lines.size(),
-            ReadLedger(ledger_tmp).lines.size());
-      }
+    if (FileExists(ledger_path) && ReadFileToString(ledger_path) != sections[2] &&
+        !replace_ledger) {
+      Fail(
+          "{}: this store's release ledger of key {} differs from the bundle's ({} vs {} "
+          "lines): each store released maps the other does not know. Keep one store per "
+          "place; --replace-ledger takes the bundle's",
+          ledger_path, fp, ReadLedger(ledger_path).lines.size(), ledger_lines);
     }
-    std::filesystem::rename(ledger_tmp, ledger_path);
-    did.push_back(fmt::format("ledger of {} released lines", ReadLedger(ledger_path).lines.size()));
   } else if (sketch.with_ledger && !FileExists(ledger_path)) {
     Fail("{}: the bundle's entry records releases but holds no ledger", bundle);
+  }
+  // Checked: installed ledger first (a key without its ledger is refused by lift), key, then
+  // the registration that makes the key found.
+  std::vector<std::string> did;
+  if (!ledger_tmp.empty()) {
+    std::filesystem::rename(ledger_tmp, ledger_path);
+    did.push_back(fmt::format("ledger of {} released lines", ledger_lines));
+  }
+  if (have_key) {
+    did.push_back("the key was already here");
+  } else {
+    std::filesystem::rename(key_tmp, key_path);
+    did.push_back(fmt::format("key {}", key_path));
   }
   sketch.key_path = key_path;
   WriteMergedSketch(JoinPaths(dir_, fp + ".model"), std::move(sketch));

@@ -145,23 +145,29 @@ std::string LedgerPath(const std::string& dir, const LiftingKey::Id& fingerprint
 ReleaseLedger ReadLedger(const std::string& path) {
   ReleaseLedger ledger;
   if (!FileExists(path)) return ledger;
-  const size_t header = kMagic.size() + 3 * 8;
+  const size_t header_v1 = kMagic.size() + 3 * 8;
+  const size_t header = header_v1 + 8;  // version 2: the released diagonal
   std::string data = ReadFilePrefix(path, header);
   const bool v1 = data.size() >= kMagicV1.size() && data.compare(0, kMagicV1.size(), kMagicV1) == 0;
   if (!v1 && (data.size() < kMagic.size() || data.compare(0, kMagic.size(), kMagic) != 0)) {
     Fail("{}: not a linecloud release ledger", path);
   }
   const size_t line_bytes = v1 ? kLineBytesV1 : kLineBytes;
-  if (data.size() < header) Fail("{}: truncated release ledger (header)", path);
+  const size_t head = v1 ? header_v1 : header;
+  if (data.size() < head) Fail("{}: truncated release ledger (header)", path);
   size_t pos = kMagic.size();
   const uint64_t n_lines = Get<uint64_t>(data, &pos);
   const uint64_t n_obs = Get<uint64_t>(data, &pos);
   const uint64_t n_images = Get<uint64_t>(data, &pos);
+  const double diagonal = v1 ? 0.0 : Get<double>(data, &pos);
+  if (!(diagonal >= 0) || !std::isfinite(diagonal)) {
+    Fail("{}: corrupt release ledger (diagonal {})", path, diagonal);
+  }
   constexpr uint64_t kMax = uint64_t{1} << 32;
   if (n_lines >= kMax || n_obs >= kMax || n_images >= kMax) {
     Fail("{}: corrupt release ledger (counts {} / {} / {})", path, n_lines, n_obs, n_images);
   }
-  const uint64_t size = header + n_lines * line_bytes + n_obs * kObservationBytes +
+  const uint64_t size = head + n_lines * line_bytes + n_obs * kObservationBytes +
                         n_images * kImageBytes + kChecksumBytes;
   std::error_code ec;
   const uint64_t on_disk = std::filesystem::file_size(path, ec);
@@ -176,6 +182,7 @@ ReleaseLedger ReadLedger(const std::string& path) {
   if (std::memcmp(sum.data(), data.data() + size - kChecksumBytes, kChecksumBytes) != 0) {
     Fail("{}: corrupt release ledger (checksum); restore it from a backup", path);
   }
+  ledger.diagonal = diagonal;
   ledger.lines.resize(n_lines);
   ledger.compact.resize(n_lines);
   ledger.sketch.assign(n_lines, 0);
@@ -233,6 +240,7 @@ void WriteLedger(const std::string& path, const ReleaseLedger& ledger) {
         Put<uint64_t>(&block, ledger.lines.size());
         Put<uint64_t>(&block, ledger.observations.size());
         Put<uint64_t>(&block, ledger.images.size());
+        Put<double>(&block, ledger.diagonal);
         for (size_t i = 0; i < ledger.lines.size(); ++i) {
           for (int k = 0; k < 3; ++k) Put<double>(&block, ledger.lines[i].v[k]);
           for (int k = 0; k < 3; ++k) Put<double>(&block, ledger.lines[i].w[k]);

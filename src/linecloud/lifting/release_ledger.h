@@ -16,11 +16,12 @@
 // kept as private as the key (mode 0600, in the store).
 //
 // File: "linecloud-release-ledger 2\n", then three little-endian u64 counts
-// (lines, observations, images), then the lines (v, w: 6 float64; compact
-// index: u8; descriptor sketch: u64, 0 for none), the observations (hash u64, line u32), the images
-// (hash u64, centre: 3 float64), then a BLAKE2b-256 of everything before it. Read header → counts →
-// size check → body → checksum: a damaged ledger is an error naming the file, never a silently
-// smaller one. Version-1 ledgers (no sketches) are read as version 2 with every sketch 0.
+// (lines, observations, images), the released scene's diagonal (f64), then the lines (v, w: 6
+// float64; compact index: u8; descriptor sketch: u64, 0 for none), the observations (hash u64, line
+// u32), the images (hash u64, centre: 3 float64), then a BLAKE2b-256 of everything before it. Read
+// header → counts → size check → body → checksum: a damaged ledger is an error naming the file,
+// never a silently smaller one. Version-1 ledgers (no sketches) are read as version 2 with every
+// sketch 0.
 #pragma once
 
 #include <cstdint>
@@ -41,6 +42,9 @@ struct ReleaseLedger {
   std::vector<PluckerLine> lines;  // released lines, ledger frame
   std::vector<uint8_t> compact;    // their compact direction index (compact256 keys)
   std::vector<uint64_t> sketch;    // their point's descriptor sketch, 0: none
+  // The largest scene diagonal released (ledger frame; 0: unknown): a later
+  // version that is a piece of the scene measures same_place by it.
+  double diagonal = 0;
   // (observation hash, line index), sorted by hash, hashes unique.
   std::vector<std::pair<uint64_t, uint32_t>> observations;
   // (image hash, camera centre in the ledger frame), sorted by hash, unique.
