@@ -150,10 +150,6 @@ double SecondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-// What one map's own lines give away (points at one place lifted with
-// different directions cross there), and with `other` (another version or
-// lifting of the model) what pairing the two maps by equal id, by nearest
-// descriptor and by crossing lines recovers.
 // The other map aligned first from the two files (map_alignment.h), then one
 // estimate per line of `cloud`: the attacker's best pairings. `density`: the
 // density attack on `cloud` when the audit ran it (scored beyond it), else
@@ -204,6 +200,11 @@ void AlignedPairingsOf(const LineCloud& cloud, const LineCloud& other,
   p->share_most_recovered_aligned_beyond_map = most_beyond / points;
 }
 
+// What one map's own lines give away (points at one place lifted with
+// different directions cross there), and with `other` (another version or
+// lifting of the model) what pairing the two maps by equal id, by nearest
+// descriptor and by crossing lines recovers.
+// Then the other map aligned as an attacker would (AlignedPairingsOf).
 PairingAttacksReport PairingAttacksOf(const LineCloud& cloud, const LineCloud* other,
                                       const std::vector<Eigen::Vector3d>& secret, double diagonal,
                                       const DensityAttackResult* density, const AuditOptions& o) {

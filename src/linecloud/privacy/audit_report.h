@@ -87,7 +87,9 @@ struct PairingAttacksReport {
   // other map's nearest line (within the crossing tolerance), intersected.
   std::optional<MapAlignmentReport> alignment;
   std::optional<PairingReport> aligned_by_descriptor, aligned_by_nearest_line;
-  // The attacker's best of those two.
+  // The attacker's best of those two; beyond the map alone: not already
+  // recovered by its own crossings, nor by the density attack when the audit
+  // ran it.
   std::optional<size_t> most_recovered_aligned, most_recovered_aligned_beyond_map;
   std::optional<double> share_most_recovered_aligned, share_most_recovered_aligned_beyond_map;
 };
