@@ -351,6 +351,31 @@ TEST(Identity, ARebuildFromNewFeaturesGivesNothingBack) {
   }
 }
 
+// Another survey whose photos carry the same default names (0000.jpg...)
+// lifted into a store holding a released map: the names align it with the
+// released version, but its points do not lie on released lines more than
+// chance says — refused, with the counts (an outsider saw 328 of its points
+// put on released lines before).
+TEST(Identity, AnotherSurveyWithTheSameImageNamesIsRefused) {
+  REQUIRE_FOUNTAIN_WORK();
+  if (Works().size() < 2) {
+    if (testing::RequireAll()) FAIL() << "required but absent: LINECLOUD_HERZJESUS_WORK";
+    GTEST_SKIP() << "LINECLOUD_HERZJESUS_WORK not set";
+  }
+  TempDir tmp;
+  const std::string store = tmp.Path("keys");
+  Lift(JoinPaths(Works()[0], "colmap/sparse/0"), tmp.Path("a.lcm"), store, Works()[0]);
+  try {
+    const LiftModelResult other =
+        Lift(JoinPaths(Works()[1], "colmap/sparse/0"), tmp.Path("b.lcm"), store, Works()[1]);
+    // A new key of its own is fine too: then nothing ties the two.
+    EXPECT_TRUE(other.key_source.starts_with("new")) << other.key_source;
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("would by chance"), std::string::npos) << e.what();
+    EXPECT_FALSE(FileExists(tmp.Path("b.lcm")));
+  }
+}
+
 // [rebuild] Two stores, one place: the same map released by a second owner
 // (a fresh store, so another key) in geographic coordinates. `lift` says that
 // the model is georeferenced; the audit aligns the two maps from the files
