@@ -80,15 +80,22 @@ LiftModelResult Lift(const std::string& model, const std::string& out, const std
 }
 
 // A copy of `database` with every image name prefixed by `prefix`.
-std::string RenamedDatabase(const std::string& database, const std::string& copy,
-                            const std::string& prefix) {
+// A copy of `database` at `copy` with `sql` run on it.
+std::string DatabaseCopy(const std::string& database, const std::string& copy,
+                         const std::string& sql) {
   std::filesystem::copy_file(database, copy);
   sqlite3* db = nullptr;
   EXPECT_EQ(sqlite3_open(copy.c_str(), &db), SQLITE_OK);
-  const std::string sql = fmt::format("UPDATE images SET name = '{}' || name;", prefix);
   EXPECT_EQ(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK);
   sqlite3_close(db);
   return copy;
+}
+
+// A copy of `database` with every image name prefixed by `prefix`.
+std::string RenamedDatabase(const std::string& database, const std::string& copy,
+                            const std::string& prefix) {
+  return DatabaseCopy(database, copy,
+                      fmt::format("UPDATE images SET name = '{}' || name;", prefix));
 }
 
 // The attacks on `map` (lifted from `model`) with `other` beside it; also
@@ -399,16 +406,9 @@ TEST(Identity, TwoStoresOfOnePlaceAreAuditedAfterAlignment) {
   EXPECT_NE(theirs.georeferenced.find("coordinates look geographic"), std::string::npos)
       << theirs.georeferenced;
   // Photos with GPS (COLMAP's position priors, from EXIF) say so too.
-  const std::string gps = tmp.Path("gps.db");
-  std::filesystem::copy_file(JoinPaths(work, "colmap/database.db"), gps);
-  sqlite3* db = nullptr;
-  ASSERT_EQ(sqlite3_open(gps.c_str(), &db), SQLITE_OK);
-  ASSERT_EQ(sqlite3_exec(db,
-                         "UPDATE images SET prior_tx = 7.5, prior_ty = 45.1, prior_tz = 300 "
-                         "WHERE image_id <= 3;",
-                         nullptr, nullptr, nullptr),
-            SQLITE_OK);
-  sqlite3_close(db);
+  const std::string gps = DatabaseCopy(
+      JoinPaths(work, "colmap/database.db"), tmp.Path("gps.db"),
+      "UPDATE images SET prior_tx = 7.5, prior_ty = 45.1, prior_tz = 300 WHERE image_id <= 3;");
   const LiftModelResult with_gps = Lift(base, tmp.Path("gps.lcm"), tmp.Path("keys-c"), work, gps);
   EXPECT_NE(with_gps.georeferenced.find("3 of its photos carry GPS"), std::string::npos)
       << with_gps.georeferenced;

@@ -210,10 +210,12 @@ void FindReleasedLines(Assignment* a) {
     }
     return false;
   };
+  // Chance is only asked about when observations do not verify the alignment.
+  const bool count_chance = r.from_observations < 10;
   for (size_t i = 0; i < n; ++i) {
     if (a->assigned[i] || !r.keep[i]) continue;
     ++r.searched_by_place;
-    for (int s = 0; s < 6; ++s) {
+    for (int s = 0; s < 6 && count_chance; ++s) {
       Eigen::Vector3d x = in_ledger[i];
       x[s / 2] += (s % 2 ? -10 : 10) * radius;
       grid.LinesNear(x, &near);

@@ -86,7 +86,8 @@ struct IdentityResult {
   size_t from_released_place = 0;  // a released line within same_place
   size_t searched_by_place = 0;    // points without released observations
   // Of those, the most that found a released line with every point moved by
-  // 10 x same_place along one axis: what chance gives.
+  // 10 x same_place along one axis: what chance gives (counted only when
+  // fewer than 10 observations verify the alignment; else 0).
   size_t released_place_by_chance = 0;
   // Within a tenth of same_place: the alignment's check without observations.
   size_t released_place_close = 0, released_place_close_by_chance = 0;

@@ -143,11 +143,7 @@ std::array<std::string, 3> ReadBundle(const std::string& path) {
   const std::string data = ReadFileToString(path);
   if (data.size() < kBundleMagic.size() + 32) Fail("{}: truncated key bundle", path);
   const std::string_view body(data.data(), data.size() - 32);
-  if (BundleChecksum(body) != [&] {
-        std::array<unsigned char, 32> stored;
-        std::memcpy(stored.data(), data.data() + body.size(), 32);
-        return stored;
-      }()) {
+  if (std::memcmp(BundleChecksum(body).data(), data.data() + body.size(), 32) != 0) {
     Fail("{}: damaged key bundle (checksum)", path);
   }
   std::array<std::string, 3> sections;
