@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 LAYERS = ["util", "geometry", "solvers", "estimation", "lifting", "io", "features", "localize",
-          "pipeline", "synthetic", "privacy", "draw", "colmap", "benchmarks", "eval", "serve",
+          "pipeline", "synthetic", "privacy", "draw", "colmap", "mapping", "benchmarks", "eval", "serve",
           "apps", "python", "testing"]
 # Known upward includes, each a debt named in docs/architecture.md.
 KNOWN = {("privacy/audit.cc", "draw")}

@@ -20,6 +20,7 @@ void RegisterAttackCommand(CLI::App& app);
 void RegisterAuditCommand(CLI::App& app);
 void RegisterOptionsCommand(CLI::App& app);
 void RegisterKeysCommand(CLI::App& app);
+void RegisterMapCommand(CLI::App& app);
 
 // Runs the CLI; returns the process exit code. Errors are printed to stderr
 // as one line `error: ...`.

@@ -1,4 +1,5 @@
 #include <iostream>
+#include <thread>
 
 #include "linecloud/apps/commands.h"
 #include "linecloud/eval/eval_prepare.h"
@@ -29,19 +30,22 @@ void RegisterEvalPrepare(CLI::App* eval) {
       ->add_option("--gravity-noise-deg", prepare_options->gravity_noise_deg,
                    "+u without an IMU: tilt of the ground-truth gravity, |N(0, sigma)| degrees")
       ->capture_default_str();
-  prepare->add_option("--colmap", prepare_options->colmap.executable, "COLMAP executable")
+  prepare->add_option("--colmap", prepare_options->sfm.colmap.executable, "COLMAP executable")
       ->capture_default_str();
   prepare
-      ->add_option("--threads", prepare_options->colmap.num_threads,
-                   "COLMAP threads (-1: all cores)")
+      ->add_option("--threads", prepare_options->sfm.colmap.num_threads,
+                   "threads of SIFT, matching and COLMAP (-1: all cores)")
       ->capture_default_str();
-  prepare->add_flag("--accurate-features", prepare_options->colmap.accurate_features,
-                    "affine-covariant SIFT, domain-size pooling, guided matching (slower)");
-  prepare->add_flag("--verbose", prepare_options->colmap.verbose,
+  prepare->add_flag("--verbose", prepare_options->sfm.colmap.verbose,
                     "show COLMAP's output instead of logging it");
   prepare->add_option("--seed", prepare_options->seed, "seed of the gravity noise")
       ->capture_default_str();
-  prepare->callback([prepare_options] { PrepareEvaluation(*prepare_options); });
+  prepare->callback([prepare_options] {
+    const int t = prepare_options->sfm.colmap.num_threads;
+    prepare_options->sfm.threads =
+        t > 0 ? t : int(std::max(1u, std::thread::hardware_concurrency()));
+    PrepareEvaluation(*prepare_options);
+  });
 }
 
 // `linecloud eval privacy`.

@@ -22,6 +22,7 @@
 #include <nlohmann/json.hpp>
 
 #include "linecloud/colmap/colmap_runner.h"
+#include "linecloud/mapping/sfm.h"
 #include "linecloud/colmap/dataset.h"
 #include "linecloud/geometry/similarity_fit.h"
 #include "linecloud/geometry/line_grid.h"
@@ -315,10 +316,10 @@ TEST(Identity, ARebuildFromNewFeaturesGivesNothingBack) {
   const std::string work = FountainWork();
   TempDir tmp;
   const auto prepared = nlohmann::json::parse(ReadFileToString(JoinPaths(work, "prepared.json")));
-  ColmapOptions colmap;
-  colmap.max_image_size = 800;
+  SfmOptions sfm;
+  sfm.sift.max_image_size = 800;
   const Reconstruction rebuilt = ReconstructDataset(
-      ReadEvalDataset(prepared["dataset_dir"].get<std::string>()), tmp.Path("v2"), colmap);
+      ReadEvalDataset(prepared["dataset_dir"].get<std::string>()), tmp.Path("v2"), sfm);
   const std::string base = JoinPaths(work, "colmap/sparse/0");
   const Reconstruction released = ReadColmapModel(base);
   CreateDirectories(tmp.Path("v2-aligned"));

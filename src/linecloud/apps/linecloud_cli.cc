@@ -24,6 +24,7 @@ void RegisterCommands(CLI::App& app) {
   }
   app.set_version_flag("--version", "linecloud 0.1.0");
   RegisterDemoCommand(app);
+  RegisterMapCommand(app);
   RegisterLiftCommand(app);
   RegisterKeysCommand(app);
   RegisterInfoCommand(app);

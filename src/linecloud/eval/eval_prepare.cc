@@ -164,7 +164,7 @@ void EvalPrepareOptions::Check() const {
   if (work_dir.empty()) Fail("--work: empty");
   if (!(gravity_noise_deg >= 0 && gravity_noise_deg < 90))
     Fail("--gravity-noise-deg: {} not in [0, 90)", gravity_noise_deg);
-  colmap.Check();
+  sfm.Check();
 }
 
 bool RefinePointFixedPoses(const std::vector<PointObservation>& obs, Eigen::Vector3d* point) {
@@ -419,7 +419,7 @@ void AttachLocalStructure(const EvalDataset& dataset, const EvalPrepareOptions& 
   if (registered.size() >= 2) {
     const Reconstruction local =
         ReconstructImageSubset(JoinPaths(colmap_dir, "database.db"), images_dir, registered,
-                               JoinPaths(group_dir, "local"), options.colmap);
+                               JoinPaths(group_dir, "local"), options.sfm.colmap);
     const Image* l0 = FindImage(local, first.name);
     bool all = l0 != nullptr;
     for (const EvalImage& im : group.images) all = all && FindImage(local, im.name);
@@ -510,7 +510,7 @@ EvalWork PrepareEvaluation(const EvalPrepareOptions& options) {
               dataset.sensors ? ", rig + IMU" : "");
   CreateDirectories(options.work_dir);
   const std::string colmap_dir = JoinPaths(options.work_dir, "colmap");
-  Reconstruction full = ReconstructDataset(dataset, colmap_dir, options.colmap);
+  Reconstruction full = ReconstructDataset(dataset, colmap_dir, options.sfm);
   full.Check(colmap_dir);
 
   EvalWork work;

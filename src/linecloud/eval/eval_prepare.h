@@ -5,16 +5,16 @@
 #include <cstdint>
 #include <string>
 
-#include "linecloud/colmap/colmap_runner.h"
 #include "linecloud/eval/eval_work.h"
 #include "linecloud/io/colmap_model.h"
+#include "linecloud/mapping/sfm.h"
 
 namespace linecloud {
 
 struct EvalPrepareOptions {
   std::string dataset_dir;
   std::string work_dir;
-  ColmapOptions colmap;
+  SfmOptions sfm;  // the reconstruction of all images (mapping/sfm.h)
   // +u without an IMU: gravity = the ground-truth vertical rotated by a random
   // angle ~ |N(0, σ)| about a random horizontal axis, σ in degrees.
   double gravity_noise_deg = 0.2;

@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <cstring>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -70,6 +72,87 @@ int ExifOrientation(FIBITMAP* bitmap) {
   if (FreeImage_GetTagType(tag) != FIDT_SHORT || FreeImage_GetTagCount(tag) != 1) return 1;
   const int value = *static_cast<const uint16_t*>(FreeImage_GetTagValue(tag));
   return value >= 1 && value <= 8 ? value : 1;
+}
+
+// A tag of `model` (FIMD_EXIF_*) as a number: the first value of a SHORT,
+// LONG or (signed) RATIONAL; nullopt when absent, of another type or with a
+// zero denominator.
+std::optional<double> ExifNumber(FIBITMAP* bitmap, FREE_IMAGE_MDMODEL model, const char* key,
+                                 unsigned index = 0) {
+  FITAG* tag = nullptr;
+  if (!FreeImage_GetMetadata(model, bitmap, key, &tag) || !tag) return std::nullopt;
+  if (FreeImage_GetTagCount(tag) <= index) return std::nullopt;
+  const void* v = FreeImage_GetTagValue(tag);
+  switch (FreeImage_GetTagType(tag)) {
+    case FIDT_SHORT:
+      return static_cast<const uint16_t*>(v)[index];
+    case FIDT_LONG:
+      return static_cast<const uint32_t*>(v)[index];
+    case FIDT_RATIONAL: {
+      const uint32_t* r = static_cast<const uint32_t*>(v) + 2 * index;
+      if (r[1] == 0) return std::nullopt;
+      return double(r[0]) / r[1];
+    }
+    case FIDT_SRATIONAL: {
+      const int32_t* r = static_cast<const int32_t*>(v) + 2 * index;
+      if (r[1] == 0) return std::nullopt;
+      return double(r[0]) / r[1];
+    }
+    default:
+      return std::nullopt;
+  }
+}
+
+std::string ExifText(FIBITMAP* bitmap, const char* key) {
+  FITAG* tag = nullptr;
+  if (!FreeImage_GetMetadata(FIMD_EXIF_MAIN, bitmap, key, &tag) || !tag) return "";
+  if (FreeImage_GetTagType(tag) != FIDT_ASCII) return "";
+  const char* text = static_cast<const char*>(FreeImage_GetTagValue(tag));
+  std::string s(text, strnlen(text, FreeImage_GetTagLength(tag)));
+  while (!s.empty() && (s.back() == ' ' || s.back() == '\0')) s.pop_back();
+  // Names go into reports and camera keys: printable ASCII only, bounded.
+  for (char& c : s) {
+    if (c < 0x20 || c > 0x7e) c = '?';
+  }
+  return s.substr(0, 64);
+}
+
+// Degrees from EXIF's (degrees, minutes, seconds) rationals and its N/S or E/W reference.
+std::optional<double> ExifDegrees(FIBITMAP* bitmap, const char* key, const char* ref_key,
+                                  char negative) {
+  const auto d = ExifNumber(bitmap, FIMD_EXIF_GPS, key, 0);
+  const auto m = ExifNumber(bitmap, FIMD_EXIF_GPS, key, 1);
+  const auto s = ExifNumber(bitmap, FIMD_EXIF_GPS, key, 2);
+  if (!d || !m || !s) return std::nullopt;
+  double deg = *d + *m / 60 + *s / 3600;
+  FITAG* tag = nullptr;
+  if (FreeImage_GetMetadata(FIMD_EXIF_GPS, bitmap, ref_key, &tag) && tag &&
+      FreeImage_GetTagType(tag) == FIDT_ASCII && FreeImage_GetTagLength(tag) >= 1 &&
+      static_cast<const char*>(FreeImage_GetTagValue(tag))[0] == negative) {
+    deg = -deg;
+  }
+  return deg;
+}
+
+ExifCamera ReadExifCamera(FIBITMAP* bitmap) {
+  ExifCamera e;
+  e.make = ExifText(bitmap, "Make");
+  e.model = ExifText(bitmap, "Model");
+  e.focal_length_35mm = ExifNumber(bitmap, FIMD_EXIF_EXIF, "FocalLengthIn35mmFilm").value_or(0);
+  e.focal_length_mm = ExifNumber(bitmap, FIMD_EXIF_EXIF, "FocalLength").value_or(0);
+  const double resolution = ExifNumber(bitmap, FIMD_EXIF_EXIF, "FocalPlaneXResolution").value_or(0);
+  // FocalPlaneResolutionUnit: 2 inch (the default), 3 cm, 4 mm, 5 µm.
+  const int unit = int(ExifNumber(bitmap, FIMD_EXIF_EXIF, "FocalPlaneResolutionUnit").value_or(2));
+  const double mm_per_unit = unit == 3 ? 10 : unit == 4 ? 1 : unit == 5 ? 1e-3 : 25.4;
+  if (resolution > 0) e.focal_plane_pixels_per_mm = resolution / mm_per_unit;
+  const auto lat = ExifDegrees(bitmap, "GPSLatitude", "GPSLatitudeRef", 'S');
+  const auto lon = ExifDegrees(bitmap, "GPSLongitude", "GPSLongitudeRef", 'W');
+  if (lat && lon && std::abs(*lat) <= 90 && std::abs(*lon) <= 180) {
+    double alt = ExifNumber(bitmap, FIMD_EXIF_GPS, "GPSAltitude").value_or(0);
+    if (ExifNumber(bitmap, FIMD_EXIF_GPS, "GPSAltitudeRef").value_or(0) == 1) alt = -alt;
+    e.gps = Eigen::Vector3d(*lat, *lon, alt);
+  }
+  return e;
 }
 
 // The pixels as displayed: EXIF orientation o maps displayed (x, y) to the
@@ -205,6 +288,16 @@ void CheckJpegCost(std::span<const uint8_t> data, const ImageHeader& h, const st
 
 }  // namespace
 
+double ExifCamera::FocalLengthPixels(double max_size) const {
+  // As COLMAP's image reader sets its prior: the 35 mm equivalent / 35 times
+  // the longer side.
+  if (focal_length_35mm > 0) return focal_length_35mm / 35.0 * max_size;
+  if (focal_length_mm > 0 && focal_plane_pixels_per_mm > 0) {
+    return focal_length_mm * focal_plane_pixels_per_mm;
+  }
+  return 0;
+}
+
 ImageHeader ReadImageHeader(std::span<const uint8_t> data, const std::string& source,
                             const ImageLimits& limits) {
   EnsureFreeImage();
@@ -230,6 +323,7 @@ ImageHeader ReadImageHeader(std::span<const uint8_t> data, const std::string& so
   ImageHeader h{FreeImage_GetFormatFromFIF(format), FreeImage_GetWidth(header.get()),
                 FreeImage_GetHeight(header.get())};
   h.exif_orientation = ExifOrientation(header.get());
+  h.exif = ReadExifCamera(header.get());
   if (h.width == 0 || h.height == 0) Fail("{}: the image header says it is empty", source);
   if (format == FIF_JPEG) CheckJpegCost(data, h, source);
   if (h.width * h.height > limits.max_pixels) {

@@ -4,10 +4,13 @@
 #pragma once
 
 #include <cstdint>
+#include <optional>
 #include <span>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include <Eigen/Core>
 
 namespace linecloud {
 
@@ -35,11 +38,28 @@ struct ImageLimits {
   uint64_t expected_height = 0;
 };
 
+// What a photo's EXIF says of its camera and place (absent tags: empty / 0 /
+// nullopt). Read from the header, as COLMAP's image reader reads it.
+struct ExifCamera {
+  std::string make, model;
+  double focal_length_35mm = 0;  // FocalLengthIn35mmFilm, mm
+  double focal_length_mm = 0;    // FocalLength, mm
+  // FocalPlaneXResolution in pixels per mm (its unit applied); 0 when absent.
+  double focal_plane_pixels_per_mm = 0;
+  std::optional<Eigen::Vector3d> gps;  // latitude, longitude (degrees), altitude (m, 0 if absent)
+
+  // The focal length in pixels of a photo whose longer side has `max_size`
+  // pixels, from the 35 mm equivalent or the focal plane's resolution; 0 when
+  // the EXIF cannot tell.
+  double FocalLengthPixels(double max_size) const;
+};
+
 struct ImageHeader {
   std::string format;  // FreeImage's name, e.g. "JPEG", "PNG"
   uint64_t width = 0;  // as stored
   uint64_t height = 0;
   int exif_orientation = 1;  // 5-8: displayed turned by 90° (width and height swap)
+  ExifCamera exif;
   bool Turned() const { return exif_orientation >= 5 && exif_orientation <= 8; }
 };
 

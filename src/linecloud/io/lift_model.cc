@@ -148,7 +148,7 @@ void LiftModelOptions::Check() const {
   if (!(sparsify >= 0 && sparsify < 1)) Fail("--sparsify: {} is not a share in [0, 1)", sparsify);
 }
 
-std::vector<uint64_t> ModelSketchElements(const Reconstruction& model) {
+std::vector<uint64_t> ModelSketchElements(const Reconstruction& model, uint64_t salt) {
   std::vector<uint64_t> elements;
   for (const auto& [id, point] : model.points3D) {
     if (point.track.empty()) elements.push_back(SketchElement(id, ""));
@@ -165,6 +165,14 @@ std::vector<uint64_t> ModelSketchElements(const Reconstruction& model) {
         elements.push_back(
             SketchObservationElement(t.point2D_idx, im->second.points2D[t.point2D_idx].xy));
       }
+    }
+  }
+  if (salt != 0) {
+    for (uint64_t& e : elements) {  // SplitMix64's finaliser of the element and the salt
+      uint64_t z = e ^ (salt * 0x9E3779B97F4A7C15ull);
+      z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+      z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+      e = z ^ (z >> 31);
     }
   }
   return elements;
@@ -271,7 +279,7 @@ LiftModelResult LiftModel(const LiftModelOptions& o) {
   // The whole lift under one lock of the store: two lifts of one model must
   // neither make two keys nor release two lines of one point.
   const KeyStore::Lock lock = store.LockExclusive();
-  const std::vector<uint64_t> elements = ModelSketchElements(rec);
+  const std::vector<uint64_t> elements = ModelSketchElements(rec, o.identity_salt);
   const ResolvedKey key = ResolveKey(o, store, elements, o.key_file);
 
   // One physical point, one line (identity.h): directions from the key's

@@ -62,6 +62,7 @@ void BindLineCloud(pybind11::module_& m);   // LineCloud, lift, read_colmap_mode
 void BindLocalizer(pybind11::module_& m);   // Localizer
 void BindEstimation(pybind11::module_& m);  // estimate_pose, solve, methods
 void BindPrivacy(pybind11::module_& m);     // attack, audit
+void BindMapping(pybind11::module_& m);     // map
 
 }  // namespace linecloud::python
 

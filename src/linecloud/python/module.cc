@@ -139,4 +139,5 @@ PYBIND11_MODULE(_core, m) {
   linecloud::python::BindLocalizer(m);
   linecloud::python::BindEstimation(m);
   linecloud::python::BindPrivacy(m);
+  linecloud::python::BindMapping(m);
 }

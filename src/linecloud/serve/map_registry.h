@@ -16,7 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "linecloud/pipeline/localizer.h"
-#include "linecloud/serve/geo.h"
+#include "linecloud/io/geo.h"
 #include "linecloud/serve/metrics.h"
 
 namespace linecloud {

@@ -22,7 +22,7 @@
 #include "linecloud/features/image.h"
 #include "linecloud/features/sift.h"
 #include "linecloud/io/lcm_format.h"
-#include "linecloud/serve/geo.h"
+#include "linecloud/io/geo.h"
 #include "linecloud/localize/overlay_marks.h"
 #include "linecloud/serve/server.h"
 #include "linecloud/serve/serve_testing.h"

@@ -36,7 +36,7 @@
 #include "linecloud/pipeline/localizer.h"
 #include "linecloud/pipeline/localizer_option_table.h"
 #include "linecloud/pipeline/localizer_result_json.h"
-#include "linecloud/serve/geo.h"
+#include "linecloud/io/geo.h"
 #include "linecloud/serve/geopose_request.h"
 #include "linecloud/serve/http.h"
 #include "linecloud/serve/localize_body.h"

@@ -24,6 +24,8 @@ struct GeoAnchor {
 // {"geo_anchor": {"lat", "lon", "h", "enu_from_map": {"q", "t", "scale"}}};
 // throws Error naming `source` and the field.
 GeoAnchor GeoAnchorFromJson(const nlohmann::json& j, const std::string& source);
+// The inverse: {"geo_anchor": {...}} as GeoAnchorFromJson reads it.
+nlohmann::ordered_json GeoAnchorToJson(const GeoAnchor& anchor);
 
 struct GeoPose {
   double lat_deg = 0, lon_deg = 0, h_m = 0;
@@ -35,6 +37,10 @@ GeoPose GeoPoseOfCamera(const GeoAnchor& anchor, const Rigid3d& cam_from_world);
 // WGS84 geodetic (degrees, metres) to Earth-centred Earth-fixed and back.
 Eigen::Vector3d EcefFromGeodetic(double lat_deg, double lon_deg, double h_m);
 Eigen::Vector3d GeodeticFromEcef(const Eigen::Vector3d& ecef);  // (lat, lon, h)
+
+// A geodetic position in the east-north-up frame at (lat0, lon0, h0), metres.
+Eigen::Vector3d EnuFromGeodetic(double lat0_deg, double lon0_deg, double h0_m, double lat_deg,
+                                double lon_deg, double h_m);
 
 // The map-frame point at a geodetic position (the inverse of the position
 // part of GeoPoseOfCamera).

@@ -1,4 +1,4 @@
-#include "linecloud/serve/geo.h"
+#include "linecloud/io/geo.h"
 
 #include <cmath>
 #include <numbers>
@@ -97,6 +97,23 @@ GeoAnchor GeoAnchorFromJson(const nlohmann::json& j, const std::string& source) 
   return g;
 }
 
+nlohmann::ordered_json GeoAnchorToJson(const GeoAnchor& a) {
+  const Eigen::Quaterniond& q = a.enu_from_map.rotation;
+  const Eigen::Vector3d& t = a.enu_from_map.translation;
+  nlohmann::ordered_json enu_from_map = {{"q", {q.w(), q.x(), q.y(), q.z()}},
+                                         {"t", {t.x(), t.y(), t.z()}},
+                                         {"scale", a.enu_from_map.scale}};
+  return {{"geo_anchor",
+           {{"lat", a.lat_deg}, {"lon", a.lon_deg}, {"h", a.h_m}, {"enu_from_map", enu_from_map}}}};
+}
+
+Eigen::Vector3d EnuFromGeodetic(double lat0_deg, double lon0_deg, double h0_m, double lat_deg,
+                                double lon_deg, double h_m) {
+  const Eigen::Vector3d d =
+      EcefFromGeodetic(lat_deg, lon_deg, h_m) - EcefFromGeodetic(lat0_deg, lon0_deg, h0_m);
+  return EnuFromEcef(lat0_deg, lon0_deg) * d;
+}
+
 GeoPose GeoPoseOfCamera(const GeoAnchor& anchor, const Rigid3d& cam_from_world) {
   const Eigen::Vector3d centre_map = cam_from_world.Inverse().translation;
   const Eigen::Vector3d centre_enu = anchor.enu_from_map * centre_map;
@@ -115,10 +132,8 @@ GeoPose GeoPoseOfCamera(const GeoAnchor& anchor, const Rigid3d& cam_from_world) 
 
 Eigen::Vector3d MapPointFromGeodetic(const GeoAnchor& anchor, double lat_deg, double lon_deg,
                                      double h_m) {
-  const Eigen::Vector3d d = EcefFromGeodetic(lat_deg, lon_deg, h_m) -
-                            EcefFromGeodetic(anchor.lat_deg, anchor.lon_deg, anchor.h_m);
-  const Eigen::Vector3d enu = EnuFromEcef(anchor.lat_deg, anchor.lon_deg) * d;
-  return anchor.enu_from_map.Inverse() * enu;
+  return anchor.enu_from_map.Inverse() *
+         EnuFromGeodetic(anchor.lat_deg, anchor.lon_deg, anchor.h_m, lat_deg, lon_deg, h_m);
 }
 
 }  // namespace linecloud
