@@ -142,11 +142,10 @@ MatchSummary MatchByVocabTree(const std::string& database, const std::string& wo
   const size_t words = std::clamp<size_t>(num_features / 100, 1024, 262144);
   LogProgress("[map]   vocabulary tree: {} words from the project's {} descriptors ...", words,
               num_features);
-  RunColmapCommand(
-      {options.colmap.executable, "vocab_tree_builder", "--database_path", database,
-       "--vocab_tree_path", tree, "--num_visual_words", std::to_string(words), "--num_threads",
-       Threads(options), "--random_seed", std::to_string(options.seed)},
-      JoinPaths(work_dir, "vocab_tree_builder.log"), options.colmap);
+  RunColmapCommand({options.colmap.executable, "vocab_tree_builder", "--database_path", database,
+                    "--vocab_tree_path", tree, "--num_visual_words", std::to_string(words),
+                    "--random_seed", std::to_string(options.seed)},
+                   JoinPaths(work_dir, "vocab_tree_builder.log"), options.colmap);
   const int neighbours = std::min<int>(options.vocab_tree_neighbours, int(num_photos) - 1);
   RunColmapCommand({options.colmap.executable, "vocab_tree_matcher", "--database_path", database,
                     "--VocabTreeMatching.vocab_tree_path", tree, "--VocabTreeMatching.num_images",
