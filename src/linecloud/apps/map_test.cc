@@ -263,6 +263,35 @@ TEST(Map, AnUpdateKeepsEveryReleasedLine) {
   EXPECT_TRUE(nlohmann::json::parse(ReadFileToString(loc.out_path))["success"].get<bool>());
 }
 
+// One key store, three projects: another survey whose photos have the same
+// default names (Herz-Jesus-P8's 0000.jpg...) gets its own key; the same
+// photos mapped again in another project find the first project's key (its
+// photos' features), so one place never has two keys.
+TEST(Map, ProjectsShareAKeyOnlyThroughTheirPhotos) {
+  LINECLOUD_REQUIRE_DATA(kFountain);
+  LINECLOUD_REQUIRE_DATA("strecha/Herz-Jesus-P8");
+  TempDir tmp;
+  auto map = [&](const std::string& scene, const std::string& name) {
+    std::vector<std::string> args = {"map"};
+    for (int k = 0; k <= 2; ++k)
+      args.push_back(DataPath(fmt::format("{}/images/{:04d}.jpg", scene, k)));
+    for (const std::string& a : std::vector<std::string>{
+             "--project", tmp.Path(name), "--out", tmp.Path("maps/" + name), "--camera", kCamera,
+             "--key-store", tmp.Path("keys"), "--no-audit", "--threads", "2"}) {
+      args.push_back(a);
+    }
+    std::string err;
+    EXPECT_EQ(RunToEnd(args, name, tmp, &err), 0) << err;
+    return ReadLineCloud(tmp.Path("maps/" + name + ".lcm")).key_fingerprint;
+  };
+  const auto fountain = map(kFountain, "fountain");
+  const auto herz_jesus = map("strecha/Herz-Jesus-P8", "herz_jesus");
+  const auto fountain_again = map(kFountain, "fountain_again");
+  EXPECT_NE(herz_jesus, fountain)
+      << "a survey of other photos took the released map's key by names";
+  EXPECT_EQ(fountain_again, fountain) << "the same photos in a second project got a second key";
+}
+
 // Interrupted in each stage, then the same command until it finishes: the
 // lines equal an uninterrupted run's (the same key file).
 void ExpectResumedRunEqualsUninterrupted(int sig) {

@@ -149,30 +149,32 @@ void LiftModelOptions::Check() const {
 }
 
 std::vector<uint64_t> ModelSketchElements(const Reconstruction& model, uint64_t salt) {
+  // SplitMix64's finaliser of an element and the salt: a project's names and
+  // track indices are its own (another survey's 0000.jpg is another photo).
+  const auto salted = [salt](uint64_t e) {
+    if (salt == 0) return e;
+    uint64_t z = e ^ (salt * 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+  };
   std::vector<uint64_t> elements;
   for (const auto& [id, point] : model.points3D) {
-    if (point.track.empty()) elements.push_back(SketchElement(id, ""));
+    if (point.track.empty()) elements.push_back(salted(SketchElement(id, "")));
     for (const TrackElement& t : point.track) {
       const auto im = model.images.find(t.image_id);
       const std::string_view name =
           im == model.images.end() ? std::string_view{} : std::string_view{im->second.name};
-      elements.push_back(SketchElement(id, name));
+      elements.push_back(salted(SketchElement(id, name)));
       // Names can change (a folder prefix) while the tracks stay.
-      elements.push_back(SketchTrackElement(id, t.image_id, t.point2D_idx));
+      elements.push_back(salted(SketchTrackElement(id, t.image_id, t.point2D_idx)));
       // Point ids and image names change (re-triangulation, a mapper re-run,
-      // renumbering, renaming) while the features stay.
+      // renumbering, renaming) while the features stay: never salted, so the
+      // same photos' features find one key whichever project or lift has them.
       if (im != model.images.end() && t.point2D_idx < im->second.points2D.size()) {
         elements.push_back(
             SketchObservationElement(t.point2D_idx, im->second.points2D[t.point2D_idx].xy));
       }
-    }
-  }
-  if (salt != 0) {
-    for (uint64_t& e : elements) {  // SplitMix64's finaliser of the element and the salt
-      uint64_t z = e ^ (salt * 0x9E3779B97F4A7C15ull);
-      z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-      z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-      e = z ^ (z >> 31);
     }
   }
   return elements;

@@ -38,9 +38,10 @@ struct LiftModelOptions {
   double sparsify = 0;                     // share of the points dropped (sparsify.h)
   SparsifyMode sparsify_mode = SparsifyMode::kUniform;
   IdentityOptions identity;  // how a point keeps its line across versions
-  // A project's own identity (`linecloud map`): the model is known to the key
-  // store by its sketch mixed with this (0: the model alone), so another
-  // project with the same photo names or point ids is never taken for it.
+  // A project's own identity (`linecloud map`): the model's names and point
+  // ids are known to the key store mixed with this (0: the model alone), so
+  // another project with the same photo names or point ids is never taken for
+  // it; the same photos' features still find its key.
   uint64_t identity_salt = 0;
   // Optional further selection after sparsifying (e.g. privacy/resist.h):
   // indices into (ids, points) of the points to keep.
@@ -68,8 +69,9 @@ struct LiftModelResult {
 
 // The sketch elements of a model: per observation of a point, hashes of
 // (point id, image name), (point id, image id, keypoint) and (image name,
-// keypoint) — the last survives renumbered points. `salt` != 0: each element
-// mixed with it (a project's own identity).
+// keypoint) — the last survives renumbered points. `salt` != 0: the first
+// two kinds mixed with it (a project's own identity: names and point ids
+// alone never make two projects one); the photos' features stay comparable.
 std::vector<uint64_t> ModelSketchElements(const Reconstruction& model, uint64_t salt = 0);
 
 // A model's points `ids` (sorted) as the identity rule sees them: positions,

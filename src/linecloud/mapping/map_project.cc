@@ -653,9 +653,9 @@ std::string UpdateModel(const MapOptions& o, const PhotoSet& fresh, Project& pro
   return JoinPaths(dir, "model");
 }
 
-ojson LiftStage(const MapOptions& o, Project& project, const std::string& model_dir,
-                const std::string& fingerprint, Stages& stages, MapReport* report,
-                std::string* key_path) {
+void LiftStage(const MapOptions& o, Project& project, const std::string& model_dir,
+               const std::string& fingerprint, Stages& stages, MapReport* report,
+               std::string* key_path) {
   const ojson d =
       stages.Run("lift", Hash(fingerprint + "lift" + o.key_store + "\n" + o.key_file), [&] {
         LiftModelOptions lift;
@@ -679,7 +679,6 @@ ojson LiftStage(const MapOptions& o, Project& project, const std::string& model_
       });
   *key_path = d.value("key", "");
   report->lines = d.value("lines", size_t{0});
-  return d;
 }
 
 ojson AuditStage(Project& project, const std::string& model_dir, const std::string& key_path,
@@ -737,6 +736,105 @@ void Publish(const MapOptions& o, Project& project, const Reconstruction& model,
 
 }  // namespace
 
+namespace {
+
+// The model of this run: a new map's, or the released one with new photos.
+std::string ModelStages(const MapOptions& o, const PhotoSet& photos, Project& project,
+                        Stages& stages, MapReport* report, std::string* fingerprint) {
+  if (!o.update) return BuildModel(o, photos, project, stages, report, fingerprint);
+  if (!photos.photos.empty()) return UpdateModel(o, photos, project, stages, fingerprint);
+  LogProgress("[map] every photo is already in the project; nothing to add");
+  const std::string model_dir = project.Path(project.manifest().value("model", "model"));
+  *fingerprint = Hash(model_dir);
+  return model_dir;
+}
+
+// Every photo of the project by name, and the GPS of those that carry it.
+struct ProjectPhotos {
+  std::vector<std::string> names;
+  std::map<std::string, Eigen::Vector3d> gps;
+};
+
+ProjectPhotos PhotosOf(Project& project, const PhotoSet& fresh) {
+  ProjectPhotos out;
+  for (const auto& p : project.manifest()["photos"]) {
+    out.names.push_back(p.value("name", ""));
+    if (p.contains("gps") && p["gps"].is_array() && p["gps"].size() == 3) {
+      out.gps[out.names.back()] = {p["gps"][0].get<double>(), p["gps"][1].get<double>(),
+                                   p["gps"][2].get<double>()};
+    }
+  }
+  for (const Photo& p : fresh.photos) {
+    if (std::find(out.names.begin(), out.names.end(), p.name) == out.names.end()) {
+      out.names.push_back(p.name);
+    }
+    if (p.gps) out.gps[p.name] = *p.gps;
+  }
+  return out;
+}
+
+// What the model holds, which photos it left out and why, and (when given)
+// how far its cameras are from the survey's.
+void ReportModel(const MapOptions& o, const Reconstruction& model,
+                 const std::vector<std::string>& names, Project& project, MapReport* report) {
+  Describe(model, report);
+  report->unregistered =
+      WhyUnregistered(names, model, project.Path("database.db"), project.Path("sparse"));
+  LogProgress(
+      "[map] model: {} of {} photos registered, {} points, mean track length {:.2f}, "
+      "mean reprojection error {:.2f} px",
+      report->registered, names.size(), report->points, report->mean_track_length,
+      report->mean_reprojection_error_px);
+  for (const auto& [name, why] : report->unregistered) {
+    LogProgress("[map]   not registered: {}: {}", name, why);
+  }
+  if (o.ground_truth.empty()) return;
+  report->ground_truth = CompareWithGroundTruth(model, o.ground_truth);
+  LogProgress(
+      "[map] against {}: camera centres within {:.3f} % of the scene's extent, rotations "
+      "within {:.3f} deg ({} images)",
+      o.ground_truth, report->ground_truth["max_centre_error_extent_percent"].get<double>(),
+      report->ground_truth["max_rotation_error_deg"].get<double>(),
+      report->ground_truth["images"].get<size_t>());
+}
+
+void ReportLineChanges(Project& project, MapReport* report) {
+  const std::string released = project.Path("released.lcm");
+  if (!FileExists(released)) return;
+  const LineChanges c =
+      CompareLines(ReadLineCloud(released), ReadLineCloud(project.Path("map.lcm")));
+  report->lines_kept = c.kept;
+  report->lines_new = c.added;
+  report->lines_withdrawn = c.withdrawn;
+  LogProgress("[map] lines: {} released lines kept, {} new, {} withdrawn", c.kept, c.added,
+              c.withdrawn);
+}
+
+// Once everything is done: the project's photos and released model, the
+// released lines (what the next update is compared with), the report.
+void FinishProject(const MapOptions& o, const PhotoSet& fresh, const std::string& model_dir,
+                   Project& project, const MapReport& report) {
+  if (o.update && !fresh.photos.empty()) {
+    for (const Photo& p : fresh.photos) {
+      InputFingerprint fp;
+      fp.AddFile(p.path);
+      project.manifest()["photos"].push_back(PhotoEntry(p, fp.Hex()));
+    }
+    project.manifest()["versions"].push_back(
+        {{"model", project.manifest().value("model", "model")},
+         {"lines", project.manifest().value("lines", size_t{0})}});
+    project.manifest()["model"] = fs::relative(model_dir, project.dir()).string();
+  }
+  project.manifest()["lines"] = report.lines;
+  project.Save();
+  const std::string staged = ReadFileToString(project.Path("map.lcm"));
+  WriteFileAtomically(project.Path("released.lcm"), [&](std::ostream& out) { out << staged; });
+  WriteFileAtomically(project.Path("report.json"),
+                      [&](std::ostream& out) { out << report.ToJson().dump(1) << "\n"; });
+}
+
+}  // namespace
+
 MapReport BuildMap(const MapOptions& o) {
   o.Check();
   MapReport report;
@@ -755,85 +853,16 @@ MapReport BuildMap(const MapOptions& o) {
   }
   Stages stages(project, &report);
   std::string fingerprint;
-  std::string model_dir;
-  if (o.update) {
-    if (photos.photos.empty()) {
-      LogProgress("[map] every photo is already in the project; nothing to add");
-    }
-    model_dir = photos.photos.empty() ? project.Path(project.manifest().value("model", "model"))
-                                      : UpdateModel(o, photos, project, stages, &fingerprint);
-    if (photos.photos.empty()) fingerprint = Hash(model_dir);
-  } else {
-    model_dir = BuildModel(o, photos, project, stages, &report, &fingerprint);
-  }
+  const std::string model_dir = ModelStages(o, photos, project, stages, &report, &fingerprint);
   const Reconstruction model = ReadColmapModel(model_dir);
-  Describe(model, &report);
-  std::vector<std::string> names;
-  std::map<std::string, Eigen::Vector3d> gps;
-  for (const auto& p : project.manifest()["photos"]) {
-    names.push_back(p.value("name", ""));
-    if (p.contains("gps") && p["gps"].is_array() && p["gps"].size() == 3) {
-      gps[names.back()] = {p["gps"][0].get<double>(), p["gps"][1].get<double>(),
-                           p["gps"][2].get<double>()};
-    }
-  }
-  for (const Photo& p : photos.photos) {
-    if (std::find(names.begin(), names.end(), p.name) == names.end()) names.push_back(p.name);
-    if (p.gps) gps[p.name] = *p.gps;
-  }
-  report.unregistered =
-      WhyUnregistered(names, model, project.Path("database.db"), project.Path("sparse"));
-  LogProgress(
-      "[map] model: {} of {} photos registered, {} points, mean track length {:.2f}, "
-      "mean reprojection error {:.2f} px",
-      report.registered, names.size(), report.points, report.mean_track_length,
-      report.mean_reprojection_error_px);
-  for (const auto& [name, why] : report.unregistered)
-    LogProgress("[map]   not registered: {}: {}", name, why);
-  if (!o.ground_truth.empty()) {
-    report.ground_truth = CompareWithGroundTruth(model, o.ground_truth);
-    LogProgress(
-        "[map] against {}: camera centres within {:.3f} % of the scene's extent, rotations "
-        "within {:.3f} deg ({} images)",
-        o.ground_truth, report.ground_truth["max_centre_error_extent_percent"].get<double>(),
-        report.ground_truth["max_rotation_error_deg"].get<double>(),
-        report.ground_truth["images"].get<size_t>());
-  }
+  const ProjectPhotos all = PhotosOf(project, photos);
+  ReportModel(o, model, all.names, project, &report);
   std::string key_path;
-  const ojson lift = LiftStage(o, project, model_dir, fingerprint, stages, &report, &key_path);
-  (void)lift;
-  const std::string released = project.Path("released.lcm");
-  if (o.update && FileExists(released)) {
-    const LineChanges c =
-        CompareLines(ReadLineCloud(released), ReadLineCloud(project.Path("map.lcm")));
-    report.lines_kept = c.kept;
-    report.lines_new = c.added;
-    report.lines_withdrawn = c.withdrawn;
-    LogProgress("[map] lines: {} released lines kept, {} new, {} withdrawn", c.kept, c.added,
-                c.withdrawn);
-  }
+  LiftStage(o, project, model_dir, fingerprint, stages, &report, &key_path);
+  if (o.update) ReportLineChanges(project, &report);
   const ojson audit = o.audit ? AuditStage(project, model_dir, key_path, stages) : ojson();
-  if (!o.out.empty()) Publish(o, project, model, gps, audit, &report);
-  // The project's photo list and released model, once everything is done.
-  if (o.update && !photos.photos.empty()) {
-    for (const Photo& p : photos.photos) {
-      InputFingerprint fp;
-      fp.AddFile(p.path);
-      project.manifest()["photos"].push_back(PhotoEntry(p, fp.Hex()));
-    }
-    project.manifest()["versions"].push_back(
-        {{"model", project.manifest().value("model", "model")},
-         {"lines", project.manifest().value("lines", size_t{0})}});
-    project.manifest()["model"] = fs::relative(model_dir, project.dir()).string();
-    project.Save();
-  }
-  project.manifest()["lines"] = report.lines;
-  project.Save();
-  // The version released: what the next update's lines are compared with.
-  const std::string staged = ReadFileToString(project.Path("map.lcm"));
-  WriteFileAtomically(released, [&](std::ostream& out) { out << staged; });
-  WriteFileAtomically(project.Path("report.json"),
-                      [&](std::ostream& out) { out << report.ToJson().dump(1) << "\n"; });
+  if (!o.out.empty()) Publish(o, project, model, all.gps, audit, &report);
+  FinishProject(o, photos, model_dir, project, report);
   return report;
 }
 

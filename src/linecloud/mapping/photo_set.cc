@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <span>
 #include <map>
+#include <optional>
+#include <set>
 #include <tuple>
 
 #include <fmt/format.h>
@@ -111,19 +113,16 @@ PhotoCamera DefaultCamera(uint64_t width, uint64_t height, const ExifCamera& exi
 
 }  // namespace
 
-PhotoSet ReadPhotoSet(const std::vector<std::string>& inputs,
-                      const std::vector<std::string>& cameras, size_t min_photos) {
-  const std::vector<std::string> files = ExpandInputs(inputs);
-  if (files.empty()) Fail("no photos given: name the photos (or their folder) to map");
-  if (files.size() < min_photos) {
-    Fail(
-        "{}: one photo; a map needs at least two photos of the place, taken from different "
-        "positions",
-        files.front());
-  }
-  PhotoSet set;
-  std::map<std::pair<uint64_t, uint64_t>, size_t> given;   // size -> camera
-  std::vector<std::pair<std::string, size_t>> by_pattern;  // file-name glob -> camera
+namespace {
+
+// The cameras given: by photo size, and by file-name glob.
+struct GivenCameras {
+  std::map<std::pair<uint64_t, uint64_t>, size_t> by_size;
+  std::vector<std::pair<std::string, size_t>> by_pattern;
+};
+
+GivenCameras ParseGivenCameras(const std::vector<std::string>& cameras, PhotoSet* set) {
+  GivenCameras given;
   for (size_t k = 0; k < cameras.size(); ++k) {
     const std::string what = cameras.size() == 1 ? "--camera" : fmt::format("--camera #{}", k + 1);
     // "GLOB=MODEL W H PARAMS...": the camera of the photos whose file name
@@ -137,21 +136,26 @@ PhotoSet ReadPhotoSet(const std::vector<std::string>& inputs,
     PhotoCamera c{ParseCameraString(text, what), "given (" + what + ")", true, true};
     const auto size = std::make_pair(c.camera.width, c.camera.height);
     if (!pattern.empty()) {
-      by_pattern.emplace_back(pattern, set.cameras.size());
-    } else if (given.count(size)) {
+      given.by_pattern.emplace_back(pattern, set->cameras.size());
+    } else if (given.by_size.count(size)) {
       Fail(
           "{}: a second camera for {}x{} photos; give one camera per photo size, or name the "
           "photos of each (\"*_c0.png=MODEL W H PARAMS...\")",
           what, size.first, size.second);
     } else {
-      given[size] = set.cameras.size();
+      given.by_size[size] = set->cameras.size();
     }
-    set.cameras.push_back(std::move(c));
+    set->cameras.push_back(std::move(c));
   }
+  return given;
+}
+
+void ReadPhotos(const std::vector<std::string>& files, PhotoSet* set,
+                std::vector<ExifCamera>* exif) {
   std::map<std::string, std::string> by_name;
-  std::vector<ExifCamera> exif(files.size());
+  exif->resize(files.size());
   for (size_t k = 0; k < files.size(); ++k) {
-    Photo p = ReadPhoto(files[k], &exif[k]);
+    Photo p = ReadPhoto(files[k], &(*exif)[k]);
     const auto [it, fresh] = by_name.emplace(p.name, p.path);
     if (!fresh) {
       Fail(
@@ -159,32 +163,41 @@ PhotoSet ReadPhotoSet(const std::vector<std::string>& inputs,
           "names",
           p.path, p.name, it->second);
     }
-    set.photos.push_back(std::move(p));
+    set->photos.push_back(std::move(p));
   }
-  // Photos of a size no given camera covers: one camera per size, make, model
-  // and focal length from their EXIF; without an EXIF focal length only when
-  // all photos have one size (a guess shared by photos of different sizes
-  // would be a wrong camera for some).
-  std::map<std::pair<uint64_t, uint64_t>, int> sizes;
-  for (const Photo& p : set.photos) sizes[{p.width, p.height}]++;
-  std::map<std::tuple<uint64_t, uint64_t, std::string, std::string, double>, size_t> derived;
-  for (size_t k = 0; k < set.photos.size(); ++k) {
-    Photo& p = set.photos[k];
-    const auto size = std::make_pair(p.width, p.height);
-    const auto named = std::find_if(by_pattern.begin(), by_pattern.end(), [&](const auto& b) {
-      return fnmatch(b.first.c_str(), p.name.c_str(), 0) == 0;
-    });
-    if (named != by_pattern.end()) {
-      const Camera& c = set.cameras[named->second].camera;
-      if (c.width != p.width || c.height != p.height) {
-        Fail("{}: {}x{} pixels, but its camera ({}) is {}x{}", p.path, p.width, p.height,
-             named->first, c.width, c.height);
-      }
-      p.camera = named->second;
-      continue;
+}
+
+// A given camera of the photo's name or size, when there is one.
+std::optional<size_t> GivenCamera(const Photo& p, const GivenCameras& given, const PhotoSet& set) {
+  const auto named =
+      std::find_if(given.by_pattern.begin(), given.by_pattern.end(),
+                   [&](const auto& b) { return fnmatch(b.first.c_str(), p.name.c_str(), 0) == 0; });
+  if (named != given.by_pattern.end()) {
+    const Camera& c = set.cameras[named->second].camera;
+    if (c.width != p.width || c.height != p.height) {
+      Fail("{}: {}x{} pixels, but its camera ({}) is {}x{}", p.path, p.width, p.height,
+           named->first, c.width, c.height);
     }
-    if (const auto it = given.find(size); it != given.end()) {
-      p.camera = it->second;
+    return named->second;
+  }
+  if (const auto it = given.by_size.find({p.width, p.height}); it != given.by_size.end()) {
+    return it->second;
+  }
+  return std::nullopt;
+}
+
+// Photos no given camera covers: one camera per size, make, model and focal
+// length from their EXIF; without an EXIF focal length only when all photos
+// have one size (a guess shared by photos of different sizes would be a
+// wrong camera for some).
+void AssignCameras(const GivenCameras& given, const std::vector<ExifCamera>& exif, PhotoSet* set) {
+  std::set<std::pair<uint64_t, uint64_t>> sizes;
+  for (const Photo& p : set->photos) sizes.insert({p.width, p.height});
+  std::map<std::tuple<uint64_t, uint64_t, std::string, std::string, double>, size_t> derived;
+  for (size_t k = 0; k < set->photos.size(); ++k) {
+    Photo& p = set->photos[k];
+    if (const auto c = GivenCamera(p, given, *set)) {
+      p.camera = *c;
       continue;
     }
     const double focal = exif[k].FocalLengthPixels(double(std::max(p.width, p.height)));
@@ -195,10 +208,29 @@ PhotoSet ReadPhotoSet(const std::vector<std::string>& inputs,
           p.path, p.width, p.height, sizes.size());
     }
     const auto key = std::make_tuple(p.width, p.height, exif[k].make, exif[k].model, focal);
-    auto [it, fresh] = derived.emplace(key, set.cameras.size());
-    if (fresh) set.cameras.push_back(DefaultCamera(p.width, p.height, exif[k]));
+    auto [it, fresh] = derived.emplace(key, set->cameras.size());
+    if (fresh) set->cameras.push_back(DefaultCamera(p.width, p.height, exif[k]));
     p.camera = it->second;
   }
+}
+
+}  // namespace
+
+PhotoSet ReadPhotoSet(const std::vector<std::string>& inputs,
+                      const std::vector<std::string>& cameras, size_t min_photos) {
+  const std::vector<std::string> files = ExpandInputs(inputs);
+  if (files.empty()) Fail("no photos given: name the photos (or their folder) to map");
+  if (files.size() < min_photos) {
+    Fail(
+        "{}: one photo; a map needs at least two photos of the place, taken from different "
+        "positions",
+        files.front());
+  }
+  PhotoSet set;
+  const GivenCameras given = ParseGivenCameras(cameras, &set);
+  std::vector<ExifCamera> exif;
+  ReadPhotos(files, &set, &exif);
+  AssignCameras(given, exif, &set);
   std::sort(set.photos.begin(), set.photos.end(),
             [](const Photo& a, const Photo& b) { return a.name < b.name; });
   return set;
