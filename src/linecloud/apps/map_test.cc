@@ -6,6 +6,7 @@
 // keeps every released line.
 #include <fcntl.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -174,6 +175,14 @@ TEST(Map, BadInputIsRefusedBeforeAnyWorkNamingTheFile) {
   refused({"map", photo, DataPath(kFountain + "/images/0001.jpg"), "--project", project, "--out",
            project + "/maps/m"},
           "must be apart");
+  // A project another run is working on (its lock held).
+  fs::create_directories(tmp.Path("locked"));
+  const int lock = ::open(tmp.Path("locked/.lock").c_str(), O_RDWR | O_CREAT, 0600);
+  ASSERT_EQ(::flock(lock, LOCK_EX), 0);
+  refused({"map", photo, DataPath(kFountain + "/images/0001.jpg"), "--project", tmp.Path("locked")},
+          "another `linecloud map` is working on this project");
+  ::close(lock);
+  EXPECT_FALSE(fs::exists(tmp.Path("locked/project.json")));
   EXPECT_EQ(ReadFileToString(tmp.Path("busy/thesis.tex")), "\\documentclass{article}\n");
   EXPECT_FALSE(fs::exists(project + "/database.db"));
 }

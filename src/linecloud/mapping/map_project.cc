@@ -1,6 +1,12 @@
 #include "linecloud/mapping/map_project.h"
 
+#include <fcntl.h>
 #include <sodium.h>
+#include <sys/file.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
 
 #include <algorithm>
 #include <chrono>
@@ -50,6 +56,25 @@ bool Inside(const fs::path& a, const fs::path& b) {  // a == b or a under b
 class Project {
  public:
   explicit Project(std::string dir) : dir_(std::move(dir)) {}
+  ~Project() {
+    if (lock_fd_ >= 0) ::close(lock_fd_);
+  }
+  Project(const Project&) = delete;
+  Project& operator=(const Project&) = delete;
+  // One run at a time: a second `map` on the project is refused at once (two
+  // would write one database and one model).
+  void Lock() {
+    const std::string path = Path(".lock");
+    lock_fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC | O_NOFOLLOW, 0600);
+    if (lock_fd_ < 0) Fail("{}: cannot open the project's lock ({})", path, std::strerror(errno));
+    while (::flock(lock_fd_, LOCK_EX | LOCK_NB) != 0) {
+      if (errno == EINTR) continue;
+      Fail(
+          "{}: another `linecloud map` is working on this project; wait for it to end (or stop "
+          "it: the same command then continues where it was)",
+          dir_);
+    }
+  }
   std::string Path(const std::string& rel) const { return JoinPaths(dir_, rel); }
   const std::string& dir() const { return dir_; }
   ojson& manifest() { return manifest_; }
@@ -100,7 +125,17 @@ class Project {
  private:
   std::string dir_;
   ojson manifest_;
+  int lock_fd_ = -1;
 };
+
+// A folder with nothing but a run's lock in it counts as empty.
+bool EmptyBesidesLock(const std::string& dir) {
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(dir, ec)) {
+    if (e.path().filename() != ".lock") return false;
+  }
+  return true;
+}
 
 ojson PhotoEntry(const Photo& p, const std::string& hash) {
   ojson e = {{"name", p.name},
@@ -438,17 +473,19 @@ PhotoSet OpenProject(const MapOptions& o, Project* project, MapReport* report) {
   }
   const bool exists = FileExists(project->Path("project.json"));
   std::error_code ec;
-  if (!exists && fs::exists(o.project_dir, ec) && !fs::is_empty(o.project_dir, ec)) {
+  if (!exists && fs::exists(o.project_dir, ec) && !EmptyBesidesLock(o.project_dir)) {
     Fail(
         "{}: a folder with other files and no project.json; name an empty or new folder for "
         "the project",
         o.project_dir);
   }
-  if (exists) project->Load();
   if (o.update && !exists) {
     Fail("{}: no project to update (no project.json); map the first photos without --update",
          o.project_dir);
   }
+  CreateDirectories(o.project_dir);
+  project->Lock();
+  if (exists) project->Load();
   std::map<std::string, std::string> known;  // name -> hash
   if (exists) {
     for (const auto& p : project->manifest()["photos"])
