@@ -42,7 +42,7 @@ if [ ! -f "$cost" ]; then
   printf '%s 1 %s\n' Identity.VersionsOfARealMapGiveNothingBackBeyondNoise 130 \
     Identity.ARebuildFromNewFeaturesGivesNothingBack 80 Map.AnUpdateKeepsEveryReleasedLine 65 \
     Map.PhotosInAServedMapOut 25 Map.CtrlCInEachStageThenTheSameCommandEndsWithTheSameMap 21 \
-    Map.KilledInEachStageThenTheSameCommandEndsWithTheSameMap 21 Map.ProjectsShareAKeyOnlyThroughTheirPhotos 35 \
+    Map.KilledInEachStageThenTheSameCommandEndsWithTheSameMap 21 Map.ProjectsShareAKeyOnlyThroughTheirPhotos 17 \
     Guard.APlantedCacheLinkOrFifoIsNeverUsed 15 "Solvers/MinimalSolverTest.RecoversTheTruePoseAndSatisfiesItsEquations/m_p6L" 13 \
     DensityAttack.RecoversMostPointsOfADenseTexturedFacade 12 Resist.KeepsPointsTheAttackCannotRecover 12 \
     Hostile.DribblingClientsDoNotStarveOthers 11 Hostile.MixedTrafficSoakAnswersEveryoneRight 10 \

@@ -175,6 +175,31 @@ TEST(Map, BadInputIsRefusedBeforeAnyWorkNamingTheFile) {
   refused({"map", photo, DataPath(kFountain + "/images/0001.jpg"), "--project", project, "--out",
            project + "/maps/m"},
           "must be apart");
+  // A file name COLMAP's match lists cannot hold.
+  fs::copy_file(photo, tmp.Path("with space.jpg"));
+  refused({"map", photo, tmp.Path("with space.jpg"), "--project", project},
+          tmp.Path("with space.jpg") + ": a file name with a space");
+  // A symbolic link where a served file goes: its target must never be written.
+  fs::create_directories(tmp.Path("served"));
+  { std::ofstream(tmp.Path("precious.cfg")) << "precious\n"; }
+  fs::create_symlink(tmp.Path("precious.cfg"), tmp.Path("served/m.json"));
+  refused({"map", photo, DataPath(kFountain + "/images/0001.jpg"), "--project", project, "--out",
+           tmp.Path("served/m")},
+          tmp.Path("served/m.json") + ": a symbolic link");
+  EXPECT_EQ(ReadFileToString(tmp.Path("precious.cfg")), "precious\n");
+  fs::create_directories(tmp.Path("served2/m.json"));
+  refused({"map", photo, DataPath(kFountain + "/images/0001.jpg"), "--project", project, "--out",
+           tmp.Path("served2/m")},
+          tmp.Path("served2/m.json") + ": not a file");
+  EXPECT_FALSE(fs::exists(tmp.Path("served2/m.lcm")));
+  // A camera no photo takes; a stereo rig no photos pair; a project that is a file.
+  const std::string second = DataPath(kFountain + "/images/0001.jpg");
+  refused({"map", photo, second, "--project", project, "--camera",
+           "PINHOLE 1024 1536 1381 1381 512 768"},
+          "--camera: no photo takes this camera (1024x1536; the photos are 1536x1024)");
+  refused({"map", photo, second, "--project", project, "--stereo", "_c0,_c1,0.11"},
+          "--stereo _c0,_c1,0.11: 0 pairs of photos");
+  refused({"map", photo, second, "--project", tmp.Path("precious.cfg")}, "not a folder");
   // A project another run is working on (its lock held).
   fs::create_directories(tmp.Path("locked"));
   const int lock = ::open(tmp.Path("locked/.lock").c_str(), O_RDWR | O_CREAT, 0600);

@@ -461,18 +461,80 @@ ojson MapReport::ToJson() const {
 
 namespace {
 
+// The served folder's three files, before any work: each absent or a
+// regular file (a symbolic link there would have its target replaced, a
+// folder there would fail the publish half-way).
+void CheckServedFolder(const std::string& out) {
+  if (out.empty()) return;
+  const fs::path dir =
+      fs::path(out).parent_path().empty() ? fs::path(".") : fs::path(out).parent_path();
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec)) {
+    Fail("--out {}: {} is not a folder", out, dir.string());
+  }
+  for (const char* ext : {".lcm", ".json", ".audit.json"}) {
+    const fs::path f = out + ext;
+    const fs::file_status st = fs::symlink_status(f, ec);
+    if (fs::is_symlink(st))
+      Fail("{}: a symbolic link; the served files are written there only as files", f.string());
+    if (fs::exists(st) && !fs::is_regular_file(st)) Fail("{}: not a file", f.string());
+  }
+}
+
+// A stereo baseline whose name parts pair no photos would fail after hours.
+void CheckStereoPairs(const StereoBaseline& s, const PhotoSet& set) {
+  std::set<std::string> names;
+  for (const Photo& p : set.photos) names.insert(p.name);
+  size_t pairs = 0;
+  for (const std::string& n : names) {
+    const size_t at = n.find(s.a);
+    if (at == std::string::npos) continue;
+    std::string other = n;
+    other.replace(at, s.a.size(), s.b);
+    pairs += names.count(other);
+  }
+  if (pairs < 3) {
+    Fail("--stereo {},{},{}: {} pairs of photos named *{}* / *{}* (3 needed for the scale)", s.a,
+         s.b, s.metres, pairs, s.a, s.b);
+  }
+}
+
+// An update's photos of a size the project has no camera for, whose camera
+// would be a guess (no --camera, no EXIF focal length): refused, as a first
+// run refuses photos of several sizes without cameras.
+void RefuseGuessedCamerasOfNewSizes(Project& project, const PhotoSet& fresh) {
+  std::set<std::pair<uint64_t, uint64_t>> sizes;
+  for (const auto& p : project.manifest()["photos"]) {
+    sizes.insert({p.value("width", uint64_t{0}), p.value("height", uint64_t{0})});
+  }
+  for (const Photo& p : fresh.photos) {
+    const PhotoCamera& c = fresh.cameras[p.camera];
+    if (c.given || c.prior_focal_length || sizes.count({p.width, p.height})) continue;
+    Fail(
+        "{}: {}x{} pixels and no EXIF focal length, a size none of the project's photos has; give "
+        "its camera (--camera \"MODEL W H PARAMS...\")",
+        p.path, p.width, p.height);
+  }
+}
+
 // The photos stage: checks, the project's identity and its photo list.
 // Returns the photos to work on (all of them; for an update, the new ones).
 PhotoSet OpenProject(const MapOptions& o, Project* project, MapReport* report) {
   PhotoSet set = ReadPhotoSet(o.photos, o.cameras, o.update ? 1 : 2);
   std::vector<std::string> hashes;
-  for (const Photo& p : set.photos) {
+  for (Photo& p : set.photos) {
     InputFingerprint fp;
     fp.AddFile(p.path);
-    hashes.push_back(fp.Hex());
+    p.blake2b = fp.Hex();
+    hashes.push_back(p.blake2b);
   }
-  const bool exists = FileExists(project->Path("project.json"));
+  CheckServedFolder(o.out);
   std::error_code ec;
+  if (fs::exists(o.project_dir, ec) && !fs::is_directory(o.project_dir, ec)) {
+    Fail("--project {}: not a folder", o.project_dir);
+  }
+  if (!o.stereo.empty()) CheckStereoPairs(ParseStereo(o.stereo), set);
+  const bool exists = FileExists(project->Path("project.json"));
   if (!exists && fs::exists(o.project_dir, ec) && !EmptyBesidesLock(o.project_dir)) {
     Fail(
         "{}: a folder with other files and no project.json; name an empty or new folder for "
@@ -513,6 +575,7 @@ PhotoSet OpenProject(const MapOptions& o, Project* project, MapReport* report) {
     }
     if (!o.update || it == known.end()) fresh.photos.push_back(set.photos[k]);
   }
+  if (o.update) RefuseGuessedCamerasOfNewSizes(*project, fresh);
   if (!exists) {
     CreateDirectories(o.project_dir);
     std::array<uint8_t, 16> id;
@@ -760,6 +823,7 @@ void Publish(const MapOptions& o, Project& project, const Reconstruction& model,
   ojson served_audit = audit;
   served_audit["model"] = "(private)";
   served_audit["map"] = fs::path(lcm).filename().string();
+  CheckServedFolder(base);
   WriteFileAtomically(lcm, [&](std::ostream& out) { out << staged; });
   WriteFileAtomically(base + ".json", [&](std::ostream& out) { out << info.dump(1) << "\n"; });
   if (!audit.is_null()) {

@@ -3,6 +3,7 @@
 #include <fnmatch.h>
 
 #include <algorithm>
+#include <cctype>
 #include <filesystem>
 #include <span>
 #include <map>
@@ -82,6 +83,10 @@ Photo ReadPhoto(const std::string& path, ExifCamera* exif) {
   Photo p;
   p.path = path;
   p.name = fs::path(path).filename().string();
+  if (std::any_of(p.name.begin(), p.name.end(), [](unsigned char c) { return std::isspace(c); })) {
+    Fail("{}: a file name with a space; COLMAP's match lists cannot name it: rename the photo",
+         path);
+  }
   p.bytes = bytes;
   p.width = header.Turned() ? header.height : header.width;
   p.height = header.Turned() ? header.width : header.height;
@@ -231,6 +236,18 @@ PhotoSet ReadPhotoSet(const std::vector<std::string>& inputs,
   std::vector<ExifCamera> exif;
   ReadPhotos(files, &set, &exif);
   AssignCameras(given, exif, &set);
+  // A camera no photo takes is a mistake (width and height swapped, the
+  // size of another sensor mode, a glob that matches nothing).
+  for (size_t c = 0; c < cameras.size(); ++c) {
+    if (std::none_of(set.photos.begin(), set.photos.end(),
+                     [&](const Photo& p) { return p.camera == c; })) {
+      const Camera& cam = set.cameras[c].camera;
+      Fail("{}: no photo takes this camera ({}x{}; the photos are {}x{}{})",
+           cameras.size() == 1 ? "--camera" : fmt::format("--camera #{}", c + 1), cam.width,
+           cam.height, set.photos.front().width, set.photos.front().height,
+           cameras[c].find('=') != std::string::npos ? ", or its file-name glob matches none" : "");
+    }
+  }
   std::sort(set.photos.begin(), set.photos.end(),
             [](const Photo& a, const Photo& b) { return a.name < b.name; });
   return set;

@@ -234,7 +234,19 @@ size_t ExtractFeatures(const PhotoSet& photos, const std::string& database,
   sift.threads = 1;
   ParallelFor(todo.size(), options.threads, [&](size_t t) {
     const Photo& p = photos.photos[todo[t]];
-    const GreyImage image = ReadGreyImage(p.path);
+    const std::string bytes = ReadFileToString(p.path);
+    if (!p.blake2b.empty()) {
+      InputFingerprint fp;
+      fp.Add(bytes);
+      if (fp.Hex() != p.blake2b) {
+        Fail(
+            "{}: the photo changed while the project was being built (its bytes are not those "
+            "checked at the start); run the command again",
+            p.path);
+      }
+    }
+    const GreyImage image =
+        DecodeGreyImage({reinterpret_cast<const uint8_t*>(bytes.data()), bytes.size()}, p.path);
     const SiftFeatures features = ExtractSift(image, sift);
     std::lock_guard<std::mutex> lock(write_mutex);
     db.WriteImage(p.name, camera_ids[p.camera], features, p.gps);
