@@ -131,8 +131,10 @@ def main():
     wrong = []
     trials = []
     with tempfile.TemporaryDirectory() as tmp:
-        env = dict(os.environ, LINECLOUD_KEY_STORE=str(Path(tmp) / "keys"))
         for work in map(Path, args.work):
+            # A key store per scene: the scenes' photos share default names (0000.jpg...), and
+            # a store refuses to lift another place under a key found by names alone.
+            env = dict(os.environ, LINECLOUD_KEY_STORE=str(Path(tmp) / f"keys-{work.name}"))
             prepared = json.loads((work / "prepared.json").read_text())
             dataset = Path(prepared["dataset_dir"])
             cams = {}
