@@ -137,11 +137,11 @@ bool EmptyBesidesLock(const std::string& dir) {
   return true;
 }
 
-ojson PhotoEntry(const Photo& p, const std::string& hash) {
+ojson PhotoEntry(const Photo& p) {
   ojson e = {{"name", p.name},
              {"path", fs::absolute(p.path).string()},
              {"bytes", p.bytes},
-             {"blake2b", hash}};
+             {"blake2b", p.blake2b}};
   if (p.gps) e["gps"] = {p.gps->x(), p.gps->y(), p.gps->z()};
   return e;
 }
@@ -521,13 +521,6 @@ void RefuseGuessedCamerasOfNewSizes(Project& project, const PhotoSet& fresh) {
 // Returns the photos to work on (all of them; for an update, the new ones).
 PhotoSet OpenProject(const MapOptions& o, Project* project, MapReport* report) {
   PhotoSet set = ReadPhotoSet(o.photos, o.cameras, o.update ? 1 : 2);
-  std::vector<std::string> hashes;
-  for (Photo& p : set.photos) {
-    InputFingerprint fp;
-    fp.AddFile(p.path);
-    p.blake2b = fp.Hex();
-    hashes.push_back(p.blake2b);
-  }
   CheckServedFolder(o.out);
   std::error_code ec;
   if (fs::exists(o.project_dir, ec) && !fs::is_directory(o.project_dir, ec)) {
@@ -556,7 +549,7 @@ PhotoSet OpenProject(const MapOptions& o, Project* project, MapReport* report) {
   if (exists && !o.update) {
     bool same = known.size() == set.photos.size();
     for (size_t k = 0; same && k < set.photos.size(); ++k) {
-      same = known.count(set.photos[k].name) && known[set.photos[k].name] == hashes[k];
+      same = known.count(set.photos[k].name) && known[set.photos[k].name] == set.photos[k].blake2b;
     }
     if (!same) {
       Fail(
@@ -569,7 +562,7 @@ PhotoSet OpenProject(const MapOptions& o, Project* project, MapReport* report) {
   fresh.cameras = set.cameras;
   for (size_t k = 0; k < set.photos.size(); ++k) {
     const auto it = known.find(set.photos[k].name);
-    if (it != known.end() && it->second != hashes[k]) {
+    if (it != known.end() && it->second != set.photos[k].blake2b) {
       Fail("{}: another photo than the project's {} of the same name; rename it",
            set.photos[k].path, set.photos[k].name);
     }
@@ -581,8 +574,7 @@ PhotoSet OpenProject(const MapOptions& o, Project* project, MapReport* report) {
     std::array<uint8_t, 16> id;
     randombytes_buf(id.data(), id.size());
     ojson photos = ojson::array();
-    for (size_t k = 0; k < set.photos.size(); ++k)
-      photos.push_back(PhotoEntry(set.photos[k], hashes[k]));
+    for (size_t k = 0; k < set.photos.size(); ++k) photos.push_back(PhotoEntry(set.photos[k]));
     project->manifest() = {{"format", kFormat}, {"version", 1}, {"id", ToHex(id)},
                            {"photos", photos},  {"model", ""},  {"versions", ojson::array()}};
     project->Save();
@@ -607,7 +599,7 @@ std::string PhotosFingerprint(const PhotoSet& photos) {
   for (const Photo& p : photos.photos) {
     fp.Add(p.name);
     fp.Add(std::to_string(p.camera));
-    fp.AddFile(p.path);
+    fp.Add(p.blake2b);
   }
   return fp.Hex();
 }
@@ -916,11 +908,7 @@ void ReportLineChanges(Project& project, MapReport* report) {
 void FinishProject(const MapOptions& o, const PhotoSet& fresh, const std::string& model_dir,
                    Project& project, const MapReport& report) {
   if (o.update && !fresh.photos.empty()) {
-    for (const Photo& p : fresh.photos) {
-      InputFingerprint fp;
-      fp.AddFile(p.path);
-      project.manifest()["photos"].push_back(PhotoEntry(p, fp.Hex()));
-    }
+    for (const Photo& p : fresh.photos) project.manifest()["photos"].push_back(PhotoEntry(p));
     project.manifest()["versions"].push_back(
         {{"model", project.manifest().value("model", "model")},
          {"lines", project.manifest().value("lines", size_t{0})}});

@@ -13,6 +13,7 @@
 
 #include <fmt/format.h>
 
+#include "linecloud/colmap/colmap_runner.h"
 #include "linecloud/features/image.h"
 #include "linecloud/pipeline/image_query.h"
 #include "linecloud/util/error.h"
@@ -81,6 +82,9 @@ Photo ReadPhoto(const std::string& path, ExifCamera* exif) {
   const ImageHeader header = ReadImageHeader(data, path);
   CheckWhole(data, header.format, path);
   Photo p;
+  InputFingerprint fp;  // the bytes checked here are the bytes the project keeps
+  fp.Add(text);
+  p.blake2b = fp.Hex();
   p.path = path;
   p.name = fs::path(path).filename().string();
   if (std::any_of(p.name.begin(), p.name.end(), [](unsigned char c) { return std::isspace(c); })) {

@@ -32,9 +32,9 @@ struct Photo {
   uint64_t width = 0, height = 0;      // as displayed (EXIF orientation applied)
   size_t camera = 0;                   // index into PhotoSet::cameras
   std::optional<Eigen::Vector3d> gps;  // EXIF: latitude, longitude, altitude
-  // BLAKE2b of the bytes (InputFingerprint::AddFile's); when set, the
-  // features are extracted only from these bytes (a photo replaced mid-run
-  // is refused, not mixed into the project).
+  // BLAKE2b of the bytes checked (InputFingerprint::AddFile's), set by
+  // ReadPhotoSet; when set, the features are extracted only from these bytes
+  // (a photo replaced mid-run is refused, not mixed into the project).
   std::string blake2b;
 };
 

@@ -73,10 +73,6 @@ std::vector<std::pair<size_t, size_t>> SequentialPairs(size_t n, int overlap) {
   return {pairs.begin(), pairs.end()};
 }
 
-struct PairMatches {
-  std::vector<DescriptorMatch> matches;
-};
-
 // Matches each pair here and hands them to COLMAP for verification in one
 // raw match list (COLMAP's `matches_importer --match_type raw`).
 MatchSummary MatchPairsHere(const std::vector<std::string>& names,
@@ -97,7 +93,7 @@ MatchSummary MatchPairsHere(const std::vector<std::string>& names,
   }
   DescriptorMatchOptions match;
   match.cross_check = true;  // COLMAP's SiftMatching defaults: ratio 0.8, distance 0.7, cross check
-  std::vector<PairMatches> found(pairs.size());
+  std::vector<std::vector<DescriptorMatch>> found(pairs.size());  // per pair
   std::atomic<size_t> done{0};
   std::mutex progress_mutex;
   ParallelFor(pairs.size(), options.threads, [&](size_t k) {
@@ -105,7 +101,7 @@ MatchSummary MatchPairsHere(const std::vector<std::string>& names,
     const FeatureDescriptors& a = descriptors[i];
     const FeatureDescriptors& b = descriptors[j];
     if (a.rows() > 0 && b.rows() > 0) {
-      found[k].matches =
+      found[k] =
           MatchDescriptors({a.data(), size_t(a.size())}, {b.data(), size_t(b.size())}, match);
     }
     const size_t d = ++done;
@@ -119,11 +115,11 @@ MatchSummary MatchPairsHere(const std::vector<std::string>& names,
   const std::string list = JoinPaths(work_dir, "raw_matches.txt");
   WriteFileAtomically(list, [&](std::ostream& out) {
     for (size_t k = 0; k < pairs.size(); ++k) {
-      if (found[k].matches.size() < 15) continue;  // COLMAP's min_num_inliers: never verified
+      if (found[k].size() < 15) continue;  // COLMAP's min_num_inliers: never verified
       out << names[pairs[k].first] << " " << names[pairs[k].second] << "\n";
-      for (const DescriptorMatch& m : found[k].matches) out << m.query << " " << m.map << "\n";
+      for (const DescriptorMatch& m : found[k]) out << m.query << " " << m.map << "\n";
       out << "\n";
-      summary.raw_matches += found[k].matches.size();
+      summary.raw_matches += found[k].size();
     }
   });
   RunColmapCommand({options.colmap.executable, "matches_importer", "--database_path", database,
