@@ -186,14 +186,14 @@ def lift(model_dir: _Path | Any, database: _Path | None = None, out: _Path | Non
 
 
 def attack(cloud: LineCloud | _Path, *, neighbours: int = 0, refine_rounds: int = 2,
-           refine_neighbours: int = 100, min_shared: int = 10, threads: int = 0,
-           max_seconds: float = 0.0) -> npt.NDArray[np.float64]: ...
+           refine_neighbours: int = 100, min_shared: int = 10, exact_search_lines: int = 200000,
+           threads: int = 0, max_seconds: float = 0.0) -> npt.NDArray[np.float64]: ...
 
 
 def audit(cloud: LineCloud | _Path, model_dir: _Path, *, other: _Path | None = None,
           out: _Path | None = None, key_file: _Path | None = None, key_store: _Path | None = None,
           neighbours: int = 0, refine_rounds: int = 2, refine_neighbours: int = 100,
-          min_shared: int = 10, threads: int = 0, max_seconds: float = 0.0,
-          metric_scale: float = 0.0, density_attack: bool = True,
+          min_shared: int = 10, exact_search_lines: int = 200000, threads: int = 0,
+          max_seconds: float = 0.0, metric_scale: float = 0.0, density_attack: bool = True,
           crossing_tolerance: float = 0.001, recovered_within: float = 0.0001) -> dict[str, Any]: ...
 # END lift, attack, audit

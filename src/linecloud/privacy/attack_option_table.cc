@@ -30,12 +30,17 @@ std::vector<OptionField<DensityAttackOptions>> MakeAttackTable() {
   t.push_back(AttackInteger("min_shared",
                             "Use the two refinement sets' intersection when larger than this", 0,
                             1 << 30, [](O& o) -> int& { return o.min_shared; }));
+  t.push_back(AttackInteger(
+      "exact_search_lines",
+      "Up to this many lines every pair is compared (the published search, n²); beyond, a grid of "
+      "the scene's box (exact within radii holding the K nearest of 95 % of sampled lines)",
+      0, 1 << 30, [](O& o) -> int& { return o.exact_search_lines; }));
   t.push_back(AttackInteger("threads", "Threads (0: all cores)", 0, 1024,
                             [](O& o) -> int& { return o.threads; }));
   OptionField<O> seconds = MemberField<O, double>(
       "max_seconds", OptionType::kNumber,
-      "Stop (with an error giving the projected time) after this long; the cost grows as the "
-      "square of the lines (0: no limit)",
+      "Stop (with an error giving the projected time) after this long; the exact search's cost "
+      "grows as the square of the lines (0: no limit)",
       [](O& o) -> double& { return o.max_seconds; });
   seconds.min = 0;
   seconds.max = 1e9;

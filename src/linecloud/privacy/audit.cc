@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <chrono>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <cmath>
 #include <optional>
 #include <filesystem>
@@ -46,6 +49,11 @@ DensityAttackReport DensityAttackOf(const DensityAttackResult& r, const DensityA
   a.refine_rounds = o.refine_rounds;
   a.refine_neighbours = o.refine_neighbours;
   a.lines_without_votes = r.lines_without_votes;
+  if (r.search_radius > 0) {
+    a.search = "grid";
+    a.search_radius = r.search_radius;
+    a.lines_short_of_neighbours = r.lines_short_of_neighbours;
+  }
   a.seconds = r.seconds;
   a.recovery = SummarizeRecovery(score);
   if (r.lines_without_votes == r.points.size()) {
@@ -78,59 +86,84 @@ TwoKeyReport TwoKeyOf(const TwoLiftingsAttack& attack, const std::vector<Eigen::
 }
 
 // The points of `a` (the audited map) an attack recovers: those with an
-// intersection within `within` of their secret point (also the partner's,
-// for one map's own crossings).
-size_t CountRecovered(const TwoLiftingsAttack& attack, const std::vector<size_t>* partner,
-                      const std::vector<Eigen::Vector3d>& secret, double within,
-                      std::vector<uint8_t>* recovered) {
-  recovered->assign(secret.size(), 0);
+// intersection within `within` of their secret point.
+std::vector<uint8_t> Recovered(const TwoLiftingsAttack& attack,
+                               const std::vector<Eigen::Vector3d>& secret, double within) {
+  std::vector<uint8_t> recovered(secret.size(), 0);
   for (size_t k = 0; k < attack.points.size(); ++k) {
     const size_t i = attack.indices[k];
-    if ((attack.points[k] - secret[i]).norm() <= within) (*recovered)[i] = 1;
-    if (partner) {
-      const size_t j = (*partner)[k];
-      if ((attack.points[k] - secret[j]).norm() <= within) (*recovered)[j] = 1;
-    }
+    if ((attack.points[k] - secret[i]).norm() <= within) recovered[i] = 1;
   }
-  return static_cast<size_t>(std::count(recovered->begin(), recovered->end(), 1));
+  return recovered;
 }
 
-// `own`: the points the map's own crossings recover; a pairing of two maps is
-// then also scored by what it recovers beyond them (what the second map adds).
-PairingReport PairingOf(const TwoLiftingsAttack& attack, const std::vector<size_t>* partner,
-                        const std::vector<Eigen::Vector3d>& secret, double within, double seconds,
-                        std::vector<uint8_t>* recovered, const std::vector<uint8_t>* own = nullptr,
-                        const std::vector<uint8_t>* density = nullptr) {
-  const double points = static_cast<double>(secret.size());
+// A pairing's report from the points it recovered. `own`: the points the
+// map's own crossings recover; a pairing of two maps is then also scored by
+// what it recovers beyond them (what the second map adds).
+PairingReport ScoredPairing(const TwoLiftingsAttack& attack, size_t intersections,
+                            const std::vector<uint8_t>& recovered, double seconds,
+                            const std::vector<uint8_t>* own = nullptr,
+                            const std::vector<uint8_t>* density = nullptr) {
+  const double points = static_cast<double>(recovered.size());
+  const auto beyond = [&](const std::vector<uint8_t>* a, const std::vector<uint8_t>* b) {
+    size_t count = 0;
+    for (size_t i = 0; i < recovered.size(); ++i) {
+      count += recovered[i] && !(a && (*a)[i]) && !(b && (*b)[i]);
+    }
+    return count;
+  };
   PairingReport p;
   p.pairing = attack.pairing;
   p.pairs = attack.shared_ids;
   p.parallel_pairs = attack.parallel;
-  p.intersections = attack.points.size();
-  p.recovered = CountRecovered(attack, partner, secret, within, recovered);
-  p.share_recovered = secret.empty() ? 0.0 : p.recovered / points;
+  p.intersections = intersections;
+  p.recovered = static_cast<size_t>(std::count(recovered.begin(), recovered.end(), 1));
+  p.share_recovered = recovered.empty() ? 0.0 : p.recovered / points;
   p.seconds = seconds;
   if (own) {
-    size_t beyond = 0;
-    for (size_t i = 0; i < recovered->size(); ++i) beyond += (*recovered)[i] && !(*own)[i];
-    p.recovered_beyond_own = beyond;
-    p.share_recovered_beyond_own = secret.empty() ? 0.0 : beyond / points;
+    p.recovered_beyond_own = beyond(own, nullptr);
+    p.share_recovered_beyond_own = recovered.empty() ? 0.0 : *p.recovered_beyond_own / points;
   }
   if (density) {
-    size_t beyond = 0;
-    for (size_t i = 0; i < recovered->size(); ++i) beyond += (*recovered)[i] && !(*density)[i];
-    p.recovered_beyond_density = beyond;
-    p.share_recovered_beyond_density = secret.empty() ? 0.0 : beyond / points;
+    p.recovered_beyond_density = beyond(density, nullptr);
+    p.share_recovered_beyond_density =
+        recovered.empty() ? 0.0 : *p.recovered_beyond_density / points;
   }
   if (density && own) {
-    size_t beyond = 0;
-    for (size_t i = 0; i < recovered->size(); ++i) {
-      beyond += (*recovered)[i] && !(*density)[i] && !(*own)[i];
-    }
-    p.recovered_beyond_map = beyond;
-    p.share_recovered_beyond_map = secret.empty() ? 0.0 : beyond / points;
+    p.recovered_beyond_map = beyond(density, own);
+    p.share_recovered_beyond_map = recovered.empty() ? 0.0 : *p.recovered_beyond_map / points;
   }
   return p;
+}
+
+PairingReport PairingOf(const TwoLiftingsAttack& attack, const std::vector<Eigen::Vector3d>& secret,
+                        double within, double seconds, std::vector<uint8_t>* recovered,
+                        const std::vector<uint8_t>* own = nullptr,
+                        const std::vector<uint8_t>* density = nullptr) {
+  *recovered = Recovered(attack, secret, within);
+  return ScoredPairing(attack, attack.points.size(), *recovered, seconds, own, density);
+}
+
+// A map's own lines that cross (two points at one place, different
+// directions), streamed: the points whose secret lies within `within` of a
+// crossing of their line.
+PairingReport SelfCrossingsOf(const LineCloud& cloud, const Eigen::AlignedBox3d& box,
+                              double tolerance, const std::vector<Eigen::Vector3d>& secret,
+                              double within, int threads, std::vector<uint8_t>* own) {
+  const auto start = std::chrono::steady_clock::now();
+  own->assign(secret.size(), 0);
+  TwoLiftingsAttack self;
+  self.pairing = "crossing lines of one map";
+  self.shared_ids = ForEachSelfCrossing(
+      cloud, box, tolerance,
+      [&](uint32_t i, uint32_t j, const Eigen::Vector3d& mid) {
+        if ((mid - secret[i]).norm() <= within) (*own)[i] = 1;
+        if ((mid - secret[j]).norm() <= within) (*own)[j] = 1;
+      },
+      1e-6, threads);
+  return ScoredPairing(
+      self, self.shared_ids, *own,
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
 }
 
 MapAlignmentReport AlignmentOf(const MapAlignment& a) {
@@ -175,7 +208,7 @@ void AlignedPairingsOf(const LineCloud& cloud, const LineCloud& other,
   const LineCloud moved = TransformedCloud(other, alignment.a_from_b);
   std::vector<uint8_t> recovered;
   const auto add = [&](const TwoLiftingsAttack& attack, double seconds, const char* name) {
-    PairingReport r = PairingOf(attack, nullptr, secret, within, seconds, &recovered, &own,
+    PairingReport r = PairingOf(attack, secret, within, seconds, &recovered, &own,
                                 density ? &by_density : nullptr);
     r.pairing = fmt::format("{}, after alignment", name);
     return r;
@@ -215,26 +248,24 @@ PairingAttacksReport PairingAttacksOf(const LineCloud& cloud, const LineCloud* o
   p.crossing_tolerance_diagonal = o.crossing_tolerance;
   p.recovered_within_diagonal = o.recovered_within;
   auto start = std::chrono::steady_clock::now();
-  std::vector<size_t> partner;
-  const TwoLiftingsAttack self = IntersectSelfCrossings(cloud, box, tolerance, &partner);
   std::vector<uint8_t> own, recovered;
-  p.self_crossings = PairingOf(self, &partner, secret, within, SecondsSince(start), &own);
+  p.self_crossings = SelfCrossingsOf(cloud, box, tolerance, secret, within, o.attack.threads, &own);
   if (!other) return p;
   start = std::chrono::steady_clock::now();
   // Each attack runs before its time is read (arguments have no order).
   const TwoLiftingsAttack by_id = IntersectLinesOfEqualId(cloud, *other);
-  p.by_id = PairingOf(by_id, nullptr, secret, within, SecondsSince(start), &recovered, &own);
+  p.by_id = PairingOf(by_id, secret, within, SecondsSince(start), &recovered, &own);
   if (cloud.has_descriptors() && other->has_descriptors() &&
       cloud.descriptor_dim == other->descriptor_dim) {
     start = std::chrono::steady_clock::now();
     const TwoLiftingsAttack by_descriptor = IntersectLinesOfNearestDescriptor(cloud, *other);
     p.by_descriptor =
-        PairingOf(by_descriptor, nullptr, secret, within, SecondsSince(start), &recovered, &own);
+        PairingOf(by_descriptor, secret, within, SecondsSince(start), &recovered, &own);
   }
   start = std::chrono::steady_clock::now();
-  const TwoLiftingsAttack by_crossing = IntersectCrossingLinesInBox(cloud, *other, box, tolerance);
-  p.by_crossing =
-      PairingOf(by_crossing, nullptr, secret, within, SecondsSince(start), &recovered, &own);
+  const TwoLiftingsAttack by_crossing =
+      IntersectCrossingLinesInBox(cloud, *other, box, tolerance, 1e-6, o.attack.threads);
+  p.by_crossing = PairingOf(by_crossing, secret, within, SecondsSince(start), &recovered, &own);
   // What the second map adds: the most any pairing recovers beyond the map's
   // own crossings.
   size_t worst = 0;
@@ -322,13 +353,22 @@ AuditReport RunAudit(const AuditOptions& o) {
 
 AuditReport RunAudit(const LineCloud& cloud, const AuditOptions& o) {
   o.Check();
-  const Reconstruction model = ReadColmapModel(o.model_dir);
-  // The public demo key needs no key store (anyone can compute it).
-  const LiftingKey key =
-      o.key_file.empty() && cloud.key_fingerprint == DemoLiftingKey().Fingerprint()
-          ? DemoLiftingKey()
-          : ModelKey(model, o.model_dir, o.key_file, o.key_store);
-  const std::vector<Eigen::Vector3d> secret = SecretPointsOfLines(cloud, model, key, o.map_path);
+  // Only the secret points are kept from the model (a model of a million
+  // points with its images' observations is larger than the attacks' needs).
+  size_t model_points = 0;
+  const std::vector<Eigen::Vector3d> secret = [&] {
+    const Reconstruction model = ReadColmapModel(o.model_dir);
+    model_points = model.points3D.size();
+    // The public demo key needs no key store (anyone can compute it).
+    const LiftingKey key =
+        o.key_file.empty() && cloud.key_fingerprint == DemoLiftingKey().Fingerprint()
+            ? DemoLiftingKey()
+            : ModelKey(model, o.model_dir, o.key_file, o.key_store);
+    return SecretPointsOfLines(cloud, model, key, o.map_path);
+  }();
+#ifdef __GLIBC__
+  malloc_trim(0);  // the model's many small blocks back to the system
+#endif
   if (secret.empty()) Fail("{}: the map has no lines", o.map_path);
   const double diagonal = SceneDiagonal(secret);
 
@@ -336,7 +376,7 @@ AuditReport RunAudit(const LineCloud& cloud, const AuditOptions& o) {
   report.map = o.map_path;
   report.model = o.model_dir;
   report.lines = cloud.size();
-  report.model_points = model.points3D.size();
+  report.model_points = model_points;
   report.encoding = LineEncodingName(cloud.encoding);
   report.diagonal = diagonal;
   if (o.metric_scale > 0) report.metric_scale = o.metric_scale;

@@ -77,6 +77,9 @@ ojson ToJson(const DensityAttackReport& a) {
              {"refine_rounds", a.refine_rounds},
              {"refine_neighbours", a.refine_neighbours},
              {"lines_without_votes", a.lines_without_votes},
+             {"search", a.search},
+             {"search_radius", a.search_radius ? ojson(*a.search_radius) : ojson(nullptr)},
+             {"lines_short_of_neighbours", a.lines_short_of_neighbours},
              {"seconds", a.seconds},
              {"recovery", ToJson(a.recovery)}};
   if (!a.why_nothing.empty()) j["why_nothing"] = a.why_nothing;
@@ -90,6 +93,15 @@ DensityAttackReport DensityAttackFrom(const JsonFields& f) {
   a.refine_rounds = f.Int("refine_rounds");
   a.refine_neighbours = f.Int("refine_neighbours");
   a.lines_without_votes = f.Count("lines_without_votes");
+  // Reports written before the grid search have no search fields: every pair.
+  a.search = f.StringOr("search", "every pair");
+  if (a.search != "every pair" && a.search != "grid") {
+    Fail("{}: \"{}\" is not a search (every pair, grid)", f.Where("search"), a.search);
+  }
+  a.search_radius = OptionalNonNegative(f, "search_radius");
+  if (f.Has("lines_short_of_neighbours")) {
+    a.lines_short_of_neighbours = f.Count("lines_short_of_neighbours");
+  }
   a.seconds = f.NonNegative("seconds");
   a.recovery = RecoveryFrom(f.Object("recovery"));
   a.why_nothing = f.StringOr("why_nothing", "");
@@ -269,6 +281,12 @@ std::string DensityAttackMarkdown(const DensityAttackReport& a) {
       "What anyone holding only the map recovers: for each line, the points where its {} "
       "nearest lines pass closest vote for the hidden point; {} refinement rounds. {:.1f} s.\n\n",
       a.line_neighbours, a.refine_rounds, a.seconds);
+  if (a.search_radius) {
+    md += fmt::format(
+        "Neighbours searched through a grid of the scene (the map is too large to compare every "
+        "pair): exact within {:.4g} model units; {} lines found fewer than {} there.\n\n",
+        *a.search_radius, a.lines_short_of_neighbours, a.line_neighbours);
+  }
   md += "| recovered within | share of the points |\n|---|---|\n";
   for (const auto& [p, share] : rec.within_diagonal_percent) {
     md += fmt::format("| {} % of the diagonal | {} |\n", p, SharePercent(share));

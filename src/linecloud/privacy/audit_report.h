@@ -35,6 +35,12 @@ struct DensityAttackReport {
   std::string method;
   int line_neighbours = 0, refine_rounds = 0, refine_neighbours = 0;
   size_t lines_without_votes = 0;
+  // How neighbours were found: "every pair", or "grid" (density_attack.h)
+  // with its line-to-line radius (model units) and the lines that found
+  // fewer than line_neighbours within it.
+  std::string search = "every pair";
+  std::optional<double> search_radius;
+  size_t lines_short_of_neighbours = 0;
   double seconds = 0;
   RecoverySummary recovery;
   std::string why_nothing;  // empty unless nothing could be recovered

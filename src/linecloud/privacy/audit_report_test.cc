@@ -22,6 +22,9 @@ AuditReport SomeAudit() {
   a.refine_rounds = 2;
   a.refine_neighbours = 10;
   a.lines_without_votes = 3;
+  a.search = "grid";
+  a.search_radius = 0.004;
+  a.lines_short_of_neighbours = 7;
   a.seconds = 0.5;
   a.recovery.points = 100;
   a.recovery.diagonal = 2.5;
@@ -102,6 +105,8 @@ TEST(AuditReport, ReadingNamesTheBadField) {
   EXPECT_EQ(changed(P("/density_attack/lines_without_votes"), 1000),
             "a.json.density_attack.lines_without_votes: 1000 lines without votes in a map of 100 "
             "lines");
+  EXPECT_EQ(changed(P("/density_attack/search"), "kd-tree"),
+            "a.json.density_attack.search: \"kd-tree\" is not a search (every pair, grid)");
   EXPECT_EQ(changed(P("/density_attack/seconds"), "1"),
             "a.json.density_attack.seconds: \"1\" is not a number");
   EXPECT_EQ(changed(P("/pairing_attacks"), gone), "a.json.pairing_attacks: missing");

@@ -2,7 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <atomic>
 #include <limits>
+
+#include "linecloud/util/parallel.h"
 
 namespace linecloud {
 namespace {
@@ -161,6 +164,257 @@ void SmallestK(std::span<const float> d2, size_t k, SelectBuffers* buffers,
   auto by_distance = [&](uint32_t a, uint32_t b) { return d2[a] < d2[b]; };
   if (keep < c) std::nth_element(cand.begin(), cand.begin() + keep, cand.begin() + c, by_distance);
   out->assign(cand.begin(), cand.begin() + keep);
+}
+
+std::vector<PluckerLine> NeighbourGrid::Lines(const LineArrays& a) {
+  std::vector<PluckerLine> lines(a.size());
+  for (size_t i = 0; i < a.size(); ++i) lines[i] = PluckerLine(a.v[i], a.q[i].cross(a.v[i]));
+  return lines;
+}
+
+NeighbourGrid::NeighbourGrid(const LineArrays& lines, const Eigen::AlignedBox3d& centred_box,
+                             double pair_radius, size_t max_entries)
+    : a_(lines),
+      pair_radius_(pair_radius),
+      grid_(Lines(lines), centred_box, 0.5 * pair_radius, max_entries) {
+  rows_.resize(lines.size());
+  for (size_t i = 0; i < lines.size(); ++i) {
+    rows_[i] = {
+        {lines.vx[i], lines.vy[i], lines.vz[i]}, {lines.qx[i], lines.qy[i], lines.qz[i]}, {}};
+  }
+}
+
+void NeighbourGrid::Pick(size_t k, Buffers* b, std::vector<uint32_t>* out) const {
+  SmallestK(b->d2, k, &b->select, &b->picked);
+  out->clear();
+  for (const uint32_t m : b->picked) out->push_back(b->ids[m]);
+}
+
+void NeighbourGrid::PairsOfCell(int64_t cell, int bins, CellScratch* scratch) const {
+  const std::span<const uint32_t> ids = grid_.LinesIn(cell);
+  const size_t o = ids.size();
+  std::vector<PairEnd>& ends = scratch->ends;
+  ends.clear();
+  scratch->starts.assign(o + 1, 0);
+  if (o < 2) return;
+  // The cell's lines side by side (v, q, w; float), a row of distances, then
+  // the pairs within the radius.
+  std::vector<float>& local = scratch->rows;
+  local.resize(10 * o);
+  float* v[3] = {local.data(), local.data() + o, local.data() + 2 * o};
+  float* q[3] = {local.data() + 3 * o, local.data() + 4 * o, local.data() + 5 * o};
+  float* w[3] = {local.data() + 6 * o, local.data() + 7 * o, local.data() + 8 * o};
+  float* __restrict d2 = local.data() + 9 * o;
+  for (size_t m = 0; m < o; ++m) {
+    const uint32_t i = ids[m];
+    v[0][m] = a_.vx[i], v[1][m] = a_.vy[i], v[2][m] = a_.vz[i];
+    q[0][m] = a_.qx[i], q[1][m] = a_.qy[i], q[2][m] = a_.qz[i];
+    w[0][m] = a_.wx[i], w[1][m] = a_.wy[i], w[2][m] = a_.wz[i];
+  }
+  // The cell's own coordinates: a pair belongs to the cell holding its
+  // midpoint (computed alike in every cell, so exactly one cell reports it).
+  const Eigen::Array3i dims = grid_.dims();
+  const Eigen::Array3d corner = grid_.corner().array();
+  const double inv_cell = 1.0 / grid_.cell();
+  const Eigen::Vector3d box_hi = grid_.box().max();
+  const double cx = static_cast<double>(cell % dims[0]);
+  const double cy = static_cast<double>((cell / dims[0]) % dims[1]);
+  const double cz = static_cast<double>(cell / (static_cast<int64_t>(dims[0]) * dims[1]));
+  const float r2 = static_cast<float>(pair_radius_ * pair_radius_);
+  const double to_bin = bins / pair_radius_;
+  const float* __restrict VX = v[0];
+  const float* __restrict VY = v[1];
+  const float* __restrict VZ = v[2];
+  const float* __restrict WX = w[0];
+  const float* __restrict WY = w[1];
+  const float* __restrict WZ = w[2];
+  for (size_t m = 0; m + 1 < o; ++m) {
+    const float vx = VX[m], vy = VY[m], vz = VZ[m], wx = WX[m], wy = WY[m], wz = WZ[m];
+    // Branch-free, so that it vectorises; near-parallel pairs get ∞ (or NaN).
+    for (size_t n = m + 1; n < o; ++n) {
+      const float c = vx * VX[n] + vy * VY[n] + vz * VZ[n];
+      const float s2 = 1.f - c * c;
+      const float num = vx * WX[n] + vy * WY[n] + vz * WZ[n] + VX[n] * wx + VY[n] * wy + VZ[n] * wz;
+      d2[n] = num * num / (s2 > kMinSinSq ? s2 : 0.f);
+    }
+    for (size_t n = m + 1; n < o; ++n) {
+      if (!(d2[n] <= r2)) continue;
+      const float c = vx * VX[n] + vy * VY[n] + vz * VZ[n], s2 = 1.f - c * c;
+      // Closest points q_m + t_m v_m and q_n + t_n v_n.
+      const float rx = q[0][n] - q[0][m], ry = q[1][n] - q[1][m], rz = q[2][n] - q[2][m];
+      const float rm = rx * vx + ry * vy + rz * vz;
+      const float rn = rx * VX[n] + ry * VY[n] + rz * VZ[n];
+      const float tm = (rm - c * rn) / s2, tn = (c * rm - rn) / s2;
+      const double mx = 0.5 * (q[0][m] + tm * vx + q[0][n] + tn * VX[n]);
+      const double my = 0.5 * (q[1][m] + tm * vy + q[1][n] + tn * VY[n]);
+      const double mz = 0.5 * (q[2][m] + tm * vz + q[2][n] + tn * VZ[n]);
+      // floor(x) == c for an integer c, without floor's cost.
+      const double fx = (mx - corner[0]) * inv_cell, fy = (my - corner[1]) * inv_cell,
+                   fz = (mz - corner[2]) * inv_cell;
+      if (!(fx >= cx && fx < cx + 1 && fy >= cy && fy < cy + 1 && fz >= cz && fz < cz + 1)) {
+        continue;
+      }
+      // The last cell of an axis reaches past the box: meetings there are outside it.
+      if (!(mx <= box_hi[0] && my <= box_hi[1] && mz <= box_hi[2])) continue;
+      const uint32_t bin =
+          std::min<uint32_t>(bins - 1, static_cast<uint32_t>(std::sqrt(d2[n]) * to_bin));
+      ends.push_back({static_cast<uint32_t>(m), bin, tm});
+      ends.push_back({static_cast<uint32_t>(n), bin, tn});
+    }
+  }
+  // By line (counting sort): each line's row of the totals is then touched once.
+  std::vector<uint32_t>& starts = scratch->starts;
+  for (const PairEnd& e : ends) ++starts[e.line + 1];
+  for (size_t m = 0; m < o; ++m) starts[m + 1] += starts[m];
+  scratch->sorted.resize(ends.size());
+  std::vector<uint32_t> fill(starts.begin(), starts.end() - 1);
+  for (const PairEnd& e : ends) scratch->sorted[fill[e.line]++] = e;
+}
+
+NeighbourGrid::LineVotes NeighbourGrid::CoarseVotes(size_t k, int threads) const {
+  // Pass 1: each line's distances binned (32 bins up to the radius), and the
+  // bin holding its k-th. Pass 2: the votes of the pairs in or below that bin.
+  constexpr int kBins = 32;
+  const size_t n = a_.size();
+  const size_t cells = static_cast<size_t>(grid_.num_cells());
+  std::vector<uint32_t> hist(n * kBins, 0);
+  std::vector<CellScratch> scratch(WorkerThreads(threads));
+  ParallelFor(cells, threads, [&](size_t c, int worker) {
+    CellScratch& s = scratch[worker];
+    PairsOfCell(static_cast<int64_t>(c), kBins, &s);
+    const std::span<const uint32_t> ids = grid_.LinesIn(static_cast<int64_t>(c));
+    for (size_t m = 0; m + 1 < s.starts.size(); ++m) {
+      uint32_t* row = hist.data() + size_t{ids[m]} * kBins;
+      for (uint32_t e = s.starts[m]; e < s.starts[m + 1]; ++e) {
+        std::atomic_ref<uint32_t>(row[s.sorted[e].bin]).fetch_add(1, std::memory_order_relaxed);
+      }
+    }
+  });
+  LineVotes votes;
+  votes.starts.assign(n + 1, 0);
+  std::vector<uint8_t> last_bin(n);
+  for (size_t i = 0; i < n; ++i) {
+    uint64_t total = 0;
+    int b = 0;
+    for (; b < kBins; ++b) {
+      total += hist[i * kBins + b];
+      if (total >= k) break;
+    }
+    if (b == kBins) ++votes.short_of_k, b = kBins - 1;
+    last_bin[i] = static_cast<uint8_t>(b);
+    votes.starts[i + 1] = votes.starts[i] + total;
+  }
+  std::vector<uint32_t>().swap(hist);
+  votes.t.resize(votes.starts[n]);
+  std::vector<uint64_t> fill(votes.starts.begin(), votes.starts.end() - 1);
+  ParallelFor(cells, threads, [&](size_t c, int worker) {
+    CellScratch& s = scratch[worker];
+    PairsOfCell(static_cast<int64_t>(c), kBins, &s);
+    const std::span<const uint32_t> ids = grid_.LinesIn(static_cast<int64_t>(c));
+    for (size_t m = 0; m + 1 < s.starts.size(); ++m) {
+      const uint32_t i = ids[m];
+      uint64_t kept = 0;
+      for (uint32_t e = s.starts[m]; e < s.starts[m + 1]; ++e)
+        kept += s.sorted[e].bin <= last_bin[i];
+      if (kept == 0) continue;
+      uint64_t at = std::atomic_ref<uint64_t>(fill[i]).fetch_add(kept, std::memory_order_relaxed);
+      for (uint32_t e = s.starts[m]; e < s.starts[m + 1]; ++e) {
+        if (s.sorted[e].bin <= last_bin[i]) votes.t[at++] = s.sorted[e].t;
+      }
+    }
+  });
+  return votes;
+}
+
+void NeighbourGrid::SetPoints(const PointArrays* points) {
+  points_ = points;
+  const int64_t cells = grid_.num_cells();
+  point_starts_.assign(cells + 1, 0);
+  std::vector<int64_t> cell_of(points->size());
+  for (size_t i = 0; i < points->size(); ++i) {
+    cell_of[i] = grid_.CellOf(Eigen::Vector3d(points->x[i], points->y[i], points->z[i]));
+    if (cell_of[i] >= 0) ++point_starts_[cell_of[i] + 1];
+  }
+  for (int64_t c = 0; c < cells; ++c) point_starts_[c + 1] += point_starts_[c];
+  points_by_cell_.resize(point_starts_[cells]);
+  std::vector<uint32_t> fill(point_starts_.begin(), point_starts_.end() - 1);
+  for (size_t i = 0; i < points->size(); ++i) {
+    if (cell_of[i] < 0) continue;
+    points_by_cell_[fill[cell_of[i]]++] = {{points->x[i], points->y[i], points->z[i]},
+                                           static_cast<uint32_t>(i)};
+  }
+}
+
+void NeighbourGrid::NearestPoints(size_t i, size_t k, double r, Buffers* b,
+                                  std::vector<uint32_t>* out) const {
+  b->ids.clear(), b->d2.clear();
+  const LineRow& l = rows_[i];
+  grid_.CellsNear(PluckerLine(a_.v[i], a_.q[i].cross(a_.v[i])), r, &b->cells);
+  const float r2 = static_cast<float>(r * r);
+  for (const int64_t c : b->cells) {
+    for (uint32_t m = point_starts_[c]; m < point_starts_[c + 1]; ++m) {
+      const PointRow& p = points_by_cell_[m];
+      const float rx = p.x[0] - l.q[0], ry = p.x[1] - l.q[1], rz = p.x[2] - l.q[2];
+      const float t = rx * l.v[0] + ry * l.v[1] + rz * l.v[2];
+      const float d2 = rx * rx + ry * ry + rz * rz - t * t;
+      if (d2 > r2 || p.id == i) continue;  // (the line's own estimate left out)
+      b->ids.push_back(p.id);
+      b->d2.push_back(d2);
+    }
+  }
+  Pick(k, b, out);
+}
+
+void NeighbourGrid::NearestLinesToPoint(size_t i, size_t k, double r, Buffers* b,
+                                        std::vector<uint32_t>* out) const {
+  b->ids.clear(), b->d2.clear();
+  const float x = points_->x[i], y = points_->y[i], z = points_->z[i];
+  grid_.CellsNear(Eigen::Vector3d(x, y, z), r, &b->cells);
+  if (b->stamp.size() != a_.size()) b->stamp.assign(a_.size(), 0), b->epoch = 0;
+  if (++b->epoch == 0) std::fill(b->stamp.begin(), b->stamp.end(), 0), b->epoch = 1;
+  const float r2 = static_cast<float>(r * r);
+  for (const int64_t c : b->cells) {
+    for (const uint32_t j : grid_.LinesIn(c)) {
+      const LineRow& l = rows_[j];
+      const float rx = x - l.q[0], ry = y - l.q[1], rz = z - l.q[2];
+      const float t = rx * l.v[0] + ry * l.v[1] + rz * l.v[2];
+      const float d2 = rx * rx + ry * ry + rz * rz - t * t;
+      // Within r (tested first: most candidates are not), not met in another
+      // cell, not the point's own line.
+      if (d2 > r2 || b->stamp[j] == b->epoch || j == i) continue;
+      b->stamp[j] = b->epoch;
+      b->ids.push_back(j);
+      b->d2.push_back(d2);
+    }
+  }
+  Pick(k, b, out);
+}
+
+double SampledRadius(size_t rows, size_t k, double quantile, size_t samples,
+                     const std::function<void(size_t, float*)>& d2s, size_t other_size,
+                     int threads) {
+  samples = std::min(samples, rows);
+  std::vector<double> kth(samples, -1);
+  struct Local {
+    std::vector<float> d2;
+    SelectBuffers select;
+    std::vector<uint32_t> nearest;
+  };
+  std::vector<Local> locals(WorkerThreads(threads));
+  ParallelFor(samples, threads, [&](size_t m, int worker) {
+    Local& l = locals[worker];
+    l.d2.resize(other_size);
+    d2s(m * rows / samples, l.d2.data());
+    SmallestK(l.d2, k, &l.select, &l.nearest);  // finite values only
+    float largest = -1;
+    for (const uint32_t j : l.nearest) largest = std::max(largest, l.d2[j]);
+    if (!l.nearest.empty()) kth[m] = std::sqrt(std::max(0.f, largest));
+  });
+  std::erase(kth, -1.0);
+  if (kth.empty()) return 0;
+  const size_t q = std::min(kth.size() - 1, static_cast<size_t>(quantile * kth.size()));
+  std::nth_element(kth.begin(), kth.begin() + q, kth.end());
+  return kth[q];
 }
 
 }  // namespace linecloud

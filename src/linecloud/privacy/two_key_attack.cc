@@ -14,6 +14,9 @@
 namespace linecloud {
 namespace {
 
+// The crossing attacks' grids: 4 bytes per entry, 512 MB at most.
+constexpr size_t kCrossingGridEntries = size_t{1} << 27;
+
 // Squared distance between two lines in double precision (∞ when parallel).
 double LineDistanceSq(const Eigen::Vector3d& v1, const Eigen::Vector3d& q1,
                       const Eigen::Vector3d& v2, const Eigen::Vector3d& q2) {
@@ -123,41 +126,41 @@ TwoLiftingsAttack IntersectLinesOfNearestDescriptor(const LineCloud& a, const Li
 
 TwoLiftingsAttack IntersectCrossingLinesInBox(const LineCloud& a, const LineCloud& b,
                                               const Eigen::AlignedBox3d& box, double tolerance,
-                                              double min_angle_rad) {
+                                              double min_angle_rad, int threads) {
   TwoLiftingsAttack result;
   result.pairing = "crossing lines";
   std::vector<PluckerLine> lines(a.lines.begin(), a.lines.end());
   lines.insert(lines.end(), b.lines.begin(), b.lines.end());
   std::vector<uint8_t> group(a.size(), 0);
   group.resize(lines.size(), 1);
-  const LineGrid grid(lines, box, tolerance);
-  grid.CrossingPairs(min_angle_rad, group,
-                     [&](uint32_t i, uint32_t j, const Eigen::Vector3d& mid, double) {
-                       ++result.shared_ids;
-                       result.ids.push_back(a.ids[i]);
-                       result.indices.push_back(i);
-                       result.points.push_back(mid);
-                       (void)j;
-                     });
+  const LineGrid grid(lines, box, tolerance, kCrossingGridEntries);
+  grid.CrossingPairs(
+      min_angle_rad, group,
+      [&](uint32_t i, uint32_t j, const Eigen::Vector3d& mid, double) {
+        ++result.shared_ids;
+        result.ids.push_back(a.ids[i]);
+        result.indices.push_back(i);
+        result.points.push_back(mid);
+        (void)j;
+      },
+      threads);
   return result;
 }
 
-TwoLiftingsAttack IntersectSelfCrossings(const LineCloud& a, const Eigen::AlignedBox3d& box,
-                                         double tolerance, std::vector<size_t>* partner,
-                                         double min_angle_rad) {
-  TwoLiftingsAttack result;
-  result.pairing = "crossing lines of one map";
-  partner->clear();
-  const LineGrid grid(a.lines, box, tolerance);
-  grid.CrossingPairs(min_angle_rad, {},
-                     [&](uint32_t i, uint32_t j, const Eigen::Vector3d& mid, double) {
-                       ++result.shared_ids;
-                       result.ids.push_back(a.ids[i]);
-                       result.indices.push_back(i);
-                       result.points.push_back(mid);
-                       partner->push_back(j);
-                     });
-  return result;
+size_t ForEachSelfCrossing(
+    const LineCloud& a, const Eigen::AlignedBox3d& box, double tolerance,
+    const std::function<void(uint32_t, uint32_t, const Eigen::Vector3d&)>& found,
+    double min_angle_rad, int threads) {
+  size_t pairs = 0;
+  const LineGrid grid(a.lines, box, tolerance, kCrossingGridEntries);
+  grid.CrossingPairs(
+      min_angle_rad, {},
+      [&](uint32_t i, uint32_t j, const Eigen::Vector3d& mid, double) {
+        ++pairs;
+        found(i, j, mid);
+      },
+      threads);
+  return pairs;
 }
 
 TwoLiftingsAttack AttackTwoLiftings(const LineCloud& a, const LineCloud& b, int threads) {

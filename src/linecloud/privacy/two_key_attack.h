@@ -12,6 +12,7 @@
 #include <Eigen/Geometry>
 
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -54,17 +55,21 @@ TwoLiftingsAttack IntersectLinesOfNearestDescriptor(const LineCloud& a, const Li
 
 // Every pair (line of a, line of b) passing within `tolerance` (model units)
 // of each other inside `box`, found through a spatial index of the lines
-// (geometry/line_grid.h), intersected. A point may be recovered several times.
+// (geometry/line_grid.h, up to 512 MB of it), intersected on `threads`
+// threads (0: all cores). A point may be recovered several times.
 TwoLiftingsAttack IntersectCrossingLinesInBox(const LineCloud& a, const LineCloud& b,
                                               const Eigen::AlignedBox3d& box, double tolerance,
-                                              double min_angle_rad = 1e-6);
+                                              double min_angle_rad = 1e-6, int threads = 0);
 
-// The same within one cloud (pairs of its own lines): two points at one place
-// lifted with different directions cross there. `indices` holds the first
-// line of each pair, `partner` the second.
-TwoLiftingsAttack IntersectSelfCrossings(const LineCloud& a, const Eigen::AlignedBox3d& box,
-                                         double tolerance, std::vector<size_t>* partner,
-                                         double min_angle_rad = 1e-6);
+// The same within one cloud (pairs of its own lines): two points at one
+// place lifted with different directions cross there. Streamed (a dense map
+// of a million lines has hundreds of millions of near-crossings):
+// found(i, j, midpoint) for each pair i < j, from one thread at a time.
+// Returns the number of pairs.
+size_t ForEachSelfCrossing(
+    const LineCloud& a, const Eigen::AlignedBox3d& box, double tolerance,
+    const std::function<void(uint32_t, uint32_t, const Eigen::Vector3d&)>& found,
+    double min_angle_rad = 1e-6, int threads = 0);
 
 // Equal ids when at least half of a's ids are in b, else crossing lines
 // (within 1e-9 of the diagonal for full-precision maps, 1e-6 for compact ones).
