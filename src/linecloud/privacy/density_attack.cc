@@ -98,6 +98,7 @@ class Search {
                                      d2[i] = kInf;
                                    },
                                    a.size(), o.threads);
+    if (!(r_lines_ > 0)) return;  // no line has a neighbour: nothing a grid could find
     grid_.emplace(a, RobustBox(estimates, kBoxQuantile, kBoxMargin), r_lines_, kGridEntries);
   }
   bool exact() const { return !grid_; }
@@ -105,8 +106,8 @@ class Search {
   size_t grid_entries() const { return grid_ ? grid_->grid().entries() : 0; }
 
   // The coarse step's line searches, all lines at once on the grid.
-  void PrepareCoarse(size_t k, int threads) {
-    if (grid_) coarse_ = grid_->CoarseVotes(k, threads);
+  void PrepareCoarse(size_t k, int threads, const std::function<void()>& each_cell) {
+    if (grid_) coarse_ = grid_->CoarseVotes(k, threads, each_cell);
   }
   size_t short_of_neighbours() const { return coarse_ ? coarse_->short_of_k : 0; }
   // The coarse votes of line i: from its k nearest lines.
@@ -203,7 +204,12 @@ class BudgetCheck {
               int threads, bool uniform)
       : o_(o), start_(start), n_(n), threads_(threads), uniform_(uniform) {}
   void operator()(const char* stage) const {
-    const size_t done = rows_done_.fetch_add(1) + 1;
+    rows_done_.fetch_add(1);
+    Time(stage);
+  }
+  // The check alone (no row done).
+  void Time(const char* stage) const {
+    const size_t done = rows_done_.load();
     if (o_.max_seconds <= 0) return;
     const double elapsed =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
@@ -330,7 +336,7 @@ DensityAttackResult RunDensityAttack(const LineCloud& cloud, const DensityAttack
   const BudgetCheck check_budget(options, start, n, threads, search.exact());
 
   // Coarse: votes from the K nearest lines.
-  search.PrepareCoarse(k_lines, threads);
+  search.PrepareCoarse(k_lines, threads, [&] { check_budget.Time("the coarse estimates (grid)"); });
   ParallelFor(
       n, threads,
       [&](size_t i, int w) {

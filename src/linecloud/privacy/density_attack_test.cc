@@ -17,6 +17,7 @@
 #include "linecloud/privacy/two_key_attack.h"
 #include "linecloud/synthetic/surfaces.h"
 #include "linecloud/util/error.h"
+#include "linecloud/util/parallel.h"
 
 namespace linecloud {
 namespace {
@@ -125,6 +126,25 @@ TEST(DensityAttack, TheGridSearchRecoversAsMuchAsEveryPair) {
   for (size_t i = 0; i < one.points.size(); ++i) ASSERT_EQ(one.points[i], g.points[i]) << i;
 }
 
+// The time budget also stops the grid search, inside its coarse step.
+TEST(DensityAttack, TheGridSearchKeepsTheTimeBudget) {
+  FacadeOptions fo;
+  fo.num_points = 5000;
+  const Lifted l = Lift(SampleFacade(fo), FixedKey(8));
+  DensityAttackOptions o;
+  o.exact_search_lines = 0;
+  o.max_seconds = 1e-9;
+  try {
+    RunDensityAttack(l.cloud, o);
+    ADD_FAILURE() << "no stop";
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "attack: stopped at --max-seconds 1e-09 during the coarse estimates (grid) (5000 "
+              "lines, grid search, " +
+                  std::to_string(WorkerThreads(0)) + " threads)");
+  }
+}
+
 // `bench attack`'s rows: one per size, the same figures in the JSON and the table, and the
 // same recovery run to run (fixed key and seed).
 TEST(AttackBench, TypedRowsAsJsonAndMarkdown) {
@@ -160,8 +180,12 @@ TEST(DensityAttack, DegenerateClouds) {
     const Eigen::Vector3d p(i, 2.0 * i, 0), v(0, 0, 1);
     parallel.lines.push_back(PluckerLine(v, p.cross(v)));
   }
-  const DensityAttackResult r = RunDensityAttack(parallel, {});
-  EXPECT_EQ(r.lines_without_votes, 50u);
+  DensityAttackOptions grid;  // the same through the grid search
+  grid.exact_search_lines = 0;
+  for (const DensityAttackOptions& o : {DensityAttackOptions(), grid}) {
+    const DensityAttackResult r = RunDensityAttack(parallel, o);
+    EXPECT_EQ(r.lines_without_votes, 50u);
+  }
   // All lines through one point: every line's votes meet there.
   std::vector<Eigen::Vector3d> one(200, Eigen::Vector3d(1, 2, 3));
   LineCloud star;
@@ -172,8 +196,10 @@ TEST(DensityAttack, DegenerateClouds) {
     star.ids.push_back(i);
     star.lines.push_back(PluckerLine(v, one[i].cross(v)));
   }
-  for (const Eigen::Vector3d& p : RunDensityAttack(star, {}).points) {
-    EXPECT_LT((p - one[0]).norm(), 1e-6);
+  for (const DensityAttackOptions& o : {DensityAttackOptions(), grid}) {
+    for (const Eigen::Vector3d& p : RunDensityAttack(star, o).points) {
+      EXPECT_LT((p - one[0]).norm(), 1e-6);
+    }
   }
   DensityAttackOptions bad;
   bad.min_excess = 2;

@@ -271,7 +271,8 @@ void NeighbourGrid::PairsOfCell(int64_t cell, int bins, CellScratch* scratch) co
   for (const PairEnd& e : ends) scratch->sorted[fill[e.line]++] = e;
 }
 
-NeighbourGrid::LineVotes NeighbourGrid::CoarseVotes(size_t k, int threads) const {
+NeighbourGrid::LineVotes NeighbourGrid::CoarseVotes(size_t k, int threads,
+                                                    const std::function<void()>& each_cell) const {
   // Pass 1: each line's distances binned (32 bins up to the radius), and the
   // bin holding its k-th. Pass 2: the votes of the pairs in or below that bin.
   constexpr int kBins = 32;
@@ -280,6 +281,7 @@ NeighbourGrid::LineVotes NeighbourGrid::CoarseVotes(size_t k, int threads) const
   std::vector<uint32_t> hist(n * kBins, 0);
   std::vector<CellScratch> scratch(WorkerThreads(threads));
   ParallelFor(cells, threads, [&](size_t c, int worker) {
+    if (each_cell) each_cell();
     CellScratch& s = scratch[worker];
     PairsOfCell(static_cast<int64_t>(c), kBins, &s);
     const std::span<const uint32_t> ids = grid_.LinesIn(static_cast<int64_t>(c));
@@ -308,6 +310,7 @@ NeighbourGrid::LineVotes NeighbourGrid::CoarseVotes(size_t k, int threads) const
   votes.t.resize(votes.starts[n]);
   std::vector<uint64_t> fill(votes.starts.begin(), votes.starts.end() - 1);
   ParallelFor(cells, threads, [&](size_t c, int worker) {
+    if (each_cell) each_cell();
     CellScratch& s = scratch[worker];
     PairsOfCell(static_cast<int64_t>(c), kBins, &s);
     const std::span<const uint32_t> ids = grid_.LinesIn(static_cast<int64_t>(c));

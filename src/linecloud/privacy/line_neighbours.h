@@ -96,7 +96,10 @@ class NeighbourGrid {
     std::vector<float> t;
     size_t short_of_k = 0;  // lines with fewer than k within the radius
   };
-  LineVotes CoarseVotes(size_t k, int threads) const;
+  // `each_cell` (optional) is called before each cell's pairs, from the
+  // worker threads (e.g. a time budget that throws).
+  LineVotes CoarseVotes(size_t k, int threads,
+                        const std::function<void()>& each_cell = nullptr) const;
 
   // Points (centred) to search next, kept by reference: point i is line i's
   // estimate, which the two searches below leave out (as LineToPointsSq's
