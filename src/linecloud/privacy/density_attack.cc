@@ -111,12 +111,14 @@ class Search {
   }
   size_t short_of_neighbours() const { return coarse_ ? coarse_->short_of_k : 0; }
   // The coarse votes of line i: from its k nearest lines.
+  // Through the grid, unless the line's neighbourhood was too crowded to keep.
   void CoarseVotes(size_t i, size_t k, Scratch* s) const {
-    if (coarse_) {
+    if (coarse_ && !coarse_->exact[i]) {
       s->votes.assign(coarse_->t.begin() + coarse_->starts[i],
                       coarse_->t.begin() + coarse_->starts[i + 1]);
       return;
     }
+    s->d2.resize(a_.size());
     LineToLinesSq(a_, i, s->d2.data());
     s->d2[i] = kInf;  // a line is never its own neighbour
     SmallestK(s->d2, k, &s->select, &s->a);

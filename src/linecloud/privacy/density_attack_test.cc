@@ -201,6 +201,21 @@ TEST(DensityAttack, DegenerateClouds) {
       EXPECT_LT((p - one[0]).norm(), 1e-6);
     }
   }
+  // Nearly so (a spot 1e-7 wide among a façade's lines): through the grid the
+  // crowded lines are searched over every line, and still meet there.
+  FacadeOptions fo;
+  fo.num_points = 3000;
+  std::vector<Eigen::Vector3d> crowd = SampleFacade(fo);
+  const Eigen::Vector3d spot = crowd[0];
+  for (int i = 0; i < 1000; ++i)
+    crowd.push_back(spot + 1e-7 * Eigen::Vector3d(g(rng), g(rng), g(rng)));
+  const Lifted crowded = Lift(crowd, FixedKey(9));
+  const DensityAttackResult r = RunDensityAttack(crowded.cloud, grid);
+  size_t at_spot = 0;
+  for (size_t i = 0; i < r.points.size(); ++i) {
+    at_spot += (crowded.secret[i] - spot).norm() < 1e-6 && (r.points[i] - spot).norm() < 1e-4;
+  }
+  EXPECT_GE(at_spot, 990u);
   DensityAttackOptions bad;
   bad.min_excess = 2;
   EXPECT_THROW(bad.Check(), Error);

@@ -190,13 +190,27 @@ void NeighbourGrid::Pick(size_t k, Buffers* b, std::vector<uint32_t>* out) const
   for (const uint32_t m : b->picked) out->push_back(b->ids[m]);
 }
 
-void NeighbourGrid::PairsOfCell(int64_t cell, int bins, CellScratch* scratch) const {
+void NeighbourGrid::PairsOfCell(int64_t cell, int bins, CellScratch* scratch,
+                                const std::function<void(const CellScratch&)>& flush) const {
   const std::span<const uint32_t> ids = grid_.LinesIn(cell);
   const size_t o = ids.size();
   std::vector<PairEnd>& ends = scratch->ends;
   ends.clear();
-  scratch->starts.assign(o + 1, 0);
   if (o < 2) return;
+  // The events so far, by line (counting sort): each line's row of the
+  // totals is then touched once per batch.
+  const auto hand_over = [&] {
+    std::vector<uint32_t>& starts = scratch->starts;
+    starts.assign(o + 1, 0);
+    for (const PairEnd& e : ends) ++starts[e.line + 1];
+    for (size_t m = 0; m < o; ++m) starts[m + 1] += starts[m];
+    scratch->sorted.resize(ends.size());
+    std::vector<uint32_t> fill(starts.begin(), starts.end() - 1);
+    for (const PairEnd& e : ends) scratch->sorted[fill[e.line]++] = e;
+    flush(*scratch);
+    ends.clear();
+  };
+  constexpr size_t kBatch = size_t{1} << 20;
   // The cell's lines side by side (v, q, w; float), a row of distances, then
   // the pairs within the radius.
   std::vector<float>& local = scratch->rows;
@@ -261,14 +275,9 @@ void NeighbourGrid::PairsOfCell(int64_t cell, int bins, CellScratch* scratch) co
       ends.push_back({static_cast<uint32_t>(m), bin, tm});
       ends.push_back({static_cast<uint32_t>(n), bin, tn});
     }
+    if (ends.size() >= kBatch) hand_over();
   }
-  // By line (counting sort): each line's row of the totals is then touched once.
-  std::vector<uint32_t>& starts = scratch->starts;
-  for (const PairEnd& e : ends) ++starts[e.line + 1];
-  for (size_t m = 0; m < o; ++m) starts[m + 1] += starts[m];
-  scratch->sorted.resize(ends.size());
-  std::vector<uint32_t> fill(starts.begin(), starts.end() - 1);
-  for (const PairEnd& e : ends) scratch->sorted[fill[e.line]++] = e;
+  if (!ends.empty()) hand_over();
 }
 
 NeighbourGrid::LineVotes NeighbourGrid::CoarseVotes(size_t k, int threads,
@@ -276,24 +285,26 @@ NeighbourGrid::LineVotes NeighbourGrid::CoarseVotes(size_t k, int threads,
   // Pass 1: each line's distances binned (32 bins up to the radius), and the
   // bin holding its k-th. Pass 2: the votes of the pairs in or below that bin.
   constexpr int kBins = 32;
+  const uint64_t max_votes = 4 * static_cast<uint64_t>(k) + 64;
   const size_t n = a_.size();
   const size_t cells = static_cast<size_t>(grid_.num_cells());
   std::vector<uint32_t> hist(n * kBins, 0);
   std::vector<CellScratch> scratch(WorkerThreads(threads));
   ParallelFor(cells, threads, [&](size_t c, int worker) {
     if (each_cell) each_cell();
-    CellScratch& s = scratch[worker];
-    PairsOfCell(static_cast<int64_t>(c), kBins, &s);
     const std::span<const uint32_t> ids = grid_.LinesIn(static_cast<int64_t>(c));
-    for (size_t m = 0; m + 1 < s.starts.size(); ++m) {
-      uint32_t* row = hist.data() + size_t{ids[m]} * kBins;
-      for (uint32_t e = s.starts[m]; e < s.starts[m + 1]; ++e) {
-        std::atomic_ref<uint32_t>(row[s.sorted[e].bin]).fetch_add(1, std::memory_order_relaxed);
+    PairsOfCell(static_cast<int64_t>(c), kBins, &scratch[worker], [&](const CellScratch& s) {
+      for (size_t m = 0; m + 1 < s.starts.size(); ++m) {
+        uint32_t* row = hist.data() + size_t{ids[m]} * kBins;
+        for (uint32_t e = s.starts[m]; e < s.starts[m + 1]; ++e) {
+          std::atomic_ref<uint32_t>(row[s.sorted[e].bin]).fetch_add(1, std::memory_order_relaxed);
+        }
       }
-    }
+    });
   });
   LineVotes votes;
   votes.starts.assign(n + 1, 0);
+  votes.exact.assign(n, 0);
   std::vector<uint8_t> last_bin(n);
   for (size_t i = 0; i < n; ++i) {
     uint64_t total = 0;
@@ -304,6 +315,7 @@ NeighbourGrid::LineVotes NeighbourGrid::CoarseVotes(size_t k, int threads,
     }
     if (b == kBins) ++votes.short_of_k, b = kBins - 1;
     last_bin[i] = static_cast<uint8_t>(b);
+    if (total > max_votes) votes.exact[i] = 1, total = 0;
     votes.starts[i + 1] = votes.starts[i] + total;
   }
   std::vector<uint32_t>().swap(hist);
@@ -311,20 +323,22 @@ NeighbourGrid::LineVotes NeighbourGrid::CoarseVotes(size_t k, int threads,
   std::vector<uint64_t> fill(votes.starts.begin(), votes.starts.end() - 1);
   ParallelFor(cells, threads, [&](size_t c, int worker) {
     if (each_cell) each_cell();
-    CellScratch& s = scratch[worker];
-    PairsOfCell(static_cast<int64_t>(c), kBins, &s);
     const std::span<const uint32_t> ids = grid_.LinesIn(static_cast<int64_t>(c));
-    for (size_t m = 0; m + 1 < s.starts.size(); ++m) {
-      const uint32_t i = ids[m];
-      uint64_t kept = 0;
-      for (uint32_t e = s.starts[m]; e < s.starts[m + 1]; ++e)
-        kept += s.sorted[e].bin <= last_bin[i];
-      if (kept == 0) continue;
-      uint64_t at = std::atomic_ref<uint64_t>(fill[i]).fetch_add(kept, std::memory_order_relaxed);
-      for (uint32_t e = s.starts[m]; e < s.starts[m + 1]; ++e) {
-        if (s.sorted[e].bin <= last_bin[i]) votes.t[at++] = s.sorted[e].t;
+    PairsOfCell(static_cast<int64_t>(c), kBins, &scratch[worker], [&](const CellScratch& s) {
+      for (size_t m = 0; m + 1 < s.starts.size(); ++m) {
+        const uint32_t i = ids[m];
+        if (votes.exact[i]) continue;
+        uint64_t kept = 0;
+        for (uint32_t e = s.starts[m]; e < s.starts[m + 1]; ++e) {
+          kept += s.sorted[e].bin <= last_bin[i];
+        }
+        if (kept == 0) continue;
+        uint64_t at = std::atomic_ref<uint64_t>(fill[i]).fetch_add(kept, std::memory_order_relaxed);
+        for (uint32_t e = s.starts[m]; e < s.starts[m + 1]; ++e) {
+          if (s.sorted[e].bin <= last_bin[i]) votes.t[at++] = s.sorted[e].t;
+        }
       }
-    }
+    });
   });
   return votes;
 }

@@ -91,9 +91,14 @@ class NeighbourGrid {
   // lines passing within the pair radius of it (not within ~0.6° of
   // parallel): the k nearest, to 1/32 of the radius (all lines of the
   // distance bin holding the k-th are kept). votes[starts[i] .. starts[i+1]).
+  // A line with more than 4k + 64 pairs up to its k-th's bin (lines
+  // crowding through one spot, e.g. a crafted map) keeps none: `exact[i]`,
+  // its k nearest are then to be searched over every line. Memory stays
+  // O(n k) whatever the map.
   struct LineVotes {
     std::vector<uint64_t> starts;
     std::vector<float> t;
+    std::vector<uint8_t> exact;
     size_t short_of_k = 0;  // lines with fewer than k within the radius
   };
   // `each_cell` (optional) is called before each cell's pairs, from the
@@ -118,7 +123,7 @@ class NeighbourGrid {
   // The pairs of lines of a cell within the pair radius whose closest
   // points' midpoint lies in the cell: for each, an event at either end (the
   // line's place in the cell, the distance's bin, the parameter along it),
-  // ordered by line.
+  // handed to `flush` ordered by line, in batches of at most ~2^20.
   struct PairEnd {
     uint32_t line;  // in the cell's list
     uint32_t bin;
@@ -129,7 +134,8 @@ class NeighbourGrid {
     std::vector<PairEnd> ends, sorted;
     std::vector<uint32_t> starts;
   };
-  void PairsOfCell(int64_t cell, int bins, CellScratch* s) const;
+  void PairsOfCell(int64_t cell, int bins, CellScratch* s,
+                   const std::function<void(const CellScratch&)>& flush) const;
   void Pick(size_t k, Buffers* b, std::vector<uint32_t>* out) const;
 
   const LineArrays& a_;

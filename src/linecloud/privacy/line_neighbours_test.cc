@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <limits>
 #include <random>
 
 namespace linecloud {
@@ -79,6 +80,32 @@ TEST(NeighbourGrid, CoarseVotesAreTheNearestPairsEveryPairFinds) {
   }
   EXPECT_GT(with_votes, n * 3 / 4);
   EXPECT_GE(complete, n * 99 / 100) << "of " << n << " lines";
+}
+
+// Lines crowding through one spot (a crafted map) would each keep a vote
+// per crowding line: they keep none and are searched over every line
+// instead, so the votes stay O(n k).
+TEST(NeighbourGrid, CrowdedLinesKeepNoVotes) {
+  std::vector<PluckerLine> lines;
+  std::mt19937_64 rng(9);
+  std::uniform_real_distribution<double> u(-5.0, 5.0);
+  std::normal_distribution<double> g(0.0, 1.0);
+  for (int i = 0; i < 4000; ++i) {
+    const Eigen::Vector3d x =
+        i < 1500 ? Eigen::Vector3d(1, 1, 0.1) + 1e-7 * Eigen::Vector3d(g(rng), g(rng), g(rng))
+                 : Eigen::Vector3d(u(rng), u(rng), 0.1 * u(rng));
+    lines.push_back(PluckerLine::FromPointAndDirection(x, Eigen::Vector3d(g(rng), g(rng), g(rng))));
+  }
+  const LineArrays a = MakeLineArrays(lines, Eigen::Vector3d::Zero());
+  const size_t k = 20;
+  const NeighbourGrid grid(
+      a, Eigen::AlignedBox3d(Eigen::Vector3d(-6, -6, -2), Eigen::Vector3d(6, 6, 2)), 0.1,
+      size_t{1} << 22);
+  const NeighbourGrid::LineVotes votes = grid.CoarseVotes(k, 2);
+  EXPECT_LE(votes.t.size(), lines.size() * (4 * k + 64));
+  size_t crowded = 0;
+  for (size_t i = 0; i < 1500; ++i) crowded += votes.exact[i];
+  EXPECT_EQ(crowded, 1500u);
 }
 
 // The point searches: exactly the nearest within the radius, other than the
