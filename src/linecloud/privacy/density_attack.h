@@ -48,7 +48,8 @@ struct DensityAttackOptions {
   double min_excess = 0.3;  // the peak search continues while the excess is at least this
   int threads = 0;          // 0: all cores
   // Up to this many lines every pair is compared (n², the published search);
-  // beyond, the grid search (~n^1.2 on real-sized scenes).
+  // beyond, the grid search (seeded rooms on 2 cores: 182 531 lines in 45 s,
+  // 1 010 364 in 274 s).
   int exact_search_lines = 200000;
   // Time budget of the whole attack (0: none). The exact search's cost grows
   // as n² (every line against every line, 1 + 2 x refine_rounds passes):
