@@ -103,7 +103,6 @@ class Search {
   }
   bool exact() const { return !grid_; }
   double line_radius() const { return r_lines_; }
-  size_t grid_entries() const { return grid_ ? grid_->grid().entries() : 0; }
 
   // The coarse step's line searches, all lines at once on the grid.
   void PrepareCoarse(size_t k, int threads, const std::function<void()>& each_cell) {
